@@ -1,0 +1,370 @@
+//! From a plate scan to a calibration: start, fit, reject outliers, report.
+//!
+//! 1. [`super::start::initial_guess`] finds a start from any mounting error in range;
+//! 2. the chosen model is fitted by [`super::lm::minimize`];
+//! 3. **outliers** (dust, a probe bounce) are rejected on the residuals: with the
+//!    robust scale `σ̂ = 1.4826 · MAD(r)`, samples with `|r_i| > k σ̂` (`k = 4` by
+//!    default; never below 0.1 µm, the floor for noise-free data) are dropped and the
+//!    fit repeated from where it stands, until the set of samples stops changing. All
+//!    samples are re-tested each round, so a sample wrongly dropped early comes back;
+//! 4. `alpha0` is reported in `(-π/4, π/4]`: a square plate gives the same lengths for
+//!    `(alpha0 + π/2, d, dL, R₉₀ c)` ([`super::geometry::wrap_quarter_turn`]);
+//! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`.
+//!
+//! A fit that does not converge, uses too few samples or leaves a residual larger than
+//! a plate scan can have is an error: the caller keeps the calibration it had.
+
+use nalgebra::{SMatrix, Vector2};
+use std::fmt;
+
+use super::geometry::{Mounting, rotate_quarter_turns, wrap_quarter_turn};
+use super::lm::{self, Problem, Termination};
+use super::model::full::{self, FullModel};
+use super::model::paper::{self, PaperModel};
+use super::model::{ModelKind, PlateSpec};
+use super::scan::Scan;
+use super::start::initial_guess;
+
+/// Calibration settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    pub model: ModelKind,
+    pub lm: lm::Options,
+    /// Reject samples whose residual exceeds this many robust standard deviations.
+    pub outlier_threshold: f64,
+    /// A fit needs at least this many samples (after rejection).
+    pub min_samples: usize,
+    /// A fit whose RMS residual exceeds this (metres) is refused: the scan does not
+    /// look like the plate (wrong plate size or encoder scale, plate not seated).
+    pub max_rms_residual: f64,
+    /// A fit whose residuals are systematic is refused: RMS residual above this many
+    /// times the noise seen between neighbouring samples (and above
+    /// [`Options::systematic_floor`]). A wrong plate size leaves smooth residuals of
+    /// a tenth of a millimetre that plain noise cannot explain.
+    pub max_lack_of_fit: f64,
+    /// Systematic residuals below this RMS (metres) are tolerated.
+    pub systematic_floor: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            model: ModelKind::Full,
+            lm: lm::Options::default(),
+            outlier_threshold: 4.0,
+            min_samples: 24,
+            max_rms_residual: 0.5e-3,
+            max_lack_of_fit: 4.0,
+            systematic_floor: 20e-6,
+        }
+    }
+}
+
+/// Floor of the outlier threshold, metres: keeps noise-free scans whole.
+const OUTLIER_FLOOR: f64 = 1e-7;
+/// Rejection rounds at most.
+const MAX_ROUNDS: usize = 8;
+
+/// A fitted calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Calibration {
+    pub model: ModelKind,
+    pub mounting: Mounting,
+    /// Fitted plate centre, metres (in the frame where `alpha0` is as reported).
+    pub plate_center: Vector2<f64>,
+    /// Standard uncertainty of `[alpha0, offset, delta_l]`.
+    pub stddev: [f64; 3],
+    /// Covariance of `[alpha0, offset, delta_l]`.
+    pub covariance: SMatrix<f64, 3, 3>,
+    /// RMS of the residuals of the samples used, metres.
+    pub rms_residual: f64,
+    /// LM iterations, all rounds together.
+    pub iterations: usize,
+    pub samples_used: usize,
+    pub samples_rejected: usize,
+    pub termination: Termination,
+    /// Residual (model - measured, metres) of every sample of the scan, in scan order,
+    /// and whether the fit used it.
+    pub residuals: Vec<(f64, bool)>,
+}
+
+impl Calibration {
+    /// A one-line summary in the units people read: degrees and millimetres.
+    pub fn summary(&self) -> String {
+        format!(
+            "{} model: alpha0 = {:.4}° ± {:.4}°, d = {:.4} ± {:.4} mm, dL = {:.4} ± {:.4} mm, rms residual {:.4} mm, {} samples used, {} rejected, {} iterations",
+            self.model,
+            self.mounting.alpha0.to_degrees(),
+            self.stddev[0].to_degrees(),
+            self.mounting.offset * 1e3,
+            self.stddev[1] * 1e3,
+            self.mounting.delta_l * 1e3,
+            self.stddev[2] * 1e3,
+            self.rms_residual * 1e3,
+            self.samples_used,
+            self.samples_rejected,
+            self.iterations
+        )
+    }
+}
+
+/// Why a calibration failed.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CalibrationError {
+    InvalidPlate(String),
+    TooFewSamples { got: usize, need: usize },
+    NoStart,
+    Model(String),
+    NotConverged { termination: Termination, iterations: usize },
+    Singular,
+    ResidualTooLarge { rms: f64, limit: f64 },
+    SystematicResidual { rms: f64, noise: f64 },
+}
+
+impl fmt::Display for CalibrationError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::InvalidPlate(why) => write!(f, "invalid plate: {why}"),
+            Self::TooFewSamples { got, need } => {
+                write!(f, "too few samples: {got} usable, at least {need} needed")
+            }
+            Self::NoStart => write!(
+                f,
+                "no starting point fits the scan: it does not look like the calibration plate (check plate.side and encoder.meters_per_count)"
+            ),
+            Self::Model(why) => write!(f, "{why}"),
+            Self::NotConverged { termination, iterations } => {
+                write!(f, "the fit {} after {iterations} iterations", termination.describe())
+            }
+            Self::Singular => write!(f, "the fit is degenerate (the samples do not determine all parameters)"),
+            Self::ResidualTooLarge { rms, limit } => write!(
+                f,
+                "rms residual {:.3} mm exceeds {:.3} mm: the scan does not match the plate (check plate.side, plate.corner_radius, encoder.meters_per_count, and that the plate is seated)",
+                rms * 1e3,
+                limit * 1e3
+            ),
+            Self::SystematicResidual { rms, noise } => write!(
+                f,
+                "the residuals are systematic (rms {:.4} mm where neighbouring samples scatter by {:.4} mm): the scan does not match the plate (check plate.side, plate.corner_radius, encoder.meters_per_count)",
+                rms * 1e3,
+                noise * 1e3
+            ),
+        }
+    }
+}
+
+impl std::error::Error for CalibrationError {}
+
+/// Fit the mounting errors to a scan of the calibration plate.
+pub fn calibrate(scan: &Scan, plate: &PlateSpec, opt: &Options) -> Result<Calibration, CalibrationError> {
+    plate.validate().map_err(CalibrationError::InvalidPlate)?;
+    let need = opt.min_samples.max(6);
+    if scan.len() < need {
+        return Err(CalibrationError::TooFewSamples { got: scan.len(), need });
+    }
+    let all = FullModel::from_scan(plate, scan);
+    let start = initial_guess(&all, plate).ok_or(CalibrationError::NoStart)?;
+    let fit = match opt.model {
+        ModelKind::Full => fit_full(&all, start.x, opt)?,
+        ModelKind::Paper => fit_paper(scan, plate, &all, wrap(start.x), opt)?,
+    };
+    finish(scan, fit, opt)
+}
+
+/// What a model's fit hands to [`finish`].
+struct Fit {
+    model: ModelKind,
+    x: full::Params,
+    covariance: SMatrix<f64, 3, 3>,
+    /// Samples the fit used.
+    used: Vec<bool>,
+    /// Samples rejected as outliers.
+    rejected: usize,
+    residuals: Vec<f64>,
+    iterations: usize,
+    termination: Termination,
+}
+
+fn finish(scan: &Scan, fit: Fit, opt: &Options) -> Result<Calibration, CalibrationError> {
+    let used = fit.used.iter().filter(|&&a| a).count();
+    if used < opt.min_samples {
+        return Err(CalibrationError::TooFewSamples { got: used, need: opt.min_samples });
+    }
+    let ss: f64 = fit.residuals.iter().zip(&fit.used).filter(|(_, a)| **a).map(|(r, _)| r * r).sum();
+    let rms = (ss / used as f64).sqrt();
+    if rms.is_nan() || rms > opt.max_rms_residual {
+        return Err(CalibrationError::ResidualTooLarge { rms, limit: opt.max_rms_residual });
+    }
+    if let Some(noise) = neighbour_noise(scan, &fit.residuals, &fit.used)
+        && rms > opt.systematic_floor
+        && rms > opt.max_lack_of_fit * noise
+    {
+        return Err(CalibrationError::SystematicResidual { rms, noise });
+    }
+    let x = wrap(fit.x);
+    let (mounting, plate_center) = full::unpack(&x);
+    let stddev = [0, 1, 2].map(|i| fit.covariance[(i, i)].max(0.0).sqrt());
+    if !(stddev.iter().all(|s| s.is_finite()) && x.iter().all(|v| v.is_finite())) {
+        return Err(CalibrationError::Singular);
+    }
+    Ok(Calibration {
+        model: fit.model,
+        mounting,
+        plate_center,
+        stddev,
+        covariance: fit.covariance,
+        rms_residual: rms,
+        iterations: fit.iterations,
+        samples_used: used,
+        samples_rejected: fit.rejected,
+        termination: fit.termination,
+        residuals: fit.residuals.into_iter().zip(fit.used).collect(),
+    })
+}
+
+/// The noise seen between neighbouring samples: `RMS(r_i - r_j) / √2` over used samples
+/// one step apart. Blind to smooth (systematic) residuals, which it is there to expose.
+fn neighbour_noise(scan: &Scan, residuals: &[f64], used: &[bool]) -> Option<f64> {
+    let n = scan.steps_per_rev();
+    let mut at_step = std::collections::HashMap::with_capacity(scan.len());
+    for (i, s) in scan.samples().iter().enumerate() {
+        if used[i] {
+            at_step.insert(s.step, residuals[i]);
+        }
+    }
+    let (mut ss, mut count) = (0.0, 0usize);
+    for (&step, &r) in &at_step {
+        if let Some(&next) = at_step.get(&((step + 1) % n)) {
+            ss += (r - next) * (r - next);
+            count += 1;
+        }
+    }
+    (count >= 10).then(|| (ss / (2.0 * count as f64)).sqrt())
+}
+
+/// `alpha0` into `(-π/4, π/4]`, the plate centre turned with it.
+fn wrap(x: full::Params) -> full::Params {
+    let (alpha0, q) = wrap_quarter_turn(x[full::ALPHA0]);
+    let c = rotate_quarter_turns(Vector2::new(x[full::CX], x[full::CY]), q);
+    full::Params::from([alpha0, x[full::OFFSET], x[full::DELTA_L], c.x, c.y])
+}
+
+/// Which samples to keep: `|r| <= k · 1.4826 · MAD(r)` (at least the floor).
+fn inliers(residuals: &[f64], k: f64) -> Vec<bool> {
+    let mut sorted: Vec<f64> = residuals.to_vec();
+    let med = median(&mut sorted);
+    let mut dev: Vec<f64> = residuals.iter().map(|r| (r - med).abs()).collect();
+    let sigma = 1.4826 * median(&mut dev);
+    let limit = (k * sigma).max(OUTLIER_FLOOR);
+    residuals.iter().map(|r| (r - med).abs() <= limit).collect()
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    let mid = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
+}
+
+fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
+    let mut active = vec![true; all.samples().len()];
+    let mut x = x0;
+    let mut iterations = 0;
+    for _round in 0..MAX_ROUNDS {
+        let model = all.retain(|i| active[i]);
+        if model.residual_count() < opt.min_samples {
+            return Err(CalibrationError::TooFewSamples { got: model.residual_count(), need: opt.min_samples });
+        }
+        let rep = lm::minimize(&model, x, &opt.lm);
+        iterations += rep.iterations;
+        if !rep.termination.converged() {
+            return Err(CalibrationError::NotConverged { termination: rep.termination, iterations });
+        }
+        x = rep.x;
+        let residuals = lm::residuals(all, &x).ok_or(CalibrationError::Singular)?;
+        let keep = inliers(residuals.as_slice(), opt.outlier_threshold);
+        if keep == active {
+            let ne = rep.normal.ok_or(CalibrationError::Singular)?;
+            let cov = lm::covariance(&ne).ok_or(CalibrationError::Singular)?;
+            return Ok(Fit {
+                model: ModelKind::Full,
+                x,
+                covariance: cov.fixed_view::<3, 3>(0, 0).into_owned(),
+                rejected: active.iter().filter(|&&a| !a).count(),
+                used: active,
+                residuals: residuals.as_slice().to_vec(),
+                iterations,
+                termination: rep.termination,
+            });
+        }
+        active = keep;
+    }
+    Err(CalibrationError::Model(format!(
+        "outlier rejection did not settle in {MAX_ROUNDS} rounds: the scan is too noisy or not of the plate"
+    )))
+}
+
+fn fit_paper(
+    scan: &Scan,
+    plate: &PlateSpec,
+    all: &FullModel,
+    x0: full::Params,
+    opt: &Options,
+) -> Result<Fit, CalibrationError> {
+    // Margin from the arcs when selecting flat samples: 1 mm, or 5 % of the flat.
+    let margin = (1e-3f64).min(0.05 * (plate.side / 2.0 - plate.corner_radius));
+    let mut active = vec![true; scan.len()];
+    let mut x = x0;
+    let mut iterations = 0;
+    for _round in 0..MAX_ROUNDS {
+        let model =
+            PaperModel::select(plate, scan, &x, margin, &active).map_err(|e| CalibrationError::Model(e.to_string()))?;
+        let used: Vec<bool> = {
+            let mut u = vec![false; scan.len()];
+            model.used_samples().for_each(|i| u[i] = true);
+            u
+        };
+        let rep = lm::minimize(&model, paper::Params::new(x[full::ALPHA0], x[full::OFFSET]), &opt.lm);
+        iterations += rep.iterations;
+        if !rep.termination.converged() {
+            return Err(CalibrationError::NotConverged { termination: rep.termination, iterations });
+        }
+        let ad = rep.x;
+        let dl = model.delta_l(&ad);
+        let c = model.center(&ad);
+        x = full::params(&Mounting { alpha0: ad[0], offset: ad[1], delta_l: dl }, c);
+        let residuals = lm::residuals(all, &x).ok_or(CalibrationError::Singular)?;
+        let residuals = residuals.as_slice().to_vec();
+        // Outliers are judged on the raw samples the model used.
+        let used_res: Vec<f64> = residuals.iter().zip(&used).filter(|(_, u)| **u).map(|(r, _)| *r).collect();
+        let keep_used = inliers(&used_res, opt.outlier_threshold);
+        let mut next = active.clone();
+        let mut it = keep_used.into_iter();
+        for i in 0..scan.len() {
+            if used[i] {
+                next[i] = it.next().unwrap_or(true);
+            }
+        }
+        // Samples the model did not use stay eligible for the next selection.
+        if next == active {
+            let n_used = used.iter().filter(|&&u| u).count();
+            let ss: f64 = residuals.iter().zip(&used).filter(|(_, u)| **u).map(|(r, _)| r * r).sum();
+            let sigma2 = ss / (n_used.saturating_sub(5).max(1)) as f64;
+            let ne = rep.normal.ok_or(CalibrationError::Singular)?;
+            let covariance = model.covariance(&ad, &ne, sigma2, scan.len()).ok_or(CalibrationError::Singular)?;
+            return Ok(Fit {
+                model: ModelKind::Paper,
+                x,
+                covariance,
+                rejected: active.iter().filter(|&&a| !a).count(),
+                used,
+                residuals,
+                iterations,
+                termination: rep.termination,
+            });
+        }
+        active = next;
+    }
+    Err(CalibrationError::Model(format!(
+        "outlier rejection did not settle in {MAX_ROUNDS} rounds: the scan is too noisy or not of the plate"
+    )))
+}

@@ -1,0 +1,219 @@
+//! Contour correction: every raw sample to the point the probe really touched, and the
+//! contour resampled at equal angles about the rotation axis.
+//!
+//! A sample at step `k` with encoder length `rho` touched
+//! `P = (rho - dL) u + d v` with `u, v` at rail angle `alpha0 + 2π k/N`
+//! ([`super::geometry::probe_point`]). [`Corrector`] keeps the rotated table of rail
+//! directions for one `N`, so a scan costs four multiply-adds a sample.
+//!
+//! **Resampling** ([`resample_radii`]): the corrected points, sorted by polar angle
+//! `θ_i` about the axis, define a star-shaped closed contour `r(θ)`. `r` is
+//! interpolated by a periodic cubic Hermite spline whose slopes are the three-point
+//! (non-uniform) finite differences, `O(h³)` accurate for a smooth contour, and read at
+//! `θ_k = 2π k / M`. If the largest angular gap between neighbouring points exceeds
+//! `max_gap` the scan does not go all the way round and there are no radii.
+
+use nalgebra::Vector2;
+use std::f64::consts::TAU;
+
+use super::geometry::{Mounting, rotate, step_angle};
+use super::scan::Scan;
+
+/// Corrects scans of one `steps_per_rev` with one mounting.
+#[derive(Debug, Clone)]
+pub struct Corrector {
+    mounting: Mounting,
+    steps_per_rev: u32,
+    /// `(cos, sin)` of `alpha0 + 2π k/N` for every step, when `N` is reasonable.
+    table: Option<Vec<(f64, f64)>>,
+}
+
+/// Largest `N` for which a direction table is kept (8 MiB at 16 bytes a step).
+const MAX_TABLE: u32 = 1 << 19;
+
+impl Corrector {
+    pub fn new(mounting: Mounting, steps_per_rev: u32) -> Self {
+        let table = (steps_per_rev > 0 && steps_per_rev <= MAX_TABLE).then(|| {
+            let cs_alpha = (mounting.alpha0.cos(), mounting.alpha0.sin());
+            (0..steps_per_rev)
+                .map(|k| {
+                    let (s, c) = step_angle(k, steps_per_rev).sin_cos();
+                    rotate((c, s), cs_alpha)
+                })
+                .collect()
+        });
+        Corrector { mounting, steps_per_rev, table }
+    }
+
+    pub fn mounting(&self) -> &Mounting {
+        &self.mounting
+    }
+
+    pub fn steps_per_rev(&self) -> u32 {
+        self.steps_per_rev
+    }
+
+    /// `(cos a, sin a)` of the rail angle at `step`.
+    #[inline]
+    fn rail(&self, step: u32) -> (f64, f64) {
+        match &self.table {
+            Some(t) => t[step as usize],
+            None => {
+                let (s, c) = (self.mounting.alpha0 + step_angle(step, self.steps_per_rev)).sin_cos();
+                (c, s)
+            }
+        }
+    }
+
+    /// The touched point of one sample: `P = (rho - dL) u + d v`.
+    #[inline]
+    pub fn point(&self, step: u32, rho: f64) -> Vector2<f64> {
+        let (c, s) = self.rail(step);
+        let t = rho - self.mounting.delta_l;
+        let d = self.mounting.offset;
+        Vector2::new(t * c - d * s, t * s + d * c)
+    }
+
+    /// Every sample of `scan` corrected, in sample order. The scan must have this
+    /// corrector's `steps_per_rev`.
+    pub fn correct(&self, scan: &Scan) -> Vec<Vector2<f64>> {
+        assert_eq!(scan.steps_per_rev(), self.steps_per_rev, "corrector built for another steps_per_rev");
+        scan.samples().iter().map(|s| self.point(s.step, s.rho)).collect()
+    }
+}
+
+/// Correct a scan with a mounting (builds a [`Corrector`] for it).
+pub fn correct(scan: &Scan, mounting: &Mounting) -> Vec<Vector2<f64>> {
+    Corrector::new(*mounting, scan.steps_per_rev()).correct(scan)
+}
+
+/// The contour `points` resampled to `m` radii at angles `2π k/m` about the origin,
+/// or `None` if it does not go all the way round (an angular gap above `max_gap`),
+/// has fewer than 3 points, or `m` is 0.
+pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option<Vec<f64>> {
+    if m == 0 {
+        return None;
+    }
+    let mut polar: Vec<(f64, f64)> = points
+        .iter()
+        .filter(|p| p.norm() > 0.0 && p.x.is_finite() && p.y.is_finite())
+        .map(|p| (p.y.atan2(p.x).rem_euclid(TAU), p.norm()))
+        .collect();
+    if polar.len() < 3 {
+        return None;
+    }
+    polar.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Merge points at (numerically) the same angle: average their radii.
+    polar.dedup_by(|b, a| {
+        if (b.0 - a.0).abs() < 1e-12 {
+            a.1 = 0.5 * (a.1 + b.1);
+            true
+        } else {
+            false
+        }
+    });
+    let n = polar.len();
+    if n < 3 {
+        return None;
+    }
+    // Angle of point i unwrapped around the circle (i may run past either end).
+    let theta = |i: isize| -> f64 {
+        let wraps = i.div_euclid(n as isize);
+        polar[i.rem_euclid(n as isize) as usize].0 + wraps as f64 * TAU
+    };
+    let radius = |i: isize| polar[i.rem_euclid(n as isize) as usize].1;
+    let max_seen = (0..n as isize).map(|i| theta(i + 1) - theta(i)).fold(0.0, f64::max);
+    if max_seen > max_gap {
+        return None;
+    }
+    // Three-point non-uniform slope at point i.
+    let slope = |i: isize| -> f64 {
+        let (h0, h1) = (theta(i) - theta(i - 1), theta(i + 1) - theta(i));
+        let (d0, d1) = ((radius(i) - radius(i - 1)) / h0, (radius(i + 1) - radius(i)) / h1);
+        (h1 * d0 + h0 * d1) / (h0 + h1)
+    };
+    let mut out = Vec::with_capacity(m);
+    // Walk the targets and the segments together: both are sorted by angle.
+    let mut seg: isize = -1; // segment [seg, seg+1], starting with the wrap-around one
+    for k in 0..m {
+        let phi = TAU * k as f64 / m as f64;
+        while theta(seg + 1) < phi {
+            seg += 1;
+        }
+        let (t0, t1) = (theta(seg), theta(seg + 1));
+        let h = t1 - t0;
+        let s = ((phi - t0) / h).clamp(0.0, 1.0);
+        let (r0, r1) = (radius(seg), radius(seg + 1));
+        let (m0, m1) = (slope(seg) * h, slope(seg + 1) * h);
+        let (s2, s3) = (s * s, s * s * s);
+        let r =
+            (2.0 * s3 - 3.0 * s2 + 1.0) * r0 + (s3 - 2.0 * s2 + s) * m0 + (-2.0 * s3 + 3.0 * s2) * r1 + (s3 - s2) * m1;
+        out.push(r);
+    }
+    Some(out)
+}
+
+/// The default largest angular gap for [`resample_radii`]: ten steps of the scan's
+/// revolution, and never less than 5°.
+pub fn default_max_gap(steps_per_rev: u32) -> f64 {
+    (10.0 * TAU / f64::from(steps_per_rev.max(1))).max(5f64.to_radians())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::geometry::probe_point;
+    use crate::engine::shape::{Ellipse, Shape};
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn corrector_matches_the_geometry() {
+        let m = Mounting { alpha0: 0.3, offset: -0.004, delta_l: 0.0015 };
+        let scan = Scan::new(400, &[7, 123, 399], &[0.02, 0.025, 0.03]).unwrap();
+        let pts = correct(&scan, &m);
+        for (p, s) in pts.iter().zip(scan.samples()) {
+            let want = probe_point(s.rho, m.alpha0 + step_angle(s.step, 400), &m);
+            assert_relative_eq!(*p, want, epsilon = 1e-15);
+        }
+        // Without a table (huge N) the same formula.
+        let big = Corrector::new(m, u32::MAX);
+        assert_relative_eq!(
+            big.point(5, 0.02),
+            probe_point(0.02, m.alpha0 + step_angle(5, u32::MAX), &m),
+            epsilon = 1e-15
+        );
+    }
+
+    fn ellipse_points(n: usize, skip: impl Fn(usize) -> bool) -> (Ellipse, Vec<Vector2<f64>>) {
+        let e = Ellipse { center: Vector2::new(0.001, -0.0005), a: 0.025, b: 0.015, angle: 0.2 };
+        let pts = (0..n)
+            .filter(|&i| !skip(i))
+            .map(|i| {
+                let a = TAU * i as f64 / n as f64 + 0.37;
+                let u = Vector2::new(a.cos(), a.sin());
+                u * e.exit(Vector2::zeros(), u).unwrap().t
+            })
+            .collect();
+        (e, pts)
+    }
+
+    #[test]
+    fn resampled_ellipse_is_accurate_with_gaps() {
+        let (e, pts) = ellipse_points(400, |i| i % 7 == 3 || (100..104).contains(&i));
+        let radii = resample_radii(&pts, 360, default_max_gap(400)).unwrap();
+        for (k, r) in radii.iter().enumerate() {
+            let phi = TAU * k as f64 / 360.0;
+            let u = Vector2::new(phi.cos(), phi.sin());
+            let want = e.exit(Vector2::zeros(), u).unwrap().t;
+            assert!((r - want).abs() < 2e-7, "k={k} {r} {want}");
+        }
+    }
+
+    #[test]
+    fn an_incomplete_revolution_has_no_radii() {
+        let (_, pts) = ellipse_points(400, |i| (50..80).contains(&i));
+        assert!(resample_radii(&pts, 400, default_max_gap(400)).is_none());
+        assert!(resample_radii(&pts[..2], 400, 10.0).is_none());
+        assert!(resample_radii(&pts, 0, 10.0).is_none());
+    }
+}

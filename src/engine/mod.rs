@@ -1,0 +1,32 @@
+//! The calibration engine: pure computation, no I/O, no ROS types.
+//!
+//! The pipeline, one module a stage:
+//!
+//! 1. [`geometry`] — rail angle, rail frame, the touched point `P = (rho-dL) u + d v`;
+//! 2. [`shape`] — convex contours (the plate: a rounded square) and where a rail ray
+//!    leaves them;
+//! 3. [`scan`] — a validated revolution of samples;
+//! 4. [`model`] — the plate models as least-squares problems: [`model::full`] (every
+//!    sample) and [`model::paper`] (the seed paper's reduced model);
+//! 5. [`lm`] — the Levenberg-Marquardt solver, with covariance;
+//! 6. [`start`] — a start that converges from any mounting error in range;
+//! 7. [`calibrate`] — start, fit, outlier rejection, uncertainty: a [`Calibration`];
+//! 8. [`correct`] — every sample to its true point, and equal-angle resampling.
+//!
+//! [`simulate`] makes scans of known shapes with known errors for tests and tools.
+
+pub mod calibrate;
+pub mod correct;
+pub mod geometry;
+pub mod lm;
+pub mod model;
+pub mod scan;
+pub mod shape;
+pub mod simulate;
+pub mod start;
+
+pub use calibrate::{Calibration, CalibrationError, Options, calibrate};
+pub use correct::{Corrector, correct, resample_radii};
+pub use geometry::Mounting;
+pub use model::{ModelKind, PlateSpec};
+pub use scan::{Sample, Scan, ScanError};

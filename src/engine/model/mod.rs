@@ -1,0 +1,90 @@
+//! The two ways of fitting the mounting errors to a calibration-plate scan.
+//!
+//! - [`full`]: every raw sample, flats and corner arcs, five parameters
+//!   `[alpha0, d, dL, cx, cy]`. Reaches the Cramér-Rao bound; the default.
+//! - [`paper`]: the seed paper's reduced model (its eqs. 5-8): sums of opposite samples
+//!   differenced between neighbours remove `dL` and the plate centre, leaving
+//!   `[alpha0, d]`; `dL` then follows in closed form. Exact on noise-free flat samples,
+//!   but ill-conditioned: kept to reproduce the paper, not as the default.
+//!
+//! Both are [`crate::engine::lm::Problem`]s.
+
+pub mod full;
+pub mod paper;
+
+use nalgebra::Vector2;
+use std::fmt;
+
+use super::shape::RoundedRect;
+
+/// The calibration plate's known dimensions (its position is fitted).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PlateSpec {
+    /// Side of the square, metres.
+    pub side: f64,
+    /// Radius of the rounded corners, metres.
+    pub corner_radius: f64,
+}
+
+impl Default for PlateSpec {
+    fn default() -> Self {
+        PlateSpec { side: 0.045, corner_radius: 0.003 }
+    }
+}
+
+impl PlateSpec {
+    /// Check the dimensions make a plate: a positive side, `0 <= r < side/2`.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.side.is_finite() && self.side > 0.0) {
+            return Err(format!("plate side must be a positive length in metres, got {}", self.side));
+        }
+        if !(self.corner_radius.is_finite() && self.corner_radius >= 0.0 && self.corner_radius < self.side / 2.0) {
+            return Err(format!(
+                "plate corner radius must be at least 0 and less than half the side ({} m), got {}",
+                self.side / 2.0,
+                self.corner_radius
+            ));
+        }
+        Ok(())
+    }
+
+    /// The plate placed with its centre at `center`.
+    pub fn at(&self, center: Vector2<f64>) -> RoundedRect {
+        RoundedRect::plate(self.side, self.corner_radius, center)
+    }
+}
+
+/// Which model fits the calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ModelKind {
+    #[default]
+    Full,
+    Paper,
+}
+
+impl ModelKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ModelKind::Full => "full",
+            ModelKind::Paper => "paper",
+        }
+    }
+}
+
+impl fmt::Display for ModelKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for ModelKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "full" => Ok(ModelKind::Full),
+            "paper" => Ok(ModelKind::Paper),
+            _ => Err(format!("unknown model '{s}': expected 'full' or 'paper'")),
+        }
+    }
+}

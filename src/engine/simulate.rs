@@ -1,0 +1,119 @@
+//! A simulated tracer: what the encoders of a tracer with given mounting errors read
+//! when it traces a known shape. Tests, the demo, the accuracy study and the
+//! benchmarks all draw their scans from here.
+//!
+//! For each angle step the rail ray `d v + t u` leaves the shape at `t`
+//! ([`super::shape::Shape::exit`]); the encoder reads `rho = t + dL`, plus Gaussian
+//! noise, optionally quantised to the encoder's counts, with optional spikes (dust, a
+//! probe bounce) and missing samples. The true touched point `d v + t u` comes along,
+//! so a corrected scan can be compared with the truth.
+
+use nalgebra::Vector2;
+use rand::Rng;
+use rand::seq::index::sample as sample_indices;
+use rand_distr::{Distribution, Normal};
+
+use super::geometry::{Mounting, rail_angle, rail_frame};
+use super::scan::{Sample, Scan};
+use super::shape::Shape;
+
+/// How a simulated revolution is taken.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimOptions {
+    pub steps_per_rev: u32,
+    /// Standard deviation of the encoder noise, metres.
+    pub noise: f64,
+    /// Encoder resolution (metres per count) to quantise to; 0 = no quantisation.
+    pub quantum: f64,
+    /// First step of the revolution (the scan wraps around to `start_step - 1`).
+    pub start_step: u32,
+    /// Fraction of samples missing, at random.
+    pub missing: f64,
+    /// Number of samples spiked by `spike_height`.
+    pub spikes: usize,
+    /// Height of a spike, metres (positive: the probe reads longer).
+    pub spike_height: f64,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            steps_per_rev: 400,
+            noise: 0.0,
+            quantum: 0.0,
+            start_step: 0,
+            missing: 0.0,
+            spikes: 0,
+            spike_height: 0.5e-3,
+        }
+    }
+}
+
+/// A simulated revolution and its ground truth.
+#[derive(Debug, Clone)]
+pub struct SimScan {
+    pub scan: Scan,
+    /// The point each sample really touched, in sample order.
+    pub truth: Vec<Vector2<f64>>,
+    /// Which samples were spiked.
+    pub spiked: Vec<bool>,
+}
+
+/// Why a scan cannot be simulated.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SimError {
+    /// The rail ray at this step misses the shape (the mounting puts the rail outside).
+    RayMissesShape {
+        step: u32,
+    },
+    Invalid(String),
+}
+
+impl std::fmt::Display for SimError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::RayMissesShape { step } => {
+                write!(f, "at step {step} the rail misses the shape: the rail offset is larger than the shape")
+            }
+            Self::Invalid(why) => write!(f, "{why}"),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+/// Simulate one revolution of a tracer with mounting `m` around `shape`.
+pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut impl Rng) -> Result<SimScan, SimError> {
+    let n = opt.steps_per_rev;
+    if n == 0 {
+        return Err(SimError::Invalid("steps_per_rev must be positive".into()));
+    }
+    if !(opt.noise >= 0.0 && opt.quantum >= 0.0 && (0.0..1.0).contains(&opt.missing)) {
+        return Err(SimError::Invalid("noise and quantum must be >= 0, missing in [0, 1)".into()));
+    }
+    let noise = Normal::new(0.0, opt.noise).map_err(|e| SimError::Invalid(e.to_string()))?;
+    let mut samples = Vec::with_capacity(n as usize);
+    let mut truth = Vec::with_capacity(n as usize);
+    for i in 0..n {
+        let step = (opt.start_step % n + i) % n;
+        if opt.missing > 0.0 && rng.random::<f64>() < opt.missing {
+            continue;
+        }
+        let (u, v) = rail_frame(rail_angle(m.alpha0, step, n));
+        let origin = v * m.offset;
+        let hit = shape.exit(origin, u).ok_or(SimError::RayMissesShape { step })?;
+        let mut rho = hit.t + m.delta_l + noise.sample(rng);
+        if opt.quantum > 0.0 {
+            rho = (rho / opt.quantum).round() * opt.quantum;
+        }
+        samples.push(Sample { step, rho });
+        truth.push(origin + u * hit.t);
+    }
+    let mut spiked = vec![false; samples.len()];
+    for i in sample_indices(rng, samples.len(), opt.spikes.min(samples.len())) {
+        samples[i].rho += opt.spike_height;
+        spiked[i] = true;
+    }
+    let scan = Scan::from_samples(n, samples).map_err(|e| SimError::Invalid(e.to_string()))?;
+    Ok(SimScan { scan, truth, spiked })
+}

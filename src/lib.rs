@@ -1,0 +1,9 @@
+//! `tracer_calib`: makes the contact contour tracer of a lens-edging cell measure true.
+//!
+//! - [`engine`]: the pure calibration engine (geometry, plate models, LM, correction);
+//! - the shell around it: files ([`io`]) and the offline tool ([`cli`]).
+//!
+//! Conventions (see the README): SI units (metres, radians), the rail turns
+//! counter-clockwise, `P = (rho - dL) u + d v`.
+
+pub mod engine;
