@@ -1,1 +1,112 @@
-fn main() {}
+//! Speed of the engine: one full-model fit on 400 samples (ours, and the same residuals
+//! solved by the `levenberg-marquardt` crate), whole calibrations, and correction.
+//!
+//! ```text
+//! cargo bench --bench fit
+//! ```
+//!
+//! The scan: 45 mm plate, alpha0 = 2°, d = 5 mm, dL = 2 mm, c = (0.8, -0.5) mm,
+//! σ = 0.01 mm. The LM fits start 1° (and 0.5 mm) off, as in `notes/model.md`.
+
+use criterion::{Criterion, black_box, criterion_group, criterion_main};
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{Dyn, Owned, U5, Vector2};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use tracer_calib::engine::calibrate::{Options, calibrate};
+use tracer_calib::engine::correct::{Corrector, correct, default_max_gap, resample_radii};
+use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::engine::lm::{self, Problem};
+use tracer_calib::engine::model::full::{self, FullModel};
+use tracer_calib::engine::model::{ModelKind, PlateSpec};
+use tracer_calib::engine::scan::Scan;
+use tracer_calib::engine::shape::Ellipse;
+use tracer_calib::engine::simulate::{SimOptions, simulate};
+
+/// The full model behind the `levenberg-marquardt` crate's trait: residuals and the
+/// n×5 Jacobian from the same `for_each_row` our solver uses.
+struct CrateAdapter {
+    model: FullModel,
+    x: full::Params,
+}
+
+impl LeastSquaresProblem<f64, Dyn, U5> for CrateAdapter {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, U5>;
+    type ParameterStorage = Owned<f64, U5>;
+
+    fn set_params(&mut self, x: &full::Params) {
+        self.x = *x;
+    }
+    fn params(&self) -> full::Params {
+        self.x
+    }
+    fn residuals(&self) -> Option<nalgebra::DVector<f64>> {
+        lm::residuals(&self.model, &self.x)
+    }
+    fn jacobian(&self) -> Option<nalgebra::OMatrix<f64, Dyn, U5>> {
+        let n = self.model.residual_count();
+        let mut jac = nalgebra::OMatrix::<f64, Dyn, U5>::zeros(n);
+        let mut i = 0;
+        self.model
+            .for_each_row(&self.x, |_, j| {
+                jac.row_mut(i).copy_from(&j.transpose());
+                i += 1;
+            })
+            .then_some(jac)
+    }
+}
+
+fn plate_scan() -> (PlateSpec, Scan, full::Params) {
+    let plate = PlateSpec { side: 0.045, corner_radius: 0.003 };
+    let m = Mounting { alpha0: 2f64.to_radians(), offset: 0.005, delta_l: 0.002 };
+    let c = Vector2::new(0.0008, -0.0005);
+    let mut rng = StdRng::seed_from_u64(1);
+    let sim = simulate(&plate.at(c), &m, &SimOptions { noise: 10e-6, ..SimOptions::default() }, &mut rng).unwrap();
+    (plate, sim.scan, full::params(&m, c))
+}
+
+fn bench(c: &mut Criterion) {
+    let (plate, scan, truth) = plate_scan();
+    let model = FullModel::from_scan(&plate, &scan);
+    let start = truth + full::Params::from([1f64.to_radians(), 0.5e-3, -0.5e-3, 0.2e-3, 0.2e-3]);
+
+    let ours = lm::minimize(&model, start, &lm::Options::default());
+    let (theirs, report) = LevenbergMarquardt::new().minimize(CrateAdapter { model: model.clone(), x: start });
+    println!(
+        "ours: {:?}, {} iterations, {} evaluations; levenberg-marquardt crate: {:?}, {} evaluations; max |Δx| between them {:.2e}",
+        ours.termination,
+        ours.iterations,
+        ours.evaluations,
+        report.termination,
+        report.number_of_evaluations,
+        (ours.x - theirs.x).amax()
+    );
+
+    c.bench_function("fit/full_lm_400 (ours)", |b| {
+        b.iter(|| lm::minimize(black_box(&model), black_box(start), &lm::Options::default()))
+    });
+    c.bench_function("fit/full_lm_400 (levenberg-marquardt crate)", |b| {
+        b.iter(|| LevenbergMarquardt::new().minimize(CrateAdapter { model: black_box(&model).clone(), x: start }))
+    });
+    c.bench_function("fit/normal_equations_pass_400", |b| b.iter(|| lm::normal_equations(black_box(&model), &start)));
+    for kind in [ModelKind::Full, ModelKind::Paper] {
+        let opts = Options { model: kind, ..Options::default() };
+        c.bench_function(&format!("calibrate/{kind}_400 (start + fit + outlier test)"), |b| {
+            b.iter(|| calibrate(black_box(&scan), &plate, &opts).unwrap())
+        });
+    }
+
+    let m = Mounting { alpha0: 2f64.to_radians(), offset: 0.005, delta_l: 0.002 };
+    let lens = Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 };
+    let mut rng = StdRng::seed_from_u64(2);
+    let lens_scan = simulate(&lens, &m, &SimOptions::default(), &mut rng).unwrap().scan;
+    let corrector = Corrector::new(m, 400);
+    c.bench_function("correct/400 (cached corrector)", |b| b.iter(|| corrector.correct(black_box(&lens_scan))));
+    c.bench_function("correct/400 (fresh, builds the table)", |b| b.iter(|| correct(black_box(&lens_scan), &m)));
+    let pts = corrector.correct(&lens_scan);
+    c.bench_function("resample/400_to_400", |b| b.iter(|| resample_radii(black_box(&pts), 400, default_max_gap(400))));
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -7,3 +7,6 @@
 //! counter-clockwise, `P = (rho - dL) u + d v`.
 
 pub mod engine;
+pub mod cli;
+pub mod io;
+pub mod params;

@@ -6,7 +6,9 @@
 //!    robust scale `σ̂ = 1.4826 · MAD(r)`, samples with `|r_i| > k σ̂` (`k = 4` by
 //!    default; never below 0.1 µm, the floor for noise-free data) are dropped and the
 //!    fit repeated from where it stands, until the set of samples stops changing. All
-//!    samples are re-tested each round, so a sample wrongly dropped early comes back;
+//!    samples are re-tested in the first rounds, so a sample wrongly dropped early comes
+//!    back; after [`FREE_ROUNDS`] samples may only leave, so a sample on the threshold
+//!    cannot make the set oscillate, and the loop ends;
 //! 4. `alpha0` is reported in `(-π/4, π/4]`: a square plate gives the same lengths for
 //!    `(alpha0 + π/2, d, dL, R₉₀ c)` ([`super::geometry::wrap_quarter_turn`]);
 //! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`.
@@ -62,8 +64,10 @@ impl Default for Options {
 
 /// Floor of the outlier threshold, metres: keeps noise-free scans whole.
 const OUTLIER_FLOOR: f64 = 1e-7;
-/// Rejection rounds at most.
-const MAX_ROUNDS: usize = 8;
+/// Rounds in which a rejected sample may come back.
+const FREE_ROUNDS: usize = 3;
+/// Rejection rounds at most; the last round's fit stands.
+const MAX_ROUNDS: usize = 12;
 
 /// A fitted calibration.
 #[derive(Debug, Clone, PartialEq)]
@@ -269,7 +273,7 @@ fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, Cal
     let mut active = vec![true; all.samples().len()];
     let mut x = x0;
     let mut iterations = 0;
-    for _round in 0..MAX_ROUNDS {
+    for round in 0..MAX_ROUNDS {
         let model = all.retain(|i| active[i]);
         if model.residual_count() < opt.min_samples {
             return Err(CalibrationError::TooFewSamples { got: model.residual_count(), need: opt.min_samples });
@@ -281,8 +285,11 @@ fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, Cal
         }
         x = rep.x;
         let residuals = lm::residuals(all, &x).ok_or(CalibrationError::Singular)?;
-        let keep = inliers(residuals.as_slice(), opt.outlier_threshold);
-        if keep == active {
+        let mut keep = inliers(residuals.as_slice(), opt.outlier_threshold);
+        if round >= FREE_ROUNDS {
+            keep.iter_mut().zip(&active).for_each(|(k, a)| *k &= *a);
+        }
+        if keep == active || round + 1 == MAX_ROUNDS {
             let ne = rep.normal.ok_or(CalibrationError::Singular)?;
             let cov = lm::covariance(&ne).ok_or(CalibrationError::Singular)?;
             return Ok(Fit {
@@ -298,9 +305,7 @@ fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, Cal
         }
         active = keep;
     }
-    Err(CalibrationError::Model(format!(
-        "outlier rejection did not settle in {MAX_ROUNDS} rounds: the scan is too noisy or not of the plate"
-    )))
+    unreachable!("the last round returns")
 }
 
 fn fit_paper(
@@ -315,7 +320,7 @@ fn fit_paper(
     let mut active = vec![true; scan.len()];
     let mut x = x0;
     let mut iterations = 0;
-    for _round in 0..MAX_ROUNDS {
+    for round in 0..MAX_ROUNDS {
         let model =
             PaperModel::select(plate, scan, &x, margin, &active).map_err(|e| CalibrationError::Model(e.to_string()))?;
         let used: Vec<bool> = {
@@ -345,7 +350,10 @@ fn fit_paper(
             }
         }
         // Samples the model did not use stay eligible for the next selection.
-        if next == active {
+        if round >= FREE_ROUNDS {
+            next.iter_mut().zip(&active).for_each(|(k, a)| *k &= *a);
+        }
+        if next == active || round + 1 == MAX_ROUNDS {
             let n_used = used.iter().filter(|&&u| u).count();
             let ss: f64 = residuals.iter().zip(&used).filter(|(_, u)| **u).map(|(r, _)| r * r).sum();
             let sigma2 = ss / (n_used.saturating_sub(5).max(1)) as f64;
@@ -364,7 +372,5 @@ fn fit_paper(
         }
         active = next;
     }
-    Err(CalibrationError::Model(format!(
-        "outlier rejection did not settle in {MAX_ROUNDS} rounds: the scan is too noisy or not of the plate"
-    )))
+    unreachable!("the last round returns")
 }

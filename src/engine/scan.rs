@@ -38,7 +38,7 @@ impl fmt::Display for ScanError {
         match self {
             Self::ZeroStepsPerRevolution => write!(f, "steps_per_revolution is 0"),
             Self::LengthMismatch { steps, lengths } => {
-                write!(f, "step has {steps} entries but counts has {lengths}; they must be the same length")
+                write!(f, "step has {steps} entries but counts has {lengths}: they must have the same length")
             }
             Self::Empty => write!(f, "the scan has no samples"),
             Self::StepOutOfRange { index, step, steps_per_rev } => write!(
@@ -65,6 +65,21 @@ impl Scan {
             return Err(ScanError::LengthMismatch { steps: steps.len(), lengths: rho.len() });
         }
         Self::from_samples(steps_per_rev, steps.iter().zip(rho).map(|(&step, &rho)| Sample { step, rho }).collect())
+    }
+
+    /// Build a scan from encoder counts, `rho = counts × meters_per_count`, as the
+    /// tracer reports them (`RawScan`, CSV files).
+    pub fn from_counts(
+        steps_per_rev: u32,
+        steps: &[u32],
+        counts: &[i32],
+        meters_per_count: f64,
+    ) -> Result<Self, ScanError> {
+        if steps.len() != counts.len() {
+            return Err(ScanError::LengthMismatch { steps: steps.len(), lengths: counts.len() });
+        }
+        let rho: Vec<f64> = counts.iter().map(|&c| f64::from(c) * meters_per_count).collect();
+        Self::new(steps_per_rev, steps, &rho)
     }
 
     /// Build a scan from samples.

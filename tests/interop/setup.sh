@@ -39,6 +39,14 @@ case "${1:-}" in
     *) echo "usage: $0 [--force]" >&2; exit 2 ;;
 esac
 
+# Work in a clean environment even when target/ros/env.sh is sourced in this shell.
+if [ -n "${TRACER_ROS_ENV:-}" ]; then
+    PATH=$(printf '%s' "$PATH" | tr ':' '\n' | grep -vxF "$TRACER_ROS_ENV/venv/bin" | paste -sd: -)
+    unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH AMENT_PREFIX_PATH FASTDDS_DEFAULT_PROFILES_FILE
+fi
+unset _ROS_WHEELS_BOOTSTRAP_COMPLETE VIRTUAL_ENV PYTHONHOME
+export PATH
+
 mkdir -p "$ROS_DIR" "$STAMPS" "$LOGS"
 # One setup at a time (a test run and a developer may start it together).
 exec 9>"$ROS_DIR/.setup.lock"
@@ -64,25 +72,27 @@ stamp_ok() { [ "$FORCE" = 0 ] && [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" 
 # 1. tools: Python 3.11 with venv + headers, a C/C++ compiler, make, unshare, ip.
 #    apt-get only for what is missing.
 t0=$(now_ms)
-PY=""
+# One interpreter call per candidate (pyenv shims are slow): version, path, venv, headers.
+PY_PROBE='import importlib.util as u, os, sys, sysconfig
+venv = all(u.find_spec(m) for m in ("venv", "ensurepip"))
+dev = os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h"))
+exe = getattr(sys, "_base_executable", "") or sys.executable  # never a venv'"'"'s own python
+print(sys.version.split()[0], exe, int(venv), int(dev))'
+PY="" PY_VERSION="" _venv=0 _dev=0
 for cand in "${ROS_SETUP_PYTHON:-}" python3 python3.11; do
-    [ -n "$cand" ] || continue
-    if command -v "$cand" >/dev/null 2>&1 \
-        && [ "$("$cand" -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null)" = 3.11 ]; then
-        PY=$(command -v "$cand")
-        break
-    fi
+    [ -n "$cand" ] && command -v "$cand" >/dev/null 2>&1 || continue
+    info=$("$cand" -c "$PY_PROBE" 2>/dev/null || true)
+    case "$info" in
+        3.11.*) read -r PY_VERSION PY _venv _dev <<<"$info"; break ;;
+    esac
 done
 APT_PKGS=()
 if [ -z "$PY" ]; then
     # The ROS wheels are cp311 only.
     APT_PKGS+=(python3.11 python3.11-venv python3.11-dev)
-    PY_AFTER_APT=/usr/bin/python3.11
 else
-    PY_AFTER_APT=$PY
-    "$PY" -c 'import venv, ensurepip' >/dev/null 2>&1 || APT_PKGS+=(python3.11-venv)
-    "$PY" -c 'import os, sysconfig, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' \
-        || APT_PKGS+=(python3.11-dev)
+    [ "$_venv" = 1 ] || APT_PKGS+=(python3.11-venv)
+    [ "$_dev" = 1 ] || APT_PKGS+=(python3.11-dev)
 fi
 { command -v cc && command -v c++ && command -v make; } >/dev/null 2>&1 || APT_PKGS+=(build-essential)
 command -v unshare >/dev/null 2>&1 || APT_PKGS+=(util-linux)
@@ -96,12 +106,11 @@ if [ "${#APT_PKGS[@]}" -gt 0 ]; then
         show_log "$LOGS/apt.log"
         die "apt-get install ${APT_PKGS[*]} failed"
     fi
-    PY=$PY_AFTER_APT
+    if [ -z "$PY" ]; then PY=/usr/bin/python3.11; PY_VERSION=$("$PY" -c 'import sys; print(sys.version.split()[0])'); fi
     step_done tools installed "$t0"
 else
     step_done tools ok "$t0"
 fi
-PY_VERSION=$("$PY" -c 'import sys; print(sys.version.split()[0])')
 
 # ---------------------------------------------------------------------------------
 # 2. venv: made afresh whenever the requirements, the interpreter or the recipe change.

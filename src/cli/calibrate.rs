@@ -1,0 +1,185 @@
+//! `tracer_calib calibrate`: fit the mounting errors to a recorded plate scan.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use super::exit;
+use crate::engine::calibrate::{Calibration, Options, calibrate};
+use crate::engine::model::ModelKind;
+use crate::engine::scan::Scan;
+use crate::io::csv;
+use crate::params::{Parameters, ParamsFile, file as params_file};
+
+/// Fit alpha0, d and dL to a scan of the calibration plate.
+///
+/// Example:
+///   tracer_calib calibrate --input plate.csv --plate-side 0.045 --corner-radius 0.003 --json
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    /// The scan: a CSV file with the header 'step,counts' (one revolution), or a
+    /// rosbag2 bag (directory with metadata.yaml, .mcap or .db3).
+    #[arg(long, value_name = "PATH")]
+    pub input: PathBuf,
+    /// Topic of the RawScan messages in a bag.
+    #[arg(long, default_value = "/raw_scan")]
+    pub topic: String,
+    /// Which plate scan of a bag; 0 = the latest.
+    #[arg(long, default_value_t = 0)]
+    pub scan_id: u32,
+    /// A ROS 2 params file (plate, encoder scale, model), as the node persists it.
+    #[arg(long, value_name = "FILE")]
+    pub params: Option<PathBuf>,
+    /// Node name whose section of --params applies (default: the file's only section,
+    /// else /tracer_calibrator).
+    #[arg(long, value_name = "FQN")]
+    pub node: Option<String>,
+    /// Fitting model: 'full' (every sample, the default) or 'paper' (the seed paper's
+    /// reduced model).
+    #[arg(long)]
+    pub model: Option<ModelKind>,
+    /// Steps per revolution of a CSV scan.
+    #[arg(long, default_value_t = 400)]
+    pub steps_per_rev: u32,
+    /// Side of the square calibration plate, metres.
+    #[arg(long, value_name = "M")]
+    pub plate_side: Option<f64>,
+    /// Corner radius of the plate, metres.
+    #[arg(long, value_name = "M")]
+    pub corner_radius: Option<f64>,
+    /// Encoder scale, metres per count.
+    #[arg(long, value_name = "M")]
+    pub meters_per_count: Option<f64>,
+    /// Print exactly one JSON object with the fields of the Calibrate response.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl clap::ValueEnum for ModelKind {
+    fn value_variants<'a>() -> &'a [Self] {
+        &[ModelKind::Full, ModelKind::Paper]
+    }
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.as_str()))
+    }
+}
+
+/// The Calibrate response's fields (CONTRACT.md), as JSON.
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
+pub struct Response {
+    pub success: bool,
+    pub message: String,
+    pub alpha0: f64,
+    pub offset: f64,
+    pub delta_l: f64,
+    pub stddev: Vec<f64>,
+    pub rms_residual: f64,
+    pub iterations: u32,
+    pub samples_used: u32,
+}
+
+impl Response {
+    pub fn success(cal: &Calibration) -> Self {
+        Response {
+            success: true,
+            message: cal.summary(),
+            alpha0: cal.mounting.alpha0,
+            offset: cal.mounting.offset,
+            delta_l: cal.mounting.delta_l,
+            stddev: cal.stddev.to_vec(),
+            rms_residual: cal.rms_residual,
+            iterations: cal.iterations as u32,
+            samples_used: cal.samples_used as u32,
+        }
+    }
+
+    pub fn failure(message: impl Into<String>) -> Self {
+        Response { success: false, message: message.into(), ..Response::default() }
+    }
+}
+
+/// Settings from defaults, then --params, then the explicit flags.
+pub fn settings(args: &Args) -> Result<Parameters, String> {
+    let mut p = Parameters::default();
+    if let Some(path) = &args.params {
+        let file = params_file::read(path).map_err(|e| e.to_string())?;
+        let fqn = args.node.clone().unwrap_or_else(|| default_section(&file));
+        p.apply_file(&file, &fqn, &path.display().to_string()).map_err(|e| e.to_string())?;
+    }
+    let mut set = |name: &str, v: Option<f64>| -> Result<(), String> {
+        match v {
+            Some(v) => p.set(name, &crate::params::ParamValue::Double(v)).map_err(|e| format!("--{}: {e}", flag(name))),
+            None => Ok(()),
+        }
+    };
+    set("plate.side", args.plate_side)?;
+    set("plate.corner_radius", args.corner_radius)?;
+    set("encoder.meters_per_count", args.meters_per_count)?;
+    if let Some(m) = args.model {
+        p.model = m;
+    }
+    Ok(p)
+}
+
+fn flag(name: &str) -> &'static str {
+    match name {
+        "plate.side" => "plate-side",
+        "plate.corner_radius" => "corner-radius",
+        _ => "meters-per-count",
+    }
+}
+
+/// The only section's node name, else the default node's.
+fn default_section(file: &ParamsFile) -> String {
+    match file.sections.as_slice() {
+        [only] if !only.node.contains('*') => format!("/{}", only.node.trim_start_matches('/')),
+        _ => "/tracer_calibrator".to_string(),
+    }
+}
+
+/// Read the plate scan named by the arguments.
+pub fn load_scan(args: &Args, p: &Parameters) -> Result<Scan, String> {
+    let path = &args.input;
+    if is_bag(path) {
+        return Err(format!("{}: rosbag2 input is not supported by this build yet; give a CSV file", path.display()));
+    }
+    let rev = csv::read(path)?;
+    Scan::from_counts(args.steps_per_rev, &rev.step, &rev.counts, p.meters_per_count)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn is_bag(path: &Path) -> bool {
+    path.is_dir() || matches!(path.extension().and_then(|e| e.to_str()), Some("mcap" | "db3"))
+}
+
+pub fn run(args: &Args) -> i32 {
+    let outcome = settings(args).and_then(|p| load_scan(args, &p).map(|scan| (p, scan)));
+    let (p, scan) = match outcome {
+        Ok(v) => v,
+        Err(e) => return report(args, &Response::failure(e), exit::BAD_INPUT),
+    };
+    let opts = Options { model: p.model, ..Options::default() };
+    match calibrate(&scan, &p.plate, &opts) {
+        Ok(cal) => report(args, &Response::success(&cal), exit::OK),
+        Err(e) => report(args, &Response::failure(format!("calibration failed: {e}")), exit::FIT_FAILED),
+    }
+}
+
+fn report(args: &Args, r: &Response, status: i32) -> i32 {
+    if args.json {
+        println!("{}", serde_json::to_string(r).expect("a response serialises"));
+    }
+    if status == exit::OK {
+        if !args.json {
+            println!("{}", r.message);
+            println!(
+                "alpha0 = {:.9} rad, offset = {:.9} m, delta_l = {:.9} m, stddev = [{:.3e}, {:.3e}, {:.3e}]",
+                r.alpha0, r.offset, r.delta_l, r.stddev[0], r.stddev[1], r.stddev[2]
+            );
+        }
+    } else {
+        eprintln!("tracer_calib calibrate: {}", r.message);
+    }
+    status
+}

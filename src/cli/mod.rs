@@ -1,0 +1,35 @@
+//! The offline tool `tracer_calib`: the engine on files, without ROS.
+
+pub mod calibrate;
+pub mod demo;
+
+use clap::{Parser, Subcommand};
+
+/// Calibrate a contact contour tracer offline, and try the engine on simulated scans.
+#[derive(Debug, Parser)]
+#[command(name = "tracer_calib", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    Calibrate(calibrate::Args),
+    Demo(demo::Args),
+}
+
+/// Exit statuses of the tool (CONTRACT.md).
+pub mod exit {
+    pub const OK: i32 = 0;
+    pub const FIT_FAILED: i32 = 1;
+    pub const BAD_INPUT: i32 = 2;
+}
+
+/// Run the tool; returns the exit status.
+pub fn run(cli: Cli) -> i32 {
+    match cli.command {
+        Command::Calibrate(args) => calibrate::run(&args),
+        Command::Demo(args) => demo::run(&args),
+    }
+}

@@ -1,0 +1,3 @@
+//! Files the tools read and write: scans as CSV (and, with the bag issue, rosbag2).
+
+pub mod csv;

@@ -1,0 +1,440 @@
+//! ROS 2 parameter files: read them the way `--params-file` does, write them so that
+//! stock ROS 2 nodes (and this node) read them back.
+//!
+//! ```yaml
+//! /cell1/tracer:                 # node name, fully qualified; `/**` and `*` match
+//!   ros__parameters:
+//!     calibration.alpha0: 0.0349 # dotted names, or nested maps that flatten to them
+//!     plate:
+//!       side: 0.045
+//! ```
+//!
+//! Reading keeps the line of every key, so a bad value is reported as
+//! `FILE:LINE: KEY: what is wrong`. Writing goes through a temporary file in the same
+//! directory, `fsync`, and `rename` over the old file, then an `fsync` of the
+//! directory: a crash leaves the old file or the new one, never half of either.
+
+use std::fmt;
+use std::fs;
+use std::io::Write;
+use std::path::Path;
+
+use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
+use yaml_rust2::scanner::{Marker, TScalarStyle};
+
+use super::value::{ParamValue, yaml_string};
+
+/// One parameter as the file gives it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Entry {
+    /// Dotted name, e.g. `calibration.alpha0`.
+    pub name: String,
+    pub value: ParamValue,
+    /// 1-based line of the key.
+    pub line: usize,
+}
+
+/// The parameters of one node-name key.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Section {
+    /// The node name as written (`/cell1/tracer`, `tracer_calibrator`, `/**`).
+    pub node: String,
+    pub line: usize,
+    pub params: Vec<Entry>,
+}
+
+/// A parsed parameter file.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ParamsFile {
+    pub sections: Vec<Section>,
+}
+
+/// What is wrong with a parameter file, and where.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamsFileError {
+    pub path: String,
+    pub line: Option<usize>,
+    pub key: Option<String>,
+    pub message: String,
+}
+
+impl fmt::Display for ParamsFileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path)?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+        }
+        if let Some(key) = &self.key {
+            write!(f, ": {key}")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for ParamsFileError {}
+
+impl ParamsFileError {
+    pub fn new(path: &str, line: Option<usize>, key: Option<&str>, message: impl Into<String>) -> Self {
+        ParamsFileError { path: path.to_string(), line, key: key.map(str::to_string), message: message.into() }
+    }
+}
+
+/// A YAML node with the line it starts on.
+#[derive(Debug, Clone)]
+enum Node {
+    Scalar { text: String, quoted: bool, line: usize },
+    Seq { items: Vec<Node>, line: usize },
+    Map { entries: Vec<(Node, Node)>, line: usize },
+}
+
+impl Node {
+    fn line(&self) -> usize {
+        match self {
+            Node::Scalar { line, .. } | Node::Seq { line, .. } | Node::Map { line, .. } => *line,
+        }
+    }
+}
+
+/// Builds [`Node`]s from the parser's events.
+#[derive(Default)]
+struct TreeBuilder {
+    stack: Vec<Node>,
+    docs: Vec<Node>,
+    alias: bool,
+}
+
+impl TreeBuilder {
+    fn push_value(&mut self, node: Node) {
+        match self.stack.last_mut() {
+            None => self.docs.push(node),
+            Some(Node::Seq { items, .. }) => items.push(node),
+            Some(Node::Map { entries, .. }) => {
+                // Keys and values alternate; a key waits with a placeholder value.
+                match entries.last_mut() {
+                    Some((_, v @ Node::Scalar { line: 0, .. })) => *v = node,
+                    _ => entries.push((node, Node::Scalar { text: String::new(), quoted: false, line: 0 })),
+                }
+            }
+            Some(Node::Scalar { .. }) => unreachable!("scalars hold no children"),
+        }
+    }
+}
+
+impl MarkedEventReceiver for TreeBuilder {
+    fn on_event(&mut self, ev: Event, mark: Marker) {
+        let line = mark.line();
+        match ev {
+            Event::Scalar(text, style, _, _) => {
+                let quoted = !matches!(style, TScalarStyle::Plain);
+                self.push_value(Node::Scalar { text, quoted, line });
+            }
+            Event::SequenceStart(..) => self.stack.push(Node::Seq { items: Vec::new(), line }),
+            Event::MappingStart(..) => self.stack.push(Node::Map { entries: Vec::new(), line }),
+            Event::SequenceEnd | Event::MappingEnd => {
+                if let Some(done) = self.stack.pop() {
+                    self.push_value(done);
+                }
+            }
+            Event::Alias(_) => self.alias = true,
+            _ => {}
+        }
+    }
+}
+
+/// Parse the text of a parameter file; `path` only names it in errors.
+pub fn parse(text: &str, path: &str) -> Result<ParamsFile, ParamsFileError> {
+    let mut builder = TreeBuilder::default();
+    let mut parser = Parser::new_from_str(text);
+    parser.load(&mut builder, true).map_err(|e| {
+        ParamsFileError::new(path, Some(e.marker().line()), None, format!("not valid YAML: {}", e.info()))
+    })?;
+    if builder.alias {
+        return Err(ParamsFileError::new(path, None, None, "YAML aliases are not supported in parameter files"));
+    }
+    let mut file = ParamsFile::default();
+    for doc in builder.docs {
+        let Node::Map { entries, .. } = doc else {
+            return Err(ParamsFileError::new(
+                path,
+                Some(doc.line()),
+                None,
+                "expected a map of node names to their ros__parameters",
+            ));
+        };
+        for (key, body) in entries {
+            let node = scalar_key(&key, path)?;
+            let Node::Map { entries: inner, .. } = &body else {
+                return Err(ParamsFileError::new(
+                    path,
+                    Some(key.line()),
+                    Some(&node),
+                    "expected 'ros__parameters:' under the node name",
+                ));
+            };
+            let mut params = Vec::new();
+            for (k, v) in inner {
+                let name = scalar_key(k, path)?;
+                if name != "ros__parameters" {
+                    return Err(ParamsFileError::new(
+                        path,
+                        Some(k.line()),
+                        Some(&name),
+                        format!("expected 'ros__parameters' under node '{node}'"),
+                    ));
+                }
+                flatten("", v, path, &mut params)?;
+            }
+            file.sections.push(Section { node, line: key.line(), params });
+        }
+    }
+    Ok(file)
+}
+
+/// Read and parse a parameter file.
+pub fn read(path: &Path) -> Result<ParamsFile, ParamsFileError> {
+    let shown = path.display().to_string();
+    let text =
+        fs::read_to_string(path).map_err(|e| ParamsFileError::new(&shown, None, None, format!("cannot read: {e}")))?;
+    parse(&text, &shown)
+}
+
+fn scalar_key(node: &Node, path: &str) -> Result<String, ParamsFileError> {
+    match node {
+        Node::Scalar { text, .. } => Ok(text.clone()),
+        other => Err(ParamsFileError::new(path, Some(other.line()), None, "a key must be a plain name")),
+    }
+}
+
+/// Nested maps under `ros__parameters` flatten to dotted names, as ROS does.
+fn flatten(prefix: &str, node: &Node, path: &str, out: &mut Vec<Entry>) -> Result<(), ParamsFileError> {
+    let Node::Map { entries, line } = node else {
+        return Err(ParamsFileError::new(
+            path,
+            Some(node.line()),
+            Some(prefix),
+            "expected a map of parameter names to values",
+        ));
+    };
+    if entries.is_empty() && !prefix.is_empty() {
+        return Err(ParamsFileError::new(path, Some(*line), Some(prefix), "empty map: no value given"));
+    }
+    for (k, v) in entries {
+        let key = scalar_key(k, path)?;
+        let name = if prefix.is_empty() { key } else { format!("{prefix}.{key}") };
+        match v {
+            Node::Map { .. } => flatten(&name, v, path, out)?,
+            Node::Scalar { line: 0, .. } => {
+                return Err(ParamsFileError::new(path, Some(k.line()), Some(&name), "no value given"));
+            }
+            Node::Scalar { text, quoted, .. } => {
+                if text.is_empty() && !quoted {
+                    return Err(ParamsFileError::new(path, Some(k.line()), Some(&name), "no value given"));
+                }
+                out.push(Entry { name, value: ParamValue::from_yaml_scalar(text, *quoted), line: k.line() })
+            }
+            Node::Seq { items, .. } => {
+                let value = array(items).ok_or_else(|| {
+                    ParamsFileError::new(path, Some(k.line()), Some(&name), "an array must hold scalars of one type")
+                })?;
+                out.push(Entry { name, value, line: k.line() });
+            }
+        }
+    }
+    Ok(())
+}
+
+fn array(items: &[Node]) -> Option<ParamValue> {
+    let values: Vec<ParamValue> = items
+        .iter()
+        .map(|n| match n {
+            Node::Scalar { text, quoted, .. } => Some(ParamValue::from_yaml_scalar(text, *quoted)),
+            _ => None,
+        })
+        .collect::<Option<_>>()?;
+    let all = |f: fn(&ParamValue) -> bool| values.iter().all(f);
+    Some(if values.is_empty() {
+        ParamValue::StringArray(Vec::new())
+    } else if all(|v| matches!(v, ParamValue::Bool(_))) {
+        ParamValue::BoolArray(values.iter().map(|v| matches!(v, ParamValue::Bool(true))).collect())
+    } else if all(|v| matches!(v, ParamValue::Integer(_))) {
+        ParamValue::IntegerArray(
+            values.iter().filter_map(|v| if let ParamValue::Integer(i) = v { Some(*i) } else { None }).collect(),
+        )
+    } else if all(|v| v.as_f64().is_some()) {
+        ParamValue::DoubleArray(values.iter().filter_map(ParamValue::as_f64).collect())
+    } else if all(|v| matches!(v, ParamValue::String(_))) {
+        ParamValue::StringArray(values.iter().map(|v| v.to_string()).collect())
+    } else {
+        return None;
+    })
+}
+
+impl ParamsFile {
+    /// The entries that apply to the node with fully qualified name `fqn`
+    /// (e.g. `/cell1/tracer`), in file order: later entries override earlier ones.
+    pub fn entries_for<'a>(&'a self, fqn: &'a str) -> impl Iterator<Item = &'a Entry> + 'a {
+        self.sections.iter().filter(move |s| node_matches(&s.node, fqn)).flat_map(|s| s.params.iter())
+    }
+}
+
+/// Does a node-name key of a parameter file match `fqn`? A key without a leading `/`
+/// is taken from the root; `*` matches one name token, `**` any number of tokens.
+pub fn node_matches(key: &str, fqn: &str) -> bool {
+    let key = key.trim_start_matches('/');
+    let fqn = fqn.trim_start_matches('/');
+    let k: Vec<&str> = if key.is_empty() { Vec::new() } else { key.split('/').collect() };
+    let n: Vec<&str> = if fqn.is_empty() { Vec::new() } else { fqn.split('/').collect() };
+    fn go(k: &[&str], n: &[&str]) -> bool {
+        match (k.first(), n.first()) {
+            (None, None) => true,
+            (Some(&"**"), _) => go(&k[1..], n) || (!n.is_empty() && go(k, &n[1..])),
+            (Some(&"*"), Some(_)) => go(&k[1..], &n[1..]),
+            (Some(a), Some(b)) => a == b && go(&k[1..], &n[1..]),
+            _ => false,
+        }
+    }
+    go(&k, &n)
+}
+
+/// The text of a parameter file holding `params` for node `fqn`.
+///
+/// At the root namespace the key is the bare node name (`tracer_calibrator:`), else
+/// the fully qualified name (`/cell1/tracer:`); both are what ROS writes and reads.
+pub fn render(fqn: &str, params: &[(String, ParamValue)], comment: &str) -> String {
+    let key = match fqn.strip_prefix('/') {
+        Some(bare) if !bare.contains('/') => bare.to_string(),
+        _ => fqn.to_string(),
+    };
+    let plain = key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/');
+    let key = if plain { key } else { yaml_string(&key) };
+    let mut out = String::new();
+    for line in comment.lines() {
+        out.push_str(&format!("# {line}\n"));
+    }
+    out.push_str(&format!("{key}:\n  ros__parameters:\n"));
+    for (name, value) in params {
+        out.push_str(&format!("    {name}: {}\n", value.to_yaml()));
+    }
+    out
+}
+
+/// Replace `path` with `contents` atomically: a temporary file beside it, written and
+/// `fsync`ed, renamed over `path`, and the directory `fsync`ed.
+pub fn write_atomic(path: &Path, contents: &str) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let name = path.file_name().ok_or_else(|| std::io::Error::other("the path names no file"))?;
+    let tmp = dir.join(format!(".{}.tmp.{}", name.to_string_lossy(), std::process::id()));
+    let result = (|| {
+        let mut f = fs::OpenOptions::new().write(true).create(true).truncate(true).open(&tmp)?;
+        f.write_all(contents.as_bytes())?;
+        f.sync_all()?;
+        drop(f);
+        fs::rename(&tmp, path)?;
+        fs::File::open(&dir)?.sync_all()
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FILE: &str = "\
+/cell1/tracer:
+  ros__parameters:
+    calibration.alpha0: 0.0349
+    calibration:
+      valid: true
+    plate:
+      side: 0.045
+    model: full
+    resample_points: 400
+    tags: [a, b]
+/**:
+  ros__parameters:
+    use_sim_time: false
+";
+
+    #[test]
+    fn sections_flatten_and_keep_lines() {
+        let f = parse(FILE, "x.yaml").unwrap();
+        assert_eq!(f.sections.len(), 2);
+        let e: Vec<_> = f.entries_for("/cell1/tracer").collect();
+        let names: Vec<_> = e.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "calibration.alpha0",
+                "calibration.valid",
+                "plate.side",
+                "model",
+                "resample_points",
+                "tags",
+                "use_sim_time"
+            ]
+        );
+        assert_eq!(e[0].value, ParamValue::Double(0.0349));
+        assert_eq!(e[0].line, 3);
+        assert_eq!(e[2].line, 7);
+        assert_eq!(e[4].value, ParamValue::Integer(400));
+        assert_eq!(e[5].value, ParamValue::StringArray(vec!["a".into(), "b".into()]));
+        assert_eq!(f.entries_for("/cell2/tracer").count(), 1);
+    }
+
+    #[test]
+    fn node_name_patterns() {
+        assert!(node_matches("/**", "/a/b"));
+        assert!(node_matches("tracer_calibrator", "/tracer_calibrator"));
+        assert!(node_matches("/**/tracer", "/cell1/tracer"));
+        assert!(node_matches("/*/tracer", "/cell1/tracer"));
+        assert!(!node_matches("/*/tracer", "/tracer"));
+        assert!(!node_matches("/cell1/tracer", "/cell2/tracer"));
+    }
+
+    #[test]
+    fn errors_name_file_line_and_key() {
+        let e = parse("n:\n  ros__parameters:\n    a: [1, x]\n", "p.yaml").unwrap_err();
+        assert_eq!(e.to_string(), "p.yaml:3: a: an array must hold scalars of one type");
+        let e = parse("n:\n  params:\n    a: 1\n", "p.yaml").unwrap_err();
+        assert_eq!(e.to_string(), "p.yaml:2: params: expected 'ros__parameters' under node 'n'");
+        let e = parse("n:\n  ros__parameters:\n    a: [1\n", "p.yaml").unwrap_err();
+        assert!(e.to_string().starts_with("p.yaml:"), "{e}");
+        assert!(e.to_string().contains("not valid YAML"), "{e}");
+        let e = parse("- 1\n", "p.yaml").unwrap_err();
+        assert_eq!(e.line, Some(1));
+        let e = parse("n:\n  ros__parameters:\n    a:\n", "p.yaml").unwrap_err();
+        assert_eq!(e.to_string(), "p.yaml:3: a: no value given");
+    }
+
+    #[test]
+    fn render_reads_back_and_writes_atomically() {
+        let params = vec![
+            ("calibration.alpha0".to_string(), ParamValue::Double(0.0349)),
+            ("encoder.meters_per_count".to_string(), ParamValue::Double(1e-6)),
+            ("calibration.valid".to_string(), ParamValue::Bool(true)),
+            ("model".to_string(), ParamValue::String("full".into())),
+            ("resample_points".to_string(), ParamValue::Integer(400)),
+        ];
+        for fqn in ["/tracer_calibrator", "/cell1/tracer"] {
+            let text = render(fqn, &params, "written by a test");
+            assert!(text.starts_with("# written by a test\n"));
+            let f = parse(&text, "t").unwrap();
+            let back: Vec<_> = f.entries_for(fqn).map(|e| (e.name.clone(), e.value.clone())).collect();
+            assert_eq!(back, params);
+        }
+        let dir = std::env::temp_dir().join(format!("tracer_calib_params_{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("p.yaml");
+        write_atomic(&path, "old\n").unwrap();
+        write_atomic(&path, "new\n").unwrap();
+        assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left behind");
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

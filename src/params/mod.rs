@@ -1,0 +1,240 @@
+//! The node's parameters: names, types, defaults, validation, and the params file.
+//!
+//! The names and defaults are the contract's (`CONTRACT.md`); every parameter is
+//! persisted. [`Parameters`] is the typed view the node and the offline tool share;
+//! [`file`] reads and writes ROS 2 parameter files; [`value`] is the untyped value.
+
+pub mod file;
+pub mod value;
+
+pub use file::{ParamsFile, ParamsFileError};
+pub use value::ParamValue;
+
+use crate::engine::{ModelKind, Mounting, PlateSpec};
+
+/// The contract's parameter names.
+pub mod names {
+    pub const ALPHA0: &str = "calibration.alpha0";
+    pub const OFFSET: &str = "calibration.offset";
+    pub const DELTA_L: &str = "calibration.delta_l";
+    pub const VALID: &str = "calibration.valid";
+    pub const PLATE_SIDE: &str = "plate.side";
+    pub const CORNER_RADIUS: &str = "plate.corner_radius";
+    pub const METERS_PER_COUNT: &str = "encoder.meters_per_count";
+    pub const MODEL: &str = "model";
+    pub const OUTPUT_FRAME_ID: &str = "output_frame_id";
+    pub const RESAMPLE_POINTS: &str = "resample_points";
+    pub const PARAMS_FILE: &str = "params_file";
+    /// Every parameter, in the order they are written.
+    pub const ALL: [&str; 11] = [
+        ALPHA0,
+        OFFSET,
+        DELTA_L,
+        VALID,
+        PLATE_SIDE,
+        CORNER_RADIUS,
+        METERS_PER_COUNT,
+        MODEL,
+        OUTPUT_FRAME_ID,
+        RESAMPLE_POINTS,
+        PARAMS_FILE,
+    ];
+}
+
+/// Largest `resample_points` accepted.
+pub const MAX_RESAMPLE_POINTS: i64 = 100_000;
+
+/// The node's parameters, typed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parameters {
+    /// The calibration in force (meaningful when `calibration_valid`).
+    pub calibration: Mounting,
+    pub calibration_valid: bool,
+    pub plate: PlateSpec,
+    pub meters_per_count: f64,
+    pub model: ModelKind,
+    pub output_frame_id: String,
+    pub resample_points: usize,
+    /// Where parameters are persisted; empty = not persisted.
+    pub params_file: String,
+}
+
+impl Default for Parameters {
+    fn default() -> Self {
+        Parameters {
+            calibration: Mounting::IDEAL,
+            calibration_valid: false,
+            plate: PlateSpec::default(),
+            meters_per_count: 1.0e-6,
+            model: ModelKind::Full,
+            output_frame_id: "tracer_axis".into(),
+            resample_points: 400,
+            params_file: String::new(),
+        }
+    }
+}
+
+impl Parameters {
+    /// Every parameter as a name and a value, in [`names::ALL`] order.
+    pub fn to_list(&self) -> Vec<(String, ParamValue)> {
+        names::ALL.iter().map(|n| (n.to_string(), self.get(n).expect("every name has a value"))).collect()
+    }
+
+    /// The value of one parameter.
+    pub fn get(&self, name: &str) -> Option<ParamValue> {
+        use ParamValue::*;
+        Some(match name {
+            names::ALPHA0 => Double(self.calibration.alpha0),
+            names::OFFSET => Double(self.calibration.offset),
+            names::DELTA_L => Double(self.calibration.delta_l),
+            names::VALID => Bool(self.calibration_valid),
+            names::PLATE_SIDE => Double(self.plate.side),
+            names::CORNER_RADIUS => Double(self.plate.corner_radius),
+            names::METERS_PER_COUNT => Double(self.meters_per_count),
+            names::MODEL => String(self.model.as_str().into()),
+            names::OUTPUT_FRAME_ID => String(self.output_frame_id.clone()),
+            names::RESAMPLE_POINTS => Integer(self.resample_points as i64),
+            names::PARAMS_FILE => String(self.params_file.clone()),
+            _ => return None,
+        })
+    }
+
+    /// Is `name` one of this node's parameters?
+    pub fn is_known(name: &str) -> bool {
+        names::ALL.contains(&name)
+    }
+
+    /// Set one parameter, checking its type and range; the message says what is wrong.
+    /// Unknown names are an error here; the caller decides whether to ignore them.
+    pub fn set(&mut self, name: &str, value: &ParamValue) -> Result<(), String> {
+        let mut next = self.clone();
+        let double =
+            |v: &ParamValue| v.as_f64().ok_or_else(|| format!("expected a double, got {} '{}'", v.type_name(), v));
+        let finite = |v: &ParamValue| {
+            let d = double(v)?;
+            if d.is_finite() { Ok(d) } else { Err(format!("must be a finite number, got {d}")) }
+        };
+        match name {
+            names::ALPHA0 => {
+                let a = finite(value)?;
+                if a.abs() > std::f64::consts::PI {
+                    return Err(format!("must be an angle in radians within [-pi, pi], got {a}"));
+                }
+                next.calibration.alpha0 = a;
+            }
+            names::OFFSET => next.calibration.offset = finite(value)?,
+            names::DELTA_L => next.calibration.delta_l = finite(value)?,
+            names::VALID => match value {
+                ParamValue::Bool(b) => next.calibration_valid = *b,
+                v => return Err(format!("expected a bool, got {} '{}'", v.type_name(), v)),
+            },
+            names::PLATE_SIDE => next.plate.side = finite(value)?,
+            names::CORNER_RADIUS => next.plate.corner_radius = finite(value)?,
+            names::METERS_PER_COUNT => {
+                let m = finite(value)?;
+                if m <= 0.0 {
+                    return Err(format!("must be positive (metres per encoder count), got {m}"));
+                }
+                next.meters_per_count = m;
+            }
+            names::MODEL => match value {
+                ParamValue::String(s) => next.model = s.parse()?,
+                v => return Err(format!("expected a string ('full' or 'paper'), got {} '{}'", v.type_name(), v)),
+            },
+            names::OUTPUT_FRAME_ID => match value {
+                ParamValue::String(s) => next.output_frame_id = s.clone(),
+                v => return Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
+            },
+            names::RESAMPLE_POINTS => match value {
+                ParamValue::Integer(i) if (0..=MAX_RESAMPLE_POINTS).contains(i) => next.resample_points = *i as usize,
+                ParamValue::Integer(i) => return Err(format!("must be between 0 and {MAX_RESAMPLE_POINTS}, got {i}")),
+                v => return Err(format!("expected an integer, got {} '{}'", v.type_name(), v)),
+            },
+            names::PARAMS_FILE => match value {
+                ParamValue::String(s) => next.params_file = s.clone(),
+                v => return Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
+            },
+            _ => return Err(format!("'{name}' is not a parameter of this node")),
+        }
+        if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
+            next.plate.validate()?;
+        }
+        *self = next;
+        Ok(())
+    }
+
+    /// Apply the entries of a params file that match node `fqn`, in file order.
+    /// Unknown names are returned (they may be meant for other nodes, like
+    /// `use_sim_time`); a known name with a bad value is an error naming file, line
+    /// and key, and leaves `self` unchanged.
+    pub fn apply_file(&mut self, file: &ParamsFile, fqn: &str, path: &str) -> Result<Vec<String>, ParamsFileError> {
+        let mut next = self.clone();
+        let mut unknown = Vec::new();
+        for e in file.entries_for(fqn) {
+            if !Self::is_known(&e.name) {
+                unknown.push(e.name.clone());
+                continue;
+            }
+            next.set(&e.name, &e.value).map_err(|m| ParamsFileError::new(path, Some(e.line), Some(&e.name), m))?;
+        }
+        *self = next;
+        Ok(unknown)
+    }
+
+    /// The calibration in force, if there is one.
+    pub fn calibration_in_force(&self) -> Option<Mounting> {
+        self.calibration_valid.then_some(self.calibration)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_contracts() {
+        let p = Parameters::default();
+        let list = p.to_list();
+        assert_eq!(list.len(), 11);
+        assert_eq!(p.get("plate.side"), Some(ParamValue::Double(0.045)));
+        assert_eq!(p.get("plate.corner_radius"), Some(ParamValue::Double(0.003)));
+        assert_eq!(p.get("encoder.meters_per_count"), Some(ParamValue::Double(1e-6)));
+        assert_eq!(p.get("model"), Some(ParamValue::String("full".into())));
+        assert_eq!(p.get("output_frame_id"), Some(ParamValue::String("tracer_axis".into())));
+        assert_eq!(p.get("resample_points"), Some(ParamValue::Integer(400)));
+        assert_eq!(p.get("calibration.valid"), Some(ParamValue::Bool(false)));
+    }
+
+    #[test]
+    fn validation_names_the_problem() {
+        let mut p = Parameters::default();
+        assert_eq!(
+            p.set("plate.side", &ParamValue::Double(-0.045)).unwrap_err(),
+            "plate side must be a positive length in metres, got -0.045"
+        );
+        assert_eq!(
+            p.set("model", &ParamValue::String("magic".into())).unwrap_err(),
+            "unknown model 'magic': expected 'full' or 'paper'"
+        );
+        assert!(p.set("resample_points", &ParamValue::Integer(-1)).unwrap_err().contains("between 0"));
+        assert!(p.set("plate.corner_radius", &ParamValue::Double(0.03)).is_err());
+        assert!(p.set("calibration.valid", &ParamValue::Integer(1)).unwrap_err().contains("expected a bool"));
+        assert_eq!(p, Parameters::default(), "failed sets change nothing");
+        p.set("plate.side", &ParamValue::Integer(1)).unwrap();
+        assert_eq!(p.plate.side, 1.0);
+    }
+
+    #[test]
+    fn a_file_with_a_wrong_type_is_refused_with_its_line() {
+        let text = "tracer_calibrator:\n  ros__parameters:\n    plate.side: 0.05\n    resample_points: lots\n";
+        let f = file::parse(text, "cell.yaml").unwrap();
+        let mut p = Parameters::default();
+        let e = p.apply_file(&f, "/tracer_calibrator", "cell.yaml").unwrap_err();
+        assert_eq!(e.to_string(), "cell.yaml:4: resample_points: expected an integer, got string 'lots'");
+        assert_eq!(p, Parameters::default());
+        let ok = "tracer_calibrator:\n  ros__parameters:\n    plate.side: 0.05\n    use_sim_time: false\n";
+        let unknown = p.apply_file(&file::parse(ok, "c").unwrap(), "/tracer_calibrator", "c").unwrap();
+        assert_eq!(unknown, ["use_sim_time"]);
+        assert_eq!(p.plate.side, 0.05);
+    }
+}
