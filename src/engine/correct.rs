@@ -116,35 +116,42 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
     if n < 3 {
         return None;
     }
-    // Angle of point i unwrapped around the circle (i may run past either end).
-    let theta = |i: isize| -> f64 {
-        let wraps = i.div_euclid(n as isize);
-        polar[i.rem_euclid(n as isize) as usize].0 + wraps as f64 * TAU
+    // Unwrapped angles and radii with two points of padding on each side, so that
+    // neighbours of every point (and every segment) are at plain indices.
+    let at = |i: isize| {
+        let (t, r) = polar[i.rem_euclid(n as isize) as usize];
+        (t + i.div_euclid(n as isize) as f64 * TAU, r)
     };
-    let radius = |i: isize| polar[i.rem_euclid(n as isize) as usize].1;
-    let max_seen = (0..n as isize).map(|i| theta(i + 1) - theta(i)).fold(0.0, f64::max);
+    let (theta, radius): (Vec<f64>, Vec<f64>) = (-2..n as isize + 2).map(at).unzip();
+    let max_seen = theta.windows(2).skip(1).take(n).map(|w| w[1] - w[0]).fold(0.0, f64::max);
     if max_seen > max_gap {
         return None;
     }
-    // Three-point non-uniform slope at point i.
-    let slope = |i: isize| -> f64 {
-        let (h0, h1) = (theta(i) - theta(i - 1), theta(i + 1) - theta(i));
-        let (d0, d1) = ((radius(i) - radius(i - 1)) / h0, (radius(i + 1) - radius(i)) / h1);
-        (h1 * d0 + h0 * d1) / (h0 + h1)
-    };
+    // Three-point non-uniform slope at each padded index 1..=n+2.
+    let slope: Vec<f64> = (0..theta.len())
+        .map(|i| {
+            if i == 0 || i + 1 == theta.len() {
+                return 0.0;
+            }
+            let (h0, h1) = (theta[i] - theta[i - 1], theta[i + 1] - theta[i]);
+            let (d0, d1) = ((radius[i] - radius[i - 1]) / h0, (radius[i + 1] - radius[i]) / h1);
+            (h1 * d0 + h0 * d1) / (h0 + h1)
+        })
+        .collect();
     let mut out = Vec::with_capacity(m);
-    // Walk the targets and the segments together: both are sorted by angle.
-    let mut seg: isize = -1; // segment [seg, seg+1], starting with the wrap-around one
+    // Walk the targets and the segments together: both are sorted by angle. Segment
+    // [seg, seg+1] in padded indices; index 1 is the last point one turn back.
+    let mut seg = 1;
     for k in 0..m {
         let phi = TAU * k as f64 / m as f64;
-        while theta(seg + 1) < phi {
+        while theta[seg + 1] < phi {
             seg += 1;
         }
-        let (t0, t1) = (theta(seg), theta(seg + 1));
+        let (t0, t1) = (theta[seg], theta[seg + 1]);
         let h = t1 - t0;
         let s = ((phi - t0) / h).clamp(0.0, 1.0);
-        let (r0, r1) = (radius(seg), radius(seg + 1));
-        let (m0, m1) = (slope(seg) * h, slope(seg + 1) * h);
+        let (r0, r1) = (radius[seg], radius[seg + 1]);
+        let (m0, m1) = (slope[seg] * h, slope[seg + 1] * h);
         let (s2, s3) = (s * s, s * s * s);
         let r =
             (2.0 * s3 - 3.0 * s2 + 1.0) * r0 + (s3 - 2.0 * s2 + s) * m0 + (-2.0 * s3 + 3.0 * s2) * r1 + (s3 - s2) * m1;

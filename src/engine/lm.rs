@@ -35,6 +35,11 @@
 //!
 //! # Termination
 //!
+//! - [`Termination::Uncertainty`]: the Gauss-Newton step to the minimum of the local
+//!   quadratic model is smaller than `stol` standard uncertainties of the result,
+//!   `gᵀ(JᵀJ)⁻¹g <= stol² σ̂²` (`σ̂² = ‖r‖²/(n-P)`): iterating further would move the
+//!   answer by less than a small fraction of its own error bar (with noisy data, the
+//!   test that stops first);
 //! - [`Termination::Gradient`]: every column of `J` is nearly orthogonal to `r`,
 //!   `max_j |g_j| / (‖J_j‖ ‖r‖) <= gtol` (MINPACK's scale-free test), or `r = 0`;
 //! - [`Termination::Step`]: `‖D h‖ <= xtol (‖D x‖ + xtol)`;
@@ -74,25 +79,24 @@ pub struct NormalEquations<const P: usize> {
 /// Accumulate the normal equations at `x` in one pass (upper triangle, then mirrored).
 /// `None` if the model cannot be evaluated there or produced a non-finite number.
 pub fn normal_equations<const P: usize>(problem: &impl Problem<P>, x: &SVector<f64, P>) -> Option<NormalEquations<P>> {
-    let mut jtj = SMatrix::<f64, P, P>::zeros();
-    let mut jtr = SVector::<f64, P>::zeros();
+    // Plain arrays with constant bounds: the compiler unrolls the upper triangle.
+    let mut jtj = [[0.0f64; P]; P];
+    let mut jtr = [0.0f64; P];
     let mut ss = 0.0;
     let mut count = 0;
     let ok = problem.for_each_row(x, |r, j| {
+        let j: [f64; P] = (*j).into();
         for a in 0..P {
             jtr[a] += j[a] * r;
             for b in a..P {
-                jtj[(a, b)] += j[a] * j[b];
+                jtj[a][b] += j[a] * j[b];
             }
         }
         ss += r * r;
         count += 1;
     });
-    for a in 0..P {
-        for b in 0..a {
-            jtj[(a, b)] = jtj[(b, a)];
-        }
-    }
+    let jtj = SMatrix::<f64, P, P>::from_fn(|a, b| if a <= b { jtj[a][b] } else { jtj[b][a] });
+    let jtr = SVector::<f64, P>::from(jtr);
     let finite = ss.is_finite() && jtr.iter().chain(jtj.iter()).all(|v| v.is_finite());
     (ok && finite).then_some(NormalEquations { jtj, jtr, cost: 0.5 * ss, count })
 }
@@ -146,6 +150,9 @@ pub struct Options {
     pub xtol: f64,
     /// Cosine between residual and Jacobian columns below which the fit has converged.
     pub gtol: f64,
+    /// Distance to the minimum, in standard uncertainties of the result, below which
+    /// the fit has converged (0 disables the test).
+    pub stol: f64,
     /// Initial damping `μ₀` relative to `D²` (Nielsen's τ). Small values trust
     /// Gauss-Newton from the start; 1e-2 suits a start from a good initial guess.
     pub initial_damping: f64,
@@ -153,13 +160,14 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
-        Options { max_iterations: 100, ftol: 1e-12, xtol: 1e-10, gtol: 1e-10, initial_damping: 1e-2 }
+        Options { max_iterations: 100, ftol: 1e-12, xtol: 1e-10, gtol: 1e-10, stol: 1e-3, initial_damping: 1e-3 }
     }
 }
 
 /// Why the solver stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Termination {
+    Uncertainty,
     Gradient,
     Step,
     Cost,
@@ -171,11 +179,12 @@ pub enum Termination {
 impl Termination {
     /// Stopped at a minimum (as opposed to running out of iterations or numbers).
     pub fn converged(self) -> bool {
-        matches!(self, Self::Gradient | Self::Step | Self::Cost | Self::NoFurtherDecrease)
+        matches!(self, Self::Uncertainty | Self::Gradient | Self::Step | Self::Cost | Self::NoFurtherDecrease)
     }
 
     pub fn describe(self) -> &'static str {
         match self {
+            Self::Uncertainty => "converged (remaining step below the uncertainty)",
             Self::Gradient => "converged (gradient)",
             Self::Step => "converged (step)",
             Self::Cost => "converged (cost)",
@@ -227,6 +236,9 @@ pub fn minimize<const P: usize>(problem: &impl Problem<P>, x0: SVector<f64, P>, 
         if gradient_converged(&ne, opt.gtol) {
             return finish(x, Termination::Gradient, iteration - 1, evaluations, ne);
         }
+        if within_uncertainty(&ne, opt.stol) {
+            return finish(x, Termination::Uncertainty, iteration - 1, evaluations, ne);
+        }
         let mut a = ne.jtj;
         for i in 0..P {
             a[(i, i)] += mu * d2[i];
@@ -271,6 +283,18 @@ pub fn minimize<const P: usize>(problem: &impl Problem<P>, x0: SVector<f64, P>, 
     let termination =
         if gradient_converged(&ne, opt.gtol) { Termination::Gradient } else { Termination::MaxIterations };
     finish(x, termination, opt.max_iterations, evaluations, ne)
+}
+
+/// The Gauss-Newton step's length in standard uncertainties: `gᵀ(JᵀJ)⁻¹g <= stol² σ̂²`.
+fn within_uncertainty<const P: usize>(ne: &NormalEquations<P>, stol: f64) -> bool {
+    if stol <= 0.0 || ne.count <= P {
+        return false;
+    }
+    let sigma2 = 2.0 * ne.cost / (ne.count - P) as f64;
+    match ne.jtj.cholesky() {
+        Some(c) => ne.jtr.dot(&c.solve(&ne.jtr)) <= stol * stol * sigma2,
+        None => false,
+    }
 }
 
 /// MINPACK's scale-free gradient test: `max_j |g_j| / (‖J_j‖ ‖r‖) <= gtol`.
