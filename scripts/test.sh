@@ -1,6 +1,14 @@
 #!/usr/bin/env bash
-# The test command (README, .ci/run): one release build, reused by every test.
+# The test command (README, .ci/run). One release build, reused by every step:
+#   1. the Rust tests (unit, engine, node over DDS), inside a private network namespace;
+#   2. the real ROS 2 peer: rclpy (Kilted, Fast DDS) from PyPI wheels and the message
+#      package built by rosidl (tests/interop/setup.sh installs both), against the node.
+# Nothing sends a packet off this machine: every DDS participant runs in a network
+# namespace whose only interface is loopback (tests/interop/netns.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
-cargo test --release --locked
+cargo build --release --locked --bins
+cargo test --release --locked --no-run
+tests/interop/netns.sh cargo test --release --locked --offline
+bash tests/interop/run.sh

@@ -6,7 +6,8 @@
 //! Conventions (see the README): SI units (metres, radians), the rail turns
 //! counter-clockwise, `P = (rho - dL) u + d v`.
 
-pub mod engine;
 pub mod cli;
+pub mod engine;
 pub mod io;
 pub mod params;
+pub mod ros;

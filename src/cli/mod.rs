@@ -2,6 +2,7 @@
 
 pub mod calibrate;
 pub mod demo;
+pub mod simulate;
 
 use clap::{Parser, Subcommand};
 
@@ -17,6 +18,7 @@ pub struct Cli {
 pub enum Command {
     Calibrate(calibrate::Args),
     Demo(demo::Args),
+    Simulate(simulate::Args),
 }
 
 /// Exit statuses of the tool (CONTRACT.md).
@@ -31,5 +33,6 @@ pub fn run(cli: Cli) -> i32 {
     match cli.command {
         Command::Calibrate(args) => calibrate::run(&args),
         Command::Demo(args) => demo::run(&args),
+        Command::Simulate(args) => simulate::run(&args),
     }
 }

@@ -1,57 +1,515 @@
-//! A ROS parameter value, and how a YAML scalar becomes one.
+//! A ROS parameter value, how a YAML scalar or a `-p` value becomes one, and how one is
+//! written back as YAML (typed as ROS 2's `rcl_yaml_param_parser` does).
 
 use std::fmt;
 
-/// A ROS 2 parameter value (the types this node's parameters use, plus arrays so a
-/// params file meant for other nodes still parses).
+/// A ROS 2 parameter value, as a params file or a `-p` override can give it.
+///
+/// (ROS also has byte arrays, which YAML cannot express; they are not needed here.)
 #[derive(Debug, Clone, PartialEq)]
 pub enum ParamValue {
+    /// `bool`.
     Bool(bool),
+    /// `integer` (64-bit).
     Integer(i64),
+    /// `double`.
     Double(f64),
+    /// `string`.
     String(String),
+    /// `bool_array`.
     BoolArray(Vec<bool>),
+    /// `integer_array`.
     IntegerArray(Vec<i64>),
+    /// `double_array`.
     DoubleArray(Vec<f64>),
+    /// `string_array`.
     StringArray(Vec<String>),
 }
 
+/// YAML 1.1 booleans that `rcl_yaml_param_parser` accepts (plain scalars only).
+const YAML_TRUE: &[&str] = &["Y", "y", "yes", "Yes", "YES", "true", "True", "TRUE", "on", "On", "ON"];
+const YAML_FALSE: &[&str] = &["N", "n", "no", "No", "NO", "false", "False", "FALSE", "off", "Off", "OFF"];
+/// YAML's special floats that `rcl_yaml_param_parser` accepts.
+const YAML_SPECIAL_FLOATS: &[&str] =
+    &[".nan", ".NaN", ".NAN", ".inf", ".Inf", ".INF", "+.inf", "+.Inf", "+.INF", "-.inf", "-.Inf", "-.INF"];
+
 impl ParamValue {
-    /// Type a YAML scalar as ROS's `rcl_yaml_param_parser` does: a quoted scalar is a
-    /// string; otherwise `true/false` (also `yes/no`, `on/off`, in lower, Title or
-    /// UPPER case) is a bool, a whole number (decimal, or `0x` hex) an integer, a
-    /// number `strtod` reads (with `.inf`/`.nan` forms) a double, and anything else a
-    /// string.
+    /// Types one YAML scalar the way ROS 2's `rcl_yaml_param_parser` does (params files and
+    /// `-p` overrides).
+    ///
+    /// `text` is the scalar's content (already unquoted and unescaped by the YAML reader);
+    /// `quoted` is true for single- or double-quoted scalars, and should also be passed as true
+    /// for a scalar tagged `!!str`. Then:
+    ///
+    /// 1. quoted -> [`ParamValue::String`];
+    /// 2. `y Y yes Yes YES true True TRUE on On ON` -> `Bool(true)`,
+    ///    `n N no No NO false False FALSE off Off OFF` -> `Bool(false)`;
+    /// 3. what C's `strtoll(text, &end, 0)` reads completely and without overflow ->
+    ///    `Integer`: decimal `-12`, hex `0x1F`, and **octal** `010` (= 8);
+    /// 4. `.inf .Inf .INF` (with `+`/`-`), `.nan .NaN .NAN`, and what C's `strtod` reads
+    ///    completely without overflow or underflow -> `Double`: `1.5`, `1e-6`, `5.`, `.5`,
+    ///    `inf`, `nan`, `0x1p3`, and also `08` (not octal, so strtoll stops; strtod reads 8.0);
+    /// 5. anything else -> `String` (`1e999` too: strtod overflows).
+    ///
+    /// An empty plain scalar gives `String("")`; rcl rejects it ("No value"), so a params-file
+    /// reader should too. YAML `null`/`~` are not special for rcl: they give strings.
     pub fn from_yaml_scalar(text: &str, quoted: bool) -> ParamValue {
         if quoted {
             return ParamValue::String(text.to_string());
         }
-        if let Some(b) = parse_bool(text) {
-            return ParamValue::Bool(b);
+        if YAML_TRUE.contains(&text) {
+            return ParamValue::Bool(true);
         }
-        if let Some(i) = parse_integer(text) {
+        if YAML_FALSE.contains(&text) {
+            return ParamValue::Bool(false);
+        }
+        if let Some(i) = c_strtoll(text) {
             return ParamValue::Integer(i);
         }
-        if let Some(d) = parse_double(text) {
+        if YAML_SPECIAL_FLOATS.contains(&text) {
+            let magnitude = if text.to_ascii_lowercase().ends_with("nan") { f64::NAN } else { f64::INFINITY };
+            return ParamValue::Double(if text.starts_with('-') { -magnitude } else { magnitude });
+        }
+        if let Some(d) = c_strtod(text) {
             return ParamValue::Double(d);
         }
         ParamValue::String(text.to_string())
     }
 
-    /// The ROS type name, for messages: `bool`, `integer`, `double`, `string`, ...
+    /// Parses the value of a `-p NAME:=VALUE` override: a one-line YAML value, as rcl reads it.
+    ///
+    /// Accepts a plain, `'single'`- or `"double"`-quoted scalar (optionally tagged `!!str`,
+    /// which makes it a string), or a flow sequence `[a, b, c]` whose items all have the same
+    /// type (ROS has no mixed arrays; `[1, 2.5]` is an error, write `[1.0, 2.5]`). A trailing
+    /// ` # comment` is ignored. Mappings, nested sequences, anchors and block scalars are errors,
+    /// as are an empty plain value and an empty sequence (its type is unknown).
+    pub fn parse_yaml(text: &str) -> Result<ParamValue, String> {
+        let mut cursor = Cursor { text, pos: 0 };
+        cursor.skip_spaces();
+        let value = match cursor.peek() {
+            None | Some('#') => return Err("empty value (write '' for an empty string)".into()),
+            Some('[') => {
+                cursor.pos += 1;
+                parse_flow_sequence(&mut cursor)?
+            }
+            Some('{') => return Err("a YAML mapping is not a parameter value".into()),
+            Some(_) => {
+                let scalar = parse_scalar(&mut cursor, false)?;
+                if !scalar.quoted && scalar.text.is_empty() {
+                    return Err("empty value (write '' for an empty string)".into());
+                }
+                ParamValue::from_yaml_scalar(&scalar.text, scalar.quoted)
+            }
+        };
+        cursor.skip_spaces_and_comment();
+        if let Some(rest) = cursor.rest().filter(|r| !r.is_empty()) {
+            return Err(format!("unexpected '{rest}' after the value"));
+        }
+        Ok(value)
+    }
+
+    /// Writes the value as one-line YAML that [`ParamValue::parse_yaml`], rcl and other YAML
+    /// readers give back unchanged: doubles always carry a `.` or an exponent (`1.0`, `1e-6`,
+    /// `.inf`, `.nan`), strings are quoted whenever they would otherwise read as something else,
+    /// arrays are flow sequences. For writing params files.
+    pub fn to_yaml(&self) -> String {
+        match self {
+            ParamValue::Bool(b) => b.to_string(),
+            ParamValue::Integer(i) => i.to_string(),
+            ParamValue::Double(d) => yaml_double(*d),
+            ParamValue::String(s) => yaml_string(s),
+            ParamValue::BoolArray(v) => yaml_list(v.iter().map(bool::to_string)),
+            ParamValue::IntegerArray(v) => yaml_list(v.iter().map(i64::to_string)),
+            ParamValue::DoubleArray(v) => yaml_list(v.iter().map(|d| yaml_double(*d))),
+            ParamValue::StringArray(v) => yaml_list(v.iter().map(|s| yaml_string(s))),
+        }
+    }
+
+    /// The ROS parameter type name, as rclcpp prints it (`bool`, `integer`, `double`, `string`,
+    /// `bool_array`, ...).
     pub fn type_name(&self) -> &'static str {
         match self {
             ParamValue::Bool(_) => "bool",
             ParamValue::Integer(_) => "integer",
             ParamValue::Double(_) => "double",
             ParamValue::String(_) => "string",
-            ParamValue::BoolArray(_) => "bool array",
-            ParamValue::IntegerArray(_) => "integer array",
-            ParamValue::DoubleArray(_) => "double array",
-            ParamValue::StringArray(_) => "string array",
+            ParamValue::BoolArray(_) => "bool_array",
+            ParamValue::IntegerArray(_) => "integer_array",
+            ParamValue::DoubleArray(_) => "double_array",
+            ParamValue::StringArray(_) => "string_array",
         }
     }
+}
 
+impl fmt::Display for ParamValue {
+    /// Same as [`ParamValue::to_yaml`].
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.to_yaml())
+    }
+}
+
+impl From<ParamValue> for ros2_client::ParameterValue {
+    fn from(value: ParamValue) -> Self {
+        use ros2_client::ParameterValue as P;
+        match value {
+            ParamValue::Bool(b) => P::Boolean(b),
+            ParamValue::Integer(i) => P::Integer(i),
+            ParamValue::Double(d) => P::Double(d),
+            ParamValue::String(s) => P::String(s),
+            ParamValue::BoolArray(v) => P::BooleanArray(v),
+            ParamValue::IntegerArray(v) => P::IntegerArray(v),
+            ParamValue::DoubleArray(v) => P::DoubleArray(v),
+            ParamValue::StringArray(v) => P::StringArray(v),
+        }
+    }
+}
+
+fn is_c_space(c: char) -> bool {
+    matches!(c, ' ' | '\t' | '\n' | '\x0b' | '\x0c' | '\r')
+}
+
+/// Splits an optional sign off.
+fn split_sign(s: &str) -> (bool, &str) {
+    if let Some(rest) = s.strip_prefix('-') { (true, rest) } else { (false, s.strip_prefix('+').unwrap_or(s)) }
+}
+
+/// C's `strtoll(text, &end, 0)`, accepted only if it reads all of `text` without overflow.
+pub(crate) fn c_strtoll(text: &str) -> Option<i64> {
+    if text.is_empty() {
+        return None;
+    }
+    let (negative, body) = split_sign(text.trim_start_matches(is_c_space));
+    let hex = body.strip_prefix("0x").or_else(|| body.strip_prefix("0X"));
+    let (digits, radix) = match hex {
+        Some(rest) if rest.starts_with(|c: char| c.is_ascii_hexdigit()) => (rest, 16),
+        _ if body.starts_with('0') => (body, 8),
+        _ => (body, 10),
+    };
+    if digits.is_empty() || !digits.chars().all(|c| c.is_digit(radix)) {
+        return None;
+    }
+    let magnitude = i128::from(u64::from_str_radix(digits, radix).ok()?);
+    i64::try_from(if negative { -magnitude } else { magnitude }).ok()
+}
+
+/// C's `strtod(text, &end)`, accepted only if it reads all of `text` and sets no `ERANGE`
+/// (glibc: overflow to infinity, or underflow to zero or a subnormal).
+fn c_strtod(text: &str) -> Option<f64> {
+    if text.is_empty() {
+        return None;
+    }
+    let (negative, body) = split_sign(text.trim_start_matches(is_c_space));
+    let lower = body.to_ascii_lowercase();
+    let magnitude = if lower == "inf" || lower == "infinity" {
+        f64::INFINITY
+    } else if lower == "nan"
+        || lower
+            .strip_prefix("nan(")
+            .and_then(|r| r.strip_suffix(')'))
+            .is_some_and(|inner| inner.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))
+    {
+        f64::NAN
+    } else if let Some(hex) = body.strip_prefix("0x").or_else(|| body.strip_prefix("0X")) {
+        c_hex_float(hex)?
+    } else {
+        c_decimal_float(body)?
+    };
+    Some(if negative { -magnitude } else { magnitude })
+}
+
+/// Counts leading ASCII digits of the given radix.
+fn digit_run(s: &str, radix: u32) -> usize {
+    s.chars().take_while(|c| c.is_digit(radix)).count()
+}
+
+/// Splits `mantissa` and the exponent digits (`e`/`p` already checked by the caller).
+fn split_float(s: &str, radix: u32) -> Option<(&str, &str, Option<&str>)> {
+    let int_len = digit_run(s, radix);
+    let (int_part, rest) = s.split_at(int_len);
+    let (frac_part, rest) = match rest.strip_prefix('.') {
+        Some(after) => after.split_at(digit_run(after, radix)),
+        None => ("", rest),
+    };
+    if int_part.is_empty() && frac_part.is_empty() {
+        return None;
+    }
+    let exp_marker = if radix == 16 { ['p', 'P'] } else { ['e', 'E'] };
+    let exponent = match rest.strip_prefix(exp_marker) {
+        Some(exp) => {
+            let (_, digits) = split_sign(exp);
+            if digits.is_empty() || digit_run(digits, 10) != digits.len() {
+                return None;
+            }
+            Some(exp)
+        }
+        None if rest.is_empty() => None,
+        None => return None,
+    };
+    Some((int_part, frac_part, exponent))
+}
+
+fn c_decimal_float(body: &str) -> Option<f64> {
+    let (int_part, frac_part, _) = split_float(body, 10)?;
+    let value: f64 = body.parse().ok()?;
+    let nonzero = int_part.chars().chain(frac_part.chars()).any(|c| c != '0');
+    if value.is_infinite() || (nonzero && value.abs() < f64::MIN_POSITIVE) {
+        return None;
+    }
+    Some(value)
+}
+
+fn c_hex_float(hex: &str) -> Option<f64> {
+    let (int_part, frac_part, exponent) = split_float(hex, 16)?;
+    let mut mantissa = 0.0f64;
+    for c in int_part.chars().chain(frac_part.chars()) {
+        mantissa = mantissa * 16.0 + f64::from(c.to_digit(16)?);
+    }
+    let exponent: i32 = match exponent {
+        Some(e) => e.parse().ok()?,
+        None => 0,
+    };
+    let frac_digits = i32::try_from(frac_part.len()).ok()?;
+    let value = mantissa * 2f64.powi(exponent.checked_sub(4 * frac_digits)?);
+    if value.is_infinite() || (mantissa != 0.0 && value < f64::MIN_POSITIVE) {
+        return None;
+    }
+    Some(value)
+}
+
+pub(crate) fn yaml_double(d: f64) -> String {
+    if d.is_nan() {
+        ".nan".into()
+    } else if d.is_infinite() {
+        if d > 0.0 { ".inf".into() } else { "-.inf".into() }
+    } else {
+        // Debug is the shortest round-trip form and always has '.' or 'e': "1.0", "1e-6".
+        format!("{d:?}")
+    }
+}
+
+pub(crate) fn yaml_string(s: &str) -> String {
+    let plain_chars = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '/' | '-' | '+');
+    let reads_back = ParamValue::from_yaml_scalar(s, false) == ParamValue::String(s.to_string());
+    let yaml_null = matches!(s, "~" | "null" | "Null" | "NULL");
+    if !s.is_empty() && s.chars().all(plain_chars) && reads_back && !yaml_null && !s.starts_with('-') {
+        return s.to_string();
+    }
+    if s.chars().any(|c| c.is_control()) {
+        let mut out = String::from("\"");
+        for c in s.chars() {
+            match c {
+                '"' => out.push_str("\\\""),
+                '\\' => out.push_str("\\\\"),
+                '\n' => out.push_str("\\n"),
+                '\t' => out.push_str("\\t"),
+                '\r' => out.push_str("\\r"),
+                c if c.is_control() => out.push_str(&format!("\\u{:04x}", u32::from(c))),
+                c => out.push(c),
+            }
+        }
+        out.push('"');
+        return out;
+    }
+    format!("'{}'", s.replace('\'', "''"))
+}
+
+fn yaml_list(items: impl Iterator<Item = String>) -> String {
+    format!("[{}]", items.collect::<Vec<_>>().join(", "))
+}
+
+/// A scalar read from YAML text.
+struct Scalar {
+    text: String,
+    quoted: bool,
+}
+
+struct Cursor<'a> {
+    text: &'a str,
+    pos: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn rest(&self) -> Option<&'a str> {
+        self.text.get(self.pos..)
+    }
+    fn peek(&self) -> Option<char> {
+        self.rest().and_then(|r| r.chars().next())
+    }
+    fn bump(&mut self) -> Option<char> {
+        let c = self.peek()?;
+        self.pos += c.len_utf8();
+        Some(c)
+    }
+    fn skip_spaces(&mut self) {
+        while matches!(self.peek(), Some(' ' | '\t')) {
+            self.pos += 1;
+        }
+    }
+    fn skip_spaces_and_comment(&mut self) {
+        let start = self.pos;
+        self.skip_spaces();
+        // A comment needs whitespace before it, or to start the text.
+        if self.peek() == Some('#') && (self.pos > start || self.pos == 0) {
+            self.pos = self.text.len();
+        }
+    }
+}
+
+/// Reads one scalar at the cursor; `in_flow`: inside `[...]`, where `,` and `]` end it.
+fn parse_scalar(cursor: &mut Cursor<'_>, in_flow: bool) -> Result<Scalar, String> {
+    let mut force_string = false;
+    if let Some(rest) = cursor.rest().filter(|r| r.starts_with('!')) {
+        let tag_len = rest.find([' ', '\t']).unwrap_or(rest.len());
+        force_string = &rest[..tag_len] == "!!str";
+        cursor.pos += tag_len;
+        cursor.skip_spaces();
+    }
+    let mut scalar = match cursor.peek() {
+        Some('\'') => {
+            cursor.pos += 1;
+            let mut text = String::new();
+            loop {
+                match cursor.bump() {
+                    None => return Err("unterminated single-quoted string".into()),
+                    Some('\'') if cursor.peek() == Some('\'') => {
+                        cursor.pos += 1;
+                        text.push('\'');
+                    }
+                    Some('\'') => break,
+                    Some(c) => text.push(c),
+                }
+            }
+            Scalar { text, quoted: true }
+        }
+        Some('"') => {
+            cursor.pos += 1;
+            Scalar { text: parse_double_quoted(cursor)?, quoted: true }
+        }
+        Some(c) if "&*|>%@`".contains(c) => {
+            return Err(format!("'{c}' (YAML anchors, aliases, block scalars, directives) is not supported"));
+        }
+        Some('[' | '{') if in_flow => return Err("nested sequences or mappings are not parameter values".into()),
+        _ => {
+            let rest = cursor.rest().unwrap_or("");
+            let mut end = rest.len();
+            for (i, c) in rest.char_indices() {
+                let comment = c == '#' && rest[..i].ends_with([' ', '\t']);
+                if comment || (in_flow && matches!(c, ',' | ']' | '[' | '{' | '}')) {
+                    end = i;
+                    break;
+                }
+            }
+            let text = rest[..end].trim_end_matches([' ', '\t']);
+            if text.contains(": ") || text.ends_with(':') {
+                return Err(format!("'{text}' is a YAML mapping, not a parameter value (quote it)"));
+            }
+            if text.starts_with("- ") || text == "-" {
+                return Err("a YAML block sequence is not supported; write [a, b]".into());
+            }
+            cursor.pos += text.len();
+            Scalar { text: text.to_string(), quoted: false }
+        }
+    };
+    if force_string {
+        scalar.quoted = true;
+    }
+    Ok(scalar)
+}
+
+fn parse_double_quoted(cursor: &mut Cursor<'_>) -> Result<String, String> {
+    let mut text = String::new();
+    loop {
+        match cursor.bump() {
+            None => return Err("unterminated double-quoted string".into()),
+            Some('"') => return Ok(text),
+            Some('\\') => {
+                let escape = cursor.bump().ok_or("unterminated double-quoted string")?;
+                let hex_len = match escape {
+                    'x' => 2,
+                    'u' => 4,
+                    'U' => 8,
+                    _ => 0,
+                };
+                if hex_len > 0 {
+                    let digits = cursor.rest().and_then(|r| r.get(..hex_len)).ok_or("short \\x/\\u escape")?;
+                    let code = u32::from_str_radix(digits, 16).map_err(|_| format!("bad escape \\{escape}{digits}"))?;
+                    text.push(char::from_u32(code).ok_or_else(|| format!("bad escape \\{escape}{digits}"))?);
+                    cursor.pos += hex_len;
+                    continue;
+                }
+                text.push(match escape {
+                    '0' => '\0',
+                    'a' => '\x07',
+                    'b' => '\x08',
+                    't' | '\t' => '\t',
+                    'n' => '\n',
+                    'v' => '\x0b',
+                    'f' => '\x0c',
+                    'r' => '\r',
+                    'e' => '\x1b',
+                    ' ' => ' ',
+                    '"' => '"',
+                    '/' => '/',
+                    '\\' => '\\',
+                    'N' => '\u{85}',
+                    '_' => '\u{a0}',
+                    'L' => '\u{2028}',
+                    'P' => '\u{2029}',
+                    other => return Err(format!("unknown escape \\{other}")),
+                });
+            }
+            Some(c) => text.push(c),
+        }
+    }
+}
+
+/// Reads `[a, b, c]` after the `[`.
+fn parse_flow_sequence(cursor: &mut Cursor<'_>) -> Result<ParamValue, String> {
+    let mut items = Vec::new();
+    loop {
+        cursor.skip_spaces();
+        match cursor.peek() {
+            None => return Err("unterminated '['".into()),
+            Some(']') => {
+                cursor.pos += 1;
+                break;
+            }
+            Some(_) => {}
+        }
+        let scalar = parse_scalar(cursor, true)?;
+        if !scalar.quoted && scalar.text.is_empty() {
+            return Err("empty item in a sequence".into());
+        }
+        items.push(ParamValue::from_yaml_scalar(&scalar.text, scalar.quoted));
+        cursor.skip_spaces();
+        match cursor.bump() {
+            Some(',') => continue,
+            Some(']') => break,
+            Some(c) => return Err(format!("expected ',' or ']' in a sequence, got '{c}'")),
+            None => return Err("unterminated '['".into()),
+        }
+    }
+    let first = items.first().ok_or("an empty sequence has no type; ROS cannot tell what array it is")?;
+    let kind = first.type_name();
+    if let Some(odd) = items.iter().find(|v| v.type_name() != kind) {
+        return Err(format!("a sequence must have one type: {} and {} mixed", kind, odd.type_name()));
+    }
+    macro_rules! collect {
+        ($variant:ident, $array:ident) => {
+            ParamValue::$array(
+                items.into_iter().map(|v| if let ParamValue::$variant(x) = v { x } else { unreachable!() }).collect(),
+            )
+        };
+    }
+    Ok(match first {
+        ParamValue::Bool(_) => collect!(Bool, BoolArray),
+        ParamValue::Integer(_) => collect!(Integer, IntegerArray),
+        ParamValue::Double(_) => collect!(Double, DoubleArray),
+        _ => collect!(String, StringArray),
+    })
+}
+
+impl ParamValue {
     /// As a double; an integer is accepted too (`side: 1` means 1.0).
     pub fn as_f64(&self) -> Option<f64> {
         match *self {
@@ -59,151 +517,5 @@ impl ParamValue {
             ParamValue::Integer(i) => Some(i as f64),
             _ => None,
         }
-    }
-
-    /// The value as YAML that [`ParamValue::from_yaml_scalar`] (and ROS) read back as
-    /// the same type: doubles always carry a `.` or an exponent, strings are quoted.
-    pub fn to_yaml(&self) -> String {
-        fn list<T>(v: &[T], f: impl Fn(&T) -> String) -> String {
-            format!("[{}]", v.iter().map(f).collect::<Vec<_>>().join(", "))
-        }
-        match self {
-            ParamValue::Bool(b) => b.to_string(),
-            ParamValue::Integer(i) => i.to_string(),
-            ParamValue::Double(d) => yaml_double(*d),
-            ParamValue::String(s) => yaml_string(s),
-            ParamValue::BoolArray(v) => list(v, |b| b.to_string()),
-            ParamValue::IntegerArray(v) => list(v, |i| i.to_string()),
-            ParamValue::DoubleArray(v) => list(v, |d| yaml_double(*d)),
-            ParamValue::StringArray(v) => list(v, |s| yaml_string(s)),
-        }
-    }
-}
-
-impl fmt::Display for ParamValue {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ParamValue::String(s) => f.write_str(s),
-            other => f.write_str(&other.to_yaml()),
-        }
-    }
-}
-
-fn parse_bool(t: &str) -> Option<bool> {
-    match t {
-        "true" | "True" | "TRUE" | "yes" | "Yes" | "YES" | "on" | "On" | "ON" => Some(true),
-        "false" | "False" | "FALSE" | "no" | "No" | "NO" | "off" | "Off" | "OFF" => Some(false),
-        _ => None,
-    }
-}
-
-fn parse_integer(t: &str) -> Option<i64> {
-    let (neg, body) = match t.as_bytes().first()? {
-        b'-' => (true, &t[1..]),
-        b'+' => (false, &t[1..]),
-        _ => (false, t),
-    };
-    let magnitude = if let Some(hex) = body.strip_prefix("0x").or_else(|| body.strip_prefix("0X")) {
-        i128::from_str_radix(hex, 16).ok()?
-    } else {
-        if body.is_empty() || !body.bytes().all(|b| b.is_ascii_digit()) {
-            return None;
-        }
-        body.parse::<i128>().ok()?
-    };
-    i64::try_from(if neg { -magnitude } else { magnitude }).ok()
-}
-
-fn parse_double(t: &str) -> Option<f64> {
-    let lower = t.to_ascii_lowercase();
-    match lower.trim_start_matches(['+', '-']) {
-        ".inf" | "inf" | "infinity" => {
-            return Some(if lower.starts_with('-') { f64::NEG_INFINITY } else { f64::INFINITY });
-        }
-        ".nan" | "nan" => return Some(f64::NAN),
-        _ => {}
-    }
-    // Rust's parser accepts what strtod does for plain decimal numbers, but also
-    // "inf"/"nan" words handled above; reject anything with letters besides e/E.
-    if t.bytes().any(|b| b.is_ascii_alphabetic() && b != b'e' && b != b'E') {
-        return None;
-    }
-    t.parse::<f64>().ok()
-}
-
-/// A double that reads back as a double: `1.0`, `1.0e-6`, `.inf`, `.nan`.
-pub fn yaml_double(d: f64) -> String {
-    if d.is_nan() {
-        return ".nan".into();
-    }
-    if d.is_infinite() {
-        return if d > 0.0 { ".inf".into() } else { "-.inf".into() };
-    }
-    let s = format!("{d:?}"); // shortest round-trip form: "0.0349", "1e-6", "1.5e20"
-    match s.find(['e', 'E']) {
-        Some(e) if !s[..e].contains('.') => format!("{}.0{}", &s[..e], &s[e..]),
-        _ => s,
-    }
-}
-
-/// A double-quoted YAML string with the necessary escapes.
-pub fn yaml_string(s: &str) -> String {
-    let mut out = String::with_capacity(s.len() + 2);
-    out.push('"');
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            '\n' => out.push_str("\\n"),
-            '\t' => out.push_str("\\t"),
-            '\r' => out.push_str("\\r"),
-            c if c.is_control() => out.push_str(&format!("\\u{:04x}", c as u32)),
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-    out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn scalars_are_typed_like_ros() {
-        use ParamValue::*;
-        assert_eq!(ParamValue::from_yaml_scalar("true", false), Bool(true));
-        assert_eq!(ParamValue::from_yaml_scalar("Off", false), Bool(false));
-        assert_eq!(ParamValue::from_yaml_scalar("true", true), String("true".into()));
-        assert_eq!(ParamValue::from_yaml_scalar("400", false), Integer(400));
-        assert_eq!(ParamValue::from_yaml_scalar("-0x10", false), Integer(-16));
-        assert_eq!(ParamValue::from_yaml_scalar("1.0e-6", false), Double(1e-6));
-        assert_eq!(ParamValue::from_yaml_scalar("1e-6", false), Double(1e-6));
-        assert_eq!(ParamValue::from_yaml_scalar("-.inf", false), Double(f64::NEG_INFINITY));
-        assert_eq!(ParamValue::from_yaml_scalar("full", false), String("full".into()));
-        assert_eq!(ParamValue::from_yaml_scalar("99999999999999999999", false), Double(1e20));
-    }
-
-    #[test]
-    fn written_values_read_back_as_the_same_type() {
-        for v in [
-            ParamValue::Double(0.0),
-            ParamValue::Double(1e-6),
-            ParamValue::Double(-2.5e21),
-            ParamValue::Double(0.0349),
-            ParamValue::Integer(-3),
-            ParamValue::Bool(false),
-            ParamValue::String("with \"quotes\" and \\ and: colon".into()),
-            ParamValue::String("400".into()),
-        ] {
-            let yaml = v.to_yaml();
-            let (text, quoted) = match yaml.strip_prefix('"') {
-                Some(inner) => (inner.strip_suffix('"').unwrap().replace("\\\"", "\"").replace("\\\\", "\\"), true),
-                None => (yaml.clone(), false),
-            };
-            assert_eq!(ParamValue::from_yaml_scalar(&text, quoted), v, "{yaml}");
-        }
-        assert_eq!(yaml_double(1e-6), "1.0e-6");
-        assert_eq!(yaml_double(3.0), "3.0");
     }
 }

@@ -1,0 +1,6 @@
+//! The thin ROS shell: message mirrors, command line, the node's state and wiring.
+
+pub mod args;
+pub mod msgs;
+pub mod node;
+pub mod state;

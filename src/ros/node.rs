@@ -1,0 +1,304 @@
+//! `tracer_calib_node`: the node's wiring. Entities are created first, then one async
+//! loop each moves messages between DDS and [`super::state::NodeState`].
+//!
+//! | kind | name | QoS |
+//! |---|---|---|
+//! | subscription | `raw_scan` | reliable, keep last 100, volatile |
+//! | publisher | `contour`, `contour_polygon` | reliable, keep last 10, volatile |
+//! | service | `calibrate` (Fast DDS "Enhanced" mapping) | reliable, keep last 10 |
+//! | publisher | `/diagnostics`, 1 Hz | reliable, keep last 10 |
+//!
+//! Why: every scan is a measurement an edger acts on, so delivery is reliable (as the
+//! ROS default a tracer driver publishes with; a best-effort "sensor data" publisher
+//! does not match a reliable subscription, and has to be configured reliable); the
+//! subscription keeps 100 scans so a bag replayed at full speed is not thinned out;
+//! contours are not latched (volatile): a late subscriber wants the next scan, not an
+//! old one.
+
+use std::net::{IpAddr, Ipv4Addr};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use futures::{FutureExt, StreamExt};
+use log::{debug, error, info, warn};
+use ros2_client::{
+    Context, Name, NodeOptions, ParameterValue as RosValue, QosProfile, ServiceMapping,
+    builtin_interfaces::Time,
+    qos::{Durability, History, WhenFull},
+    rosout,
+};
+use rustdds::DomainParticipantBuilder;
+
+use super::args::{NodeIdentity, RosArgs, RosEnv, ros2_name};
+use super::msgs::Contour;
+use super::msgs::{Calibrate, DiagnosticArray, PolygonStamped, RawScan, RosMsg, RosService, type_names};
+use super::state::{NodeState, RateLimit};
+use crate::params::{ParamValue, Parameters, file as params_file, names};
+
+/// The node's default name (CONTRACT.md).
+pub const DEFAULT_NODE_NAME: &str = "tracer_calibrator";
+
+/// Everything the node needs to start, from the command line, the environment and
+/// the params files.
+#[derive(Debug, Clone)]
+pub struct Config {
+    pub identity: NodeIdentity,
+    pub args: RosArgs,
+    pub env: RosEnv,
+    pub params: Parameters,
+}
+
+impl Config {
+    /// Defaults, then every `--params-file` in order, then `-p` overrides. A file that
+    /// does not parse or has a wrong type stops the node (the error names the file,
+    /// line and key); the file is not touched.
+    pub fn load(args: RosArgs, env: RosEnv) -> Result<Config, String> {
+        let identity = args.node_identity(DEFAULT_NODE_NAME, "/").map_err(|e| e.to_string())?;
+        let fqn = identity.fully_qualified_name();
+        let mut params = Parameters::default();
+        for path in args.params_files() {
+            let file = params_file::read(path).map_err(|e| e.to_string())?;
+            let unknown = params.apply_file(&file, &fqn, &path.display().to_string()).map_err(|e| e.to_string())?;
+            for name in unknown {
+                debug!("{}: ignoring parameter '{name}' (not a parameter of this node)", path.display());
+            }
+        }
+        if let Some(last) = args.params_files().last() {
+            params.params_file = last.display().to_string();
+        }
+        for o in args.param_overrides_for(&identity) {
+            params.set(&o.name, &o.value).map_err(|e| format!("-p {}:={}: {e}", o.name, o.value))?;
+        }
+        Ok(Config { identity, args, env, params })
+    }
+}
+
+fn reliable(depth: usize) -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+/// The DDS participant: `ROS_DOMAIN_ID`, and with
+/// `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST` only 127.0.0.1.
+fn context(env: &RosEnv) -> Result<Context, String> {
+    let domain =
+        u16::try_from(env.domain_id).map_err(|_| format!("ROS_DOMAIN_ID {} is out of range", env.domain_id))?;
+    let mut builder = DomainParticipantBuilder::new(domain);
+    if env.discovery_range.is_local_only() {
+        builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
+    }
+    let participant = builder.build().map_err(|e| format!("cannot create the DDS participant: {e:?}"))?;
+    Context::from_domain_participant(participant).map_err(|e| format!("cannot create the ROS context: {e:?}"))
+}
+
+fn from_ros(v: &RosValue) -> Option<ParamValue> {
+    Some(match v {
+        RosValue::Boolean(b) => ParamValue::Bool(*b),
+        RosValue::Integer(i) => ParamValue::Integer(*i),
+        RosValue::Double(d) => ParamValue::Double(*d),
+        RosValue::String(s) => ParamValue::String(s.clone()),
+        RosValue::BooleanArray(v) => ParamValue::BoolArray(v.clone()),
+        RosValue::IntegerArray(v) => ParamValue::IntegerArray(v.clone()),
+        RosValue::DoubleArray(v) => ParamValue::DoubleArray(v.clone()),
+        RosValue::StringArray(v) => ParamValue::StringArray(v.clone()),
+        RosValue::NotSet | RosValue::ByteArray(_) => return None,
+    })
+}
+
+/// Run the node until `shutdown` resolves (SIGINT/SIGTERM in the binary).
+pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> Result<(), String> {
+    let Config { identity, args, env, params } = config;
+    for w in &env.warnings {
+        warn!("{w}");
+    }
+    let fqn = identity.fully_qualified_name();
+    let state = Arc::new(Mutex::new(NodeState::new(fqn.clone(), params.clone())));
+
+    // Parameters: validated by the same rules as the params file; a change is applied
+    // to the state and persisted (only when the value really changes, so the start-up
+    // round of set actions writes nothing). A failed write fails the set.
+    let mut options = NodeOptions::new().enable_rosout(true);
+    for (name, value) in params.to_list() {
+        options = options.declare_parameter(&name, value.into());
+    }
+    let validator_state = state.clone();
+    let action_state = state.clone();
+    let options = options
+        .parameter_validator(Box::new(move |name, value| {
+            if !Parameters::is_known(name) {
+                return Ok(());
+            }
+            let v = from_ros(value).ok_or_else(|| format!("{name}: unsupported value type"))?;
+            let mut trial = validator_state.lock().expect("state lock").params.clone();
+            trial.set(name, &v).map_err(|e| format!("{name}: {e}"))
+        }))
+        .parameter_set_action(Box::new(move |name, value| {
+            if !Parameters::is_known(name) {
+                return Ok(());
+            }
+            let v = from_ros(value).ok_or_else(|| format!("{name}: unsupported value type"))?;
+            let mut st = action_state.lock().expect("state lock");
+            if st.params.get(name).as_ref() == Some(&v) {
+                return Ok(());
+            }
+            let before = st.params.clone();
+            st.params.set(name, &v).map_err(|e| format!("{name}: {e}"))?;
+            if let Err(e) = st.persist() {
+                st.params = before;
+                return Err(format!("{name}: not changed: {e}"));
+            }
+            info!("parameter {name} = {v}");
+            Ok(())
+        }));
+
+    let ctx = context(&env)?;
+    let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
+    let mut node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node: {e:?}"))?;
+
+    let resolve = |name: &str| -> Result<Name, String> {
+        let resolved = args.resolve_topic(name, &identity).map_err(|e| e.to_string())?;
+        ros2_name(&resolved).map_err(|e| e.to_string())
+    };
+    let raw_name = resolve("raw_scan")?;
+    let contour_name = resolve("contour")?;
+    let polygon_name = resolve("contour_polygon")?;
+    let diag_name = resolve("/diagnostics")?;
+    let service_name = {
+        let resolved = args.resolve_service("calibrate", &identity).map_err(|e| e.to_string())?;
+        ros2_name(&resolved).map_err(|e| e.to_string())?
+    };
+    let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
+    let raw_topic = node.create_topic(&raw_name, RawScan::NAME.message_type_name(), &reliable(100)).map_err(mk)?;
+    let contour_topic =
+        node.create_topic(&contour_name, Contour::NAME.message_type_name(), &reliable(10)).map_err(mk)?;
+    let polygon_topic =
+        node.create_topic(&polygon_name, type_names::POLYGON_STAMPED.message_type_name(), &reliable(10)).map_err(mk)?;
+    let diag_topic =
+        node.create_topic(&diag_name, type_names::DIAGNOSTIC_ARRAY.message_type_name(), &reliable(10)).map_err(mk)?;
+    let subscription = node.create_subscription::<RawScan>(&raw_topic, None).map_err(mk)?;
+    let contour_pub = node.create_publisher::<Contour>(&contour_topic, None).map_err(mk)?;
+    let polygon_pub = node.create_publisher::<PolygonStamped>(&polygon_topic, None).map_err(mk)?;
+    let diag_pub = node.create_publisher::<DiagnosticArray>(&diag_topic, None).map_err(mk)?;
+    let server = node
+        .create_server::<<Calibrate as RosService>::Request, <Calibrate as RosService>::Response>(
+            ServiceMapping::Enhanced,
+            &service_name,
+            &Calibrate::type_name(),
+            reliable(10),
+            reliable(10),
+        )
+        .map_err(mk)?;
+    let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
+    info!(
+        "{fqn}: listening on {raw_name} (raw scans), serving {service_name}; domain {}, discovery {:?}",
+        env.domain_id, env.discovery_range
+    );
+
+    let scans = async {
+        let mut stream = std::pin::pin!(subscription.async_stream());
+        let mut limit = RateLimit::new(Duration::from_secs(1));
+        while let Some(item) = stream.next().await {
+            let msg = match item {
+                Ok((msg, _info)) => msg,
+                Err(e) => {
+                    // A message that does not even decode: counted like a malformed scan.
+                    let mut st = state.lock().expect("state lock");
+                    st.stats.scans_received += 1;
+                    st.stats.scans_rejected += 1;
+                    st.stats.last_rejection = format!("undecodable message: {e:?}");
+                    if let Some(held) = limit.allow(Instant::now()) {
+                        warn!("rejected an undecodable raw scan: {e:?} ({held} more rejections not shown)");
+                    }
+                    continue;
+                }
+            };
+            let outcome = state.lock().expect("state lock").on_raw_scan(&msg);
+            match outcome {
+                Ok(out) => {
+                    if let Err(e) = contour_pub.async_publish(out.contour).await {
+                        warn!("cannot publish a contour: {e:?}");
+                    }
+                    if let Err(e) = polygon_pub.async_publish(out.polygon).await {
+                        warn!("cannot publish a polygon: {e:?}");
+                    }
+                }
+                Err(e) => {
+                    if let Some(held) = limit.allow(Instant::now()) {
+                        let total = state.lock().expect("state lock").stats.scans_rejected;
+                        warn!("rejected raw scan {}: {e} ({total} rejected so far, {held} not shown)", msg.scan_id);
+                    }
+                }
+            }
+        }
+    };
+
+    let calls = async {
+        let mut requests = std::pin::pin!(server.receive_request_stream());
+        while let Some(item) = requests.next().await {
+            let (id, req) = match item {
+                Ok(r) => r,
+                Err(e) => {
+                    warn!("cannot read a calibrate request: {e:?}");
+                    continue;
+                }
+            };
+            // One fit at a time: the loop handles a request to the end before the next.
+            let outcome = state.lock().expect("state lock").on_calibrate(&req);
+            if let Some(m) = outcome.applied {
+                // Mirror into the ROS parameters (already persisted: the set action sees
+                // equal values and writes nothing).
+                for (name, value) in [
+                    (names::ALPHA0, RosValue::Double(m.alpha0)),
+                    (names::OFFSET, RosValue::Double(m.offset)),
+                    (names::DELTA_L, RosValue::Double(m.delta_l)),
+                    (names::VALID, RosValue::Boolean(true)),
+                ] {
+                    if let Err(e) = node.set_parameter(name, value) {
+                        error!("cannot mirror {name} into the ROS parameters: {e}");
+                    }
+                }
+            }
+            let r = &outcome.response;
+            if r.success {
+                rosout!(node, ros2_client::ros2::LogLevel::Info, "calibrate: {}", r.message);
+            } else {
+                rosout!(node, ros2_client::ros2::LogLevel::Warn, "calibrate: {}", r.message);
+                warn!("calibrate: {}", r.message);
+            }
+            if let Err(e) = server.async_send_response(id, outcome.response).await {
+                warn!("cannot send a calibrate response: {e:?}");
+            }
+        }
+    };
+
+    let diagnostics = async {
+        loop {
+            let msg = state.lock().expect("state lock").diagnostics(Time::now());
+            if let Err(e) = diag_pub.async_publish(msg).await {
+                debug!("cannot publish diagnostics: {e:?}");
+            }
+            smol::Timer::after(Duration::from_secs(1)).await;
+        }
+    };
+
+    smol::block_on(async {
+        futures::select! {
+            _ = scans.fuse() => error!("the raw scan stream ended"),
+            _ = calls.fuse() => error!("the calibrate request stream ended"),
+            _ = diagnostics.fuse() => {},
+            _ = shutdown.fuse() => info!("{fqn}: shutting down"),
+        }
+    });
+    // Tear down in order: dropping each endpoint makes discovery announce it gone; the
+    // participant's event loop must still be running to send that, so it goes last,
+    // after a moment. Without this, peers keep the node's topics and services in their
+    // graphs for the lease duration.
+    drop((subscription, contour_pub, polygon_pub, diag_pub, server));
+    drop(node);
+    std::thread::sleep(Duration::from_millis(150));
+    smol::block_on(spinner.cancel());
+    drop(ctx);
+    Ok(())
+}
