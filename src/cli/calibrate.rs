@@ -43,13 +43,13 @@ pub struct Args {
     #[arg(long, default_value_t = 400)]
     pub steps_per_rev: u32,
     /// Side of the square calibration plate, metres.
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub plate_side: Option<f64>,
     /// Corner radius of the plate, metres.
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub corner_radius: Option<f64>,
     /// Encoder scale, metres per count.
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub meters_per_count: Option<f64>,
     /// Print exactly one JSON object with the fields of the Calibrate response.
     #[arg(long)]
@@ -145,8 +145,17 @@ pub fn load_scan(args: &Args, p: &Parameters) -> Result<Scan, String> {
         return Err(format!("{}: rosbag2 input is not supported by this build yet; give a CSV file", path.display()));
     }
     let rev = csv::read(path)?;
-    Scan::from_counts(args.steps_per_rev, &rev.step, &rev.counts, p.meters_per_count)
-        .map_err(|e| format!("{}: {e}", path.display()))
+    let scan = Scan::from_counts(args.steps_per_rev, &rev.step, &rev.counts, p.meters_per_count)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let need = Options::default().min_samples;
+    if scan.len() < need {
+        return Err(format!(
+            "{}: too few samples: {} (a plate scan needs at least {need})",
+            path.display(),
+            scan.len()
+        ));
+    }
+    Ok(scan)
 }
 
 fn is_bag(path: &Path) -> bool {

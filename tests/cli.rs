@@ -1,0 +1,169 @@
+//! The offline tool as users run it: arguments, files, JSON, exit statuses.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn tool(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tracer_calib")).args(args).output().expect("the tool runs")
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tracer_calib_cli_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn json(o: &Output) -> serde_json::Value {
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(text.lines().count(), 1, "exactly one line of JSON: {text}");
+    serde_json::from_str(&text).expect("valid JSON")
+}
+
+#[test]
+fn simulate_then_calibrate_json() {
+    let csv = temp("plate.csv");
+    let csv_s = csv.to_str().unwrap();
+    let o = tool(&[
+        "simulate",
+        "--shape",
+        "plate",
+        "--alpha0-deg",
+        "-3",
+        "--offset",
+        "0.006",
+        "--noise",
+        "5e-6",
+        "--start-step",
+        "17",
+        "--missing",
+        "0.1",
+        "--out",
+        csv_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for model in ["full", "paper"] {
+        let o = tool(&["calibrate", "--input", csv_s, "--model", model, "--json"]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let v = json(&o);
+        // The fields of the Calibrate response, in its order.
+        let text = String::from_utf8_lossy(&o.stdout);
+        let keys = [
+            "success",
+            "message",
+            "alpha0",
+            "offset",
+            "delta_l",
+            "stddev",
+            "rms_residual",
+            "iterations",
+            "samples_used",
+        ];
+        let at: Vec<usize> = keys.iter().map(|k| text.find(&format!("\"{k}\":")).expect(k)).collect();
+        assert!(at.windows(2).all(|w| w[0] < w[1]), "{text}");
+        assert_eq!(v.as_object().unwrap().len(), keys.len());
+        assert_eq!(v["success"], true);
+        let sd: Vec<f64> = v["stddev"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        assert_eq!(sd.len(), 3);
+        // Within 5 reported standard uncertainties of the truth.
+        for (i, (key, truth)) in
+            [("alpha0", -3f64.to_radians()), ("offset", 0.006), ("delta_l", 0.002)].iter().enumerate()
+        {
+            assert!((v[key].as_f64().unwrap() - truth).abs() < 5.0 * sd[i], "{model} {key}: {v}");
+        }
+    }
+}
+
+#[test]
+fn params_file_and_flags_give_the_plate() {
+    let csv = temp("plate50.csv");
+    let csv_s = csv.to_str().unwrap();
+    assert!(tool(&["simulate", "--plate-side", "0.05", "--corner-radius", "0.004", "--out", csv_s]).status.success());
+    // With the default 45 mm plate the fit is refused: exit 1, the reason on stderr.
+    let o = tool(&["calibrate", "--input", csv_s, "--json"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(json(&o)["success"], false);
+    assert!(stderr(&o).contains("does not match the plate"), "{}", stderr(&o));
+    // From a params file, as the node writes it.
+    let params = temp("cell.yaml");
+    std::fs::write(
+        &params,
+        "/cell1/tracer:\n  ros__parameters:\n    plate.side: 0.05\n    plate.corner_radius: 0.004\n",
+    )
+    .unwrap();
+    let o = tool(&["calibrate", "--input", csv_s, "--params", params.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).starts_with("full model: alpha0 = 2.000"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    // From flags.
+    let o = tool(&["calibrate", "--input", csv_s, "--plate-side", "0.05", "--corner-radius", "0.004", "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+#[test]
+fn bad_input_exits_2_naming_the_problem() {
+    let write = |name: &str, text: &str| {
+        let p = temp(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let mut good = String::from("step,counts\n");
+    for k in 0..100 {
+        good.push_str(&format!("{k},{}\n", 22500 + k));
+    }
+    let cases = [
+        (write("garbage.csv", "step,counts\n1,2\nthree,4\n"), "garbage.csv:3: step 'three' is not a whole number >= 0"),
+        (write("short.csv", "step,counts\n1\n"), "short.csv:2: expected two values 'step,counts', got 1 in '1'"),
+        (write("nan.csv", "step,counts\n1,NaN\n"), "nan.csv:2: counts 'NaN' is not a whole number (32-bit)"),
+        (write("range.csv", "step,counts\n1,2\n400,3\n"), "range.csv: sample 1: step 400 is out of range"),
+        (
+            write("few.csv", "step,counts\n1,22000\n2,22001\n"),
+            "few.csv: too few samples: 2 (a plate scan needs at least 24)",
+        ),
+        (write("header.csv", "angle,value\n"), "header.csv:1: expected the header line 'step,counts'"),
+        (write("dup.csv", "step,counts\n5,1\n5,2\n"), "dup.csv: sample 1: step 5 was already measured"),
+        ("/nonexistent/plate.csv".to_string(), "/nonexistent/plate.csv: cannot read"),
+    ];
+    for (path, want) in &cases {
+        let o = tool(&["calibrate", "--input", path, "--json"]);
+        assert_eq!(o.status.code(), Some(2), "{path}: {}", stderr(&o));
+        assert!(stderr(&o).contains(want), "{path}: {}", stderr(&o));
+        let v = json(&o);
+        assert_eq!(v["success"], false);
+        assert!(v["message"].as_str().unwrap().contains(want));
+    }
+    let ok = write("good.csv", &good);
+    let o = tool(&["calibrate", "--input", &ok, "--plate-side", "-1"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--plate-side: plate side must be a positive length"), "{}", stderr(&o));
+    let o = tool(&["calibrate", "--input", &ok, "--model", "magic"]);
+    assert_eq!(o.status.code(), Some(2), "clap's own errors exit 2 too");
+    let bad_params = write("bad.yaml", "tracer_calibrator:\n  ros__parameters:\n    plate.side: wide\n");
+    let o = tool(&["calibrate", "--input", &ok, "--params", &bad_params]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bad.yaml:3: plate.side: expected a double, got string 'wide'"), "{}", stderr(&o));
+}
+
+#[test]
+fn every_subcommand_has_help_with_an_example() {
+    for sub in ["calibrate", "simulate", "demo"] {
+        let o = tool(&[sub, "--help"]);
+        assert!(o.status.success());
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(text.contains("Example:"), "{sub} --help has no example:\n{text}");
+    }
+}
+
+#[test]
+fn demo_runs() {
+    let o = tool(&["demo"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("lens: ellipse 50 x 30 mm"), "{text}");
+}
