@@ -22,6 +22,8 @@ use tracer_calib::engine::model::{ModelKind, PlateSpec};
 use tracer_calib::engine::scan::Scan;
 use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib::ros::msgs::{Header, RawScan, from_cdr, to_cdr};
+use tracer_calib::ros::state::NodeState;
 
 /// The full model behind the `levenberg-marquardt` crate's trait: residuals and the
 /// n×5 Jacobian from the same `for_each_row` our solver uses.
@@ -106,6 +108,32 @@ fn bench(c: &mut Criterion) {
     c.bench_function("correct/400 (fresh, builds the table)", |b| b.iter(|| correct(black_box(&lens_scan), &m)));
     let pts = corrector.correct(&lens_scan);
     c.bench_function("resample/400_to_400", |b| b.iter(|| resample_radii(black_box(&pts), 400, default_max_gap(400))));
+
+    // The node's whole handling of one raw scan (validate, correct, resample, build the
+    // Contour and PolygonStamped), and the CDR encoding of what it publishes.
+    let raw = RawScan {
+        header: Header::default(),
+        scan_id: 1,
+        target: RawScan::TARGET_LENS,
+        steps_per_revolution: 400,
+        step: lens_scan.samples().iter().map(|s| s.step).collect(),
+        counts: lens_scan.samples().iter().map(|s| (s.rho * 1e6).round() as i32).collect(),
+    };
+    let mut params = tracer_calib::params::Parameters::default();
+    params.calibration = m;
+    params.calibration_valid = true;
+    let mut state = NodeState::new("/tracer_calibrator".into(), params);
+    c.bench_function("node/on_raw_scan_400 (validate, correct, resample, build messages)", |b| {
+        b.iter(|| state.on_raw_scan(black_box(&raw)).unwrap())
+    });
+    let out = state.on_raw_scan(&raw).unwrap();
+    c.bench_function("node/encode Contour + PolygonStamped (CDR)", |b| {
+        b.iter(|| (to_cdr(black_box(&out.contour)).unwrap(), to_cdr(black_box(&out.polygon)).unwrap()))
+    });
+    c.bench_function("node/decode RawScan (CDR)", |b| {
+        let bytes = to_cdr(&raw).unwrap();
+        b.iter(|| from_cdr::<RawScan>(black_box(&bytes)).unwrap())
+    });
 }
 
 criterion_group!(benches, bench);

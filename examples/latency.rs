@@ -1,0 +1,232 @@
+//! Raw scan in → corrected contour out: the node's latency against a bare relay.
+//!
+//! ```text
+//! bash scripts/bench_latency.sh [ITERATIONS]        (runs this in a private netns)
+//! ```
+//!
+//! Two round trips are timed in the same run, alternating, with one message in flight:
+//! - **node**: this process publishes a 400-sample `RawScan` on `/raw_scan`;
+//!   `tracer_calib_node` (a separate process) corrects it and publishes a `Contour`,
+//!   which this process receives;
+//! - **bare**: the same `RawScan` goes to a relay process (this example run with
+//!   `--relay`) that answers with rustdds alone, no computation: once with the
+//!   `RawScan` itself, once with a ready-made `Contour` of the node's size (400 points,
+//!   400 radii) carrying the scan's id.
+//!
+//! All paths cross two processes and two DDS hops. Against the Contour relay, the
+//! difference is what the node itself adds: decoding, validation, correction,
+//! resampling, building the messages, the second (polygon) publication. Against the
+//! RawScan relay it also includes carrying a 13 kB answer instead of a 3 kB one. The
+//! node's resident memory is read from `/proc` at the start and the end.
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use futures::StreamExt;
+use nalgebra::Vector2;
+use rand::SeedableRng;
+use ros2_client::{Context, Name, NodeName, NodeOptions, QosProfile, qos::*};
+use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::engine::shape::Ellipse;
+use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib::ros::msgs::{Contour, Header, RawScan, RosMsg};
+
+fn qos() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 })
+}
+
+fn context() -> Context {
+    let dp = rustdds::DomainParticipantBuilder::new(0)
+        .with_only_networks([std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)])
+        .build()
+        .expect("participant");
+    Context::from_domain_participant(dp).expect("context")
+}
+
+/// `--relay`: answer every RawScan from /relay_in on /relay_out (the scan itself) and
+/// /relay_contour (a fixed Contour of the node's size with the scan's id).
+fn relay() {
+    let ctx = context();
+    let mut node =
+        ctx.new_node(NodeName::new("/", "bare_relay").unwrap(), NodeOptions::new().enable_rosout(false)).unwrap();
+    let t_in =
+        node.create_topic(&Name::new("/", "relay_in").unwrap(), RawScan::NAME.message_type_name(), &qos()).unwrap();
+    let t_out =
+        node.create_topic(&Name::new("/", "relay_out").unwrap(), RawScan::NAME.message_type_name(), &qos()).unwrap();
+    let t_contour = node
+        .create_topic(&Name::new("/", "relay_contour").unwrap(), Contour::NAME.message_type_name(), &qos())
+        .unwrap();
+    let sub = node.create_subscription::<RawScan>(&t_in, None).unwrap();
+    let publisher = node.create_publisher::<RawScan>(&t_out, None).unwrap();
+    let contour_pub = node.create_publisher::<Contour>(&t_contour, None).unwrap();
+    let contour = Contour {
+        header: Header::default(),
+        scan_id: 0,
+        target: RawScan::TARGET_LENS,
+        calibrated: true,
+        points: (0..400)
+            .map(|k| tracer_calib::ros::msgs::Point { x: 0.02 + k as f64 * 1e-6, y: 0.01, z: 0.0 })
+            .collect(),
+        radii: (0..400).map(|k| 0.02 + k as f64 * 1e-6).collect(),
+    };
+    smol::block_on(async {
+        let mut stream = std::pin::pin!(sub.async_stream());
+        while let Some(Ok((msg, _))) = stream.next().await {
+            if msg.target == RawScan::TARGET_CALIBRATION_PLATE {
+                // Asked for the Contour-sized answer.
+                let _ = contour_pub.async_publish(Contour { scan_id: msg.scan_id, ..contour.clone() }).await;
+            } else {
+                let _ = publisher.async_publish(msg).await;
+            }
+        }
+    });
+}
+
+fn rss_kib(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status.lines().find(|l| l.starts_with("VmRSS:"))?.split_whitespace().nth(1)?.parse().ok()
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+struct Children(Vec<Child>);
+impl Drop for Children {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = Command::new("kill").arg("-TERM").arg(c.id().to_string()).status();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn main() {
+    if std::env::args().any(|a| a == "--relay") {
+        return relay();
+    }
+    let iterations: usize = std::env::args().nth(1).map_or(2000, |s| s.parse().expect("ITERATIONS"));
+    let node_bin = std::env::var("TRACER_CALIB_NODE").unwrap_or_else(|_| "target/release/tracer_calib_node".into());
+    let me = std::env::current_exe().unwrap();
+    let node = Command::new(&node_bin)
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start {node_bin}: {e}"));
+    let relay = Command::new(&me).arg("--relay").spawn().unwrap();
+    let node_pid = node.id();
+    let _children = Children(vec![node, relay]);
+
+    // The scan: a 50 x 30 mm lens traced by a miscalibrated tracer.
+    let m = Mounting { alpha0: 0.03, offset: 0.004, delta_l: 0.0015 };
+    let lens = Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 };
+    let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+    let sim = simulate(&lens, &m, &SimOptions { noise: 2e-6, ..SimOptions::default() }, &mut rng).unwrap();
+    let template = RawScan {
+        header: Header::default(),
+        scan_id: 0,
+        target: RawScan::TARGET_LENS,
+        steps_per_revolution: 400,
+        step: sim.scan.samples().iter().map(|s| s.step).collect(),
+        counts: sim.scan.samples().iter().map(|s| (s.rho * 1e6).round() as i32).collect(),
+    };
+
+    let ctx = context();
+    let mut n =
+        ctx.new_node(NodeName::new("/", "latency_bench").unwrap(), NodeOptions::new().enable_rosout(false)).unwrap();
+    let topic =
+        |n: &mut ros2_client::Node, name: &str, ty| n.create_topic(&Name::new("/", name).unwrap(), ty, &qos()).unwrap();
+    let raw_t = topic(&mut n, "raw_scan", RawScan::NAME.message_type_name());
+    let contour_t = topic(&mut n, "contour", Contour::NAME.message_type_name());
+    let relay_in_t = topic(&mut n, "relay_in", RawScan::NAME.message_type_name());
+    let relay_out_t = topic(&mut n, "relay_out", RawScan::NAME.message_type_name());
+    let relay_contour_t = topic(&mut n, "relay_contour", Contour::NAME.message_type_name());
+    let to_node = n.create_publisher::<RawScan>(&raw_t, None).unwrap();
+    let from_node = n.create_subscription::<Contour>(&contour_t, None).unwrap();
+    let to_relay = n.create_publisher::<RawScan>(&relay_in_t, None).unwrap();
+    let from_relay = n.create_subscription::<RawScan>(&relay_out_t, None).unwrap();
+    let from_relay_contour = n.create_subscription::<Contour>(&relay_contour_t, None).unwrap();
+    let spinner = smol::spawn(n.spinner().unwrap().spin());
+
+    let rss_start = rss_kib(node_pid);
+    let lat = smol::block_on(async {
+        let mut contours = std::pin::pin!(from_node.async_stream());
+        let mut relayed = std::pin::pin!(from_relay.async_stream());
+        let mut relayed_contours = std::pin::pin!(from_relay_contour.async_stream());
+        let mut lat: [Vec<f64>; 3] = Default::default();
+        let warmup = 300;
+        let mut lost = 0;
+        for i in 0..(warmup + 3 * iterations) {
+            let path = i % 3; // 0: node, 1: relay (RawScan back), 2: relay (Contour back)
+            let id = i as u32 + 1;
+            let target = if path == 2 { RawScan::TARGET_CALIBRATION_PLATE } else { RawScan::TARGET_LENS };
+            let msg = RawScan { scan_id: id, target, ..template.clone() };
+            let t0 = Instant::now();
+            let publish = if path == 0 { to_node.async_publish(msg).await } else { to_relay.async_publish(msg).await };
+            publish.expect("publish");
+            let got = async {
+                loop {
+                    let back = match path {
+                        0 => contours.next().await.and_then(|r| r.ok()).map(|(c, _)| c.scan_id),
+                        1 => relayed.next().await.and_then(|r| r.ok()).map(|(r, _)| r.scan_id),
+                        _ => relayed_contours.next().await.and_then(|r| r.ok()).map(|(c, _)| c.scan_id),
+                    };
+                    if back == Some(id) {
+                        return;
+                    }
+                }
+            };
+            let timeout = smol::Timer::after(Duration::from_secs(if i < warmup { 5 } else { 1 }));
+            match futures::future::select(std::pin::pin!(got), timeout).await {
+                futures::future::Either::Left(_) if i >= warmup => lat[path].push(t0.elapsed().as_secs_f64() * 1e6),
+                futures::future::Either::Left(_) => {}
+                futures::future::Either::Right(_) => lost += 1,
+            }
+            smol::Timer::after(Duration::from_millis(2)).await;
+        }
+        if lost > 0 {
+            println!("{lost} round trips timed out (discovery warm-up included)");
+        }
+        lat
+    });
+    let rss_end = rss_kib(node_pid);
+    drop(spinner);
+
+    let report = |name: &str, v: &[f64]| {
+        let mut s = v.to_vec();
+        s.sort_by(f64::total_cmp);
+        if s.is_empty() {
+            println!("{name:<42} no samples");
+            return f64::NAN;
+        }
+        let med = percentile(&s, 0.5);
+        println!(
+            "{name:<42} n = {:>5}   median {:>7.1} µs   p90 {:>7.1} µs   p99 {:>7.1} µs",
+            s.len(),
+            med,
+            percentile(&s, 0.9),
+            percentile(&s, 0.99)
+        );
+        med
+    };
+    println!("round trip, 400-sample RawScan, loopback, reliable, one message in flight:");
+    let node_med = report("via tracer_calib_node (Contour back)", &lat[0]);
+    let bare_med = report("via a bare relay (RawScan back)", &lat[1]);
+    let sized_med = report("via a bare relay (same-size Contour back)", &lat[2]);
+    println!(
+        "the node adds {:.1} µs ({:+.1} %) to the same-size bare median; {:.1} µs ({:+.1} %) to the RawScan echo",
+        node_med - sized_med,
+        100.0 * (node_med / sized_med - 1.0),
+        node_med - bare_med,
+        100.0 * (node_med / bare_med - 1.0)
+    );
+    println!(
+        "node RSS: {} KiB at start, {} KiB after {} scans",
+        rss_start.map_or("?".into(), |v| v.to_string()),
+        rss_end.map_or("?".into(), |v| v.to_string()),
+        3 * iterations + 300
+    );
+}
