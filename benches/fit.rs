@@ -119,9 +119,7 @@ fn bench(c: &mut Criterion) {
         step: lens_scan.samples().iter().map(|s| s.step).collect(),
         counts: lens_scan.samples().iter().map(|s| (s.rho * 1e6).round() as i32).collect(),
     };
-    let mut params = tracer_calib::params::Parameters::default();
-    params.calibration = m;
-    params.calibration_valid = true;
+    let params = tracer_calib::params::Parameters { calibration: m, calibration_valid: true, ..Default::default() };
     let mut state = NodeState::new("/tracer_calibrator".into(), params);
     c.bench_function("node/on_raw_scan_400 (validate, correct, resample, build messages)", |b| {
         b.iter(|| state.on_raw_scan(black_box(&raw)).unwrap())

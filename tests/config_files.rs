@@ -15,8 +15,7 @@ fn default_config_gives_the_contract_defaults() {
     let path = format!("{root}/config/tracer_calib.yaml");
     let c = load(&["tracer_calib_node", "--ros-args", "--params-file", &path]).unwrap();
     assert_eq!(c.identity.fully_qualified_name(), "/tracer_calibrator");
-    let mut want = tracer_calib::params::Parameters::default();
-    want.params_file = path.clone();
+    let want = tracer_calib::params::Parameters { params_file: path.clone(), ..Default::default() };
     assert_eq!(c.params, want);
 }
 
