@@ -10,5 +10,8 @@ cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
 cargo build --release --locked --bins
 cargo test --release --locked --no-run
+# The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags
+# to read the bags we write. Needs the package registries, so outside the namespace.
+tests/interop/setup.sh
 tests/interop/netns.sh cargo test --release --locked --offline
 bash tests/interop/run.sh

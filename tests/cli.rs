@@ -152,18 +152,23 @@ fn bad_input_exits_2_naming_the_problem() {
 
 #[test]
 fn every_subcommand_has_help_with_an_example() {
-    for sub in ["calibrate", "simulate", "demo"] {
+    for sub in ["calibrate", "simulate", "demo", "plot", "correct", "replay", "oma"] {
         let o = tool(&[sub, "--help"]);
         assert!(o.status.success());
         let text = String::from_utf8_lossy(&o.stdout);
-        assert!(text.contains("Example:"), "{sub} --help has no example:\n{text}");
+        assert!(text.contains("Example:") || text.contains("Examples:"), "{sub} --help has no example:\n{text}");
     }
 }
 
+/// The demo end to end: the node over DDS (localhost only), the picture written.
 #[test]
 fn demo_runs() {
-    let o = tool(&["demo"]);
+    let svg = temp("demo.svg");
+    let o = tool(&["demo", "--domain-id", "91", "--plot", svg.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("lens: ellipse 50 x 30 mm"), "{text}");
+    assert!(text.contains("lens, ellipse 50 x 30 mm"), "{text}");
+    assert!(text.contains("contour calibrated = false"), "{text}");
+    let svg_text = std::fs::read_to_string(&svg).unwrap();
+    assert!(svg_text.starts_with("<?xml") || svg_text.starts_with("<svg"), "{}", &svg_text[..100]);
 }

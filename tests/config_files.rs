@@ -31,8 +31,19 @@ fn namespaced_example_applies_to_its_node_only() {
     let c = load(&["n", "--ros-args", "-r", "__ns:=/cell2", "-r", "__node:=tracer", "--params-file", &path]).unwrap();
     assert_eq!(c.params.meters_per_count, 1e-6);
     // -p overrides the file; a bad -p names itself.
-    let c = load(&["n", "--ros-args", "-r", "__ns:=/cell1", "-r", "__node:=tracer", "--params-file", &path, "-p", "model:=paper"])
-        .unwrap();
+    let c = load(&[
+        "n",
+        "--ros-args",
+        "-r",
+        "__ns:=/cell1",
+        "-r",
+        "__node:=tracer",
+        "--params-file",
+        &path,
+        "-p",
+        "model:=paper",
+    ])
+    .unwrap();
     assert_eq!(c.params.get("model"), Some(ParamValue::String("paper".into())));
     let e = load(&["n", "--ros-args", "-p", "plate.side:=-2.0"]).unwrap_err();
     assert!(e.starts_with("-p plate.side:=-2.0: plate side must be a positive length"), "{e}");

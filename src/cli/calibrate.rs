@@ -8,8 +8,10 @@ use super::exit;
 use crate::engine::calibrate::{Calibration, Options, calibrate};
 use crate::engine::model::ModelKind;
 use crate::engine::scan::Scan;
+use crate::io::bag::Bag;
 use crate::io::csv;
 use crate::params::{Parameters, ParamsFile, file as params_file};
+use crate::ros::msgs::RawScan;
 
 /// Fit alpha0, d and dL to a scan of the calibration plate.
 ///
@@ -141,12 +143,15 @@ fn default_section(file: &ParamsFile) -> String {
 /// Read the plate scan named by the arguments.
 pub fn load_scan(args: &Args, p: &Parameters) -> Result<Scan, String> {
     let path = &args.input;
-    if is_bag(path) {
-        return Err(format!("{}: rosbag2 input is not supported by this build yet; give a CSV file", path.display()));
-    }
-    let rev = csv::read(path)?;
-    let scan = Scan::from_counts(args.steps_per_rev, &rev.step, &rev.counts, p.meters_per_count)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let scan = if is_bag(path) {
+        let msg = plate_scan_from_bag(path, &args.topic, args.scan_id)?;
+        Scan::from_counts(msg.steps_per_revolution, &msg.step, &msg.counts, p.meters_per_count)
+            .map_err(|e| format!("{}: scan {} on {}: {e}", path.display(), msg.scan_id, args.topic))?
+    } else {
+        let rev = csv::read(path)?;
+        Scan::from_counts(args.steps_per_rev, &rev.step, &rev.counts, p.meters_per_count)
+            .map_err(|e| format!("{}: {e}", path.display()))?
+    };
     let need = Options::default().min_samples;
     if scan.len() < need {
         return Err(format!(
@@ -158,8 +163,36 @@ pub fn load_scan(args: &Args, p: &Parameters) -> Result<Scan, String> {
     Ok(scan)
 }
 
-fn is_bag(path: &Path) -> bool {
+/// Is `path` a rosbag2 bag (a directory, `.mcap` or `.db3`) rather than a CSV file?
+pub fn is_bag(path: &Path) -> bool {
     path.is_dir() || matches!(path.extension().and_then(|e| e.to_str()), Some("mcap" | "db3"))
+}
+
+/// The calibration-plate scan `scan_id` (0 = the latest plate scan) on `topic` of a bag.
+pub fn plate_scan_from_bag(path: &Path, topic: &str, scan_id: u32) -> Result<RawScan, String> {
+    let bag = Bag::open(path).map_err(|e| e.to_string())?;
+    let scans = bag.read::<RawScan>(topic).map_err(|e| e.to_string())?;
+    let shown = path.display();
+    if scan_id == 0 {
+        let mut plates = scans.into_iter().filter(|(_, m)| m.target == RawScan::TARGET_CALIBRATION_PLATE);
+        plates.next_back().map(|(_, m)| m).ok_or_else(|| {
+            format!("{shown}: no calibration-plate scan (target {}) on {topic}", RawScan::TARGET_CALIBRATION_PLATE)
+        })
+    } else {
+        let (_, msg) = scans
+            .into_iter()
+            .rev()
+            .find(|(_, m)| m.scan_id == scan_id)
+            .ok_or_else(|| format!("{shown}: no scan with scan_id {scan_id} on {topic}"))?;
+        if msg.target != RawScan::TARGET_CALIBRATION_PLATE {
+            return Err(format!(
+                "{shown}: scan {scan_id} on {topic} has target {}, not a calibration-plate scan ({})",
+                msg.target,
+                RawScan::TARGET_CALIBRATION_PLATE
+            ));
+        }
+        Ok(msg)
+    }
 }
 
 pub fn run(args: &Args) -> i32 {

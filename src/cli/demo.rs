@@ -1,23 +1,35 @@
-//! `tracer_calib demo`: a tracer with realistic mounting errors, simulated end to end:
-//! trace the calibration plate, calibrate, then trace lens and frame shapes and show
-//! how far their contours are off before and after correction.
+//! `tracer_calib demo`: the whole product on a simulated cell, no ROS install needed.
+//!
+//! A tracer with realistic mounting errors is simulated; `tracer_calib_node` runs as a
+//! separate process, and this process talks to it over DDS (localhost only, its own
+//! domain) as an edging cell would: it publishes a lens scan (uncorrected), the plate
+//! scan, calls `/calibrate`, publishes lens and frame scans, and compares the contours
+//! that come back with where the probe really was. Then the same plate scan is fitted
+//! with both models offline, and a picture of the fit is written.
 
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use futures::StreamExt;
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
+use ros2_client::{Context, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, qos::*};
 
 use super::exit;
 use crate::engine::calibrate::{Options, calibrate};
-use crate::engine::correct::{correct, default_max_gap, resample_radii};
+use crate::engine::correct::correct;
 use crate::engine::geometry::Mounting;
 use crate::engine::model::{ModelKind, PlateSpec};
 use crate::engine::shape::{Ellipse, RoundedRect, Shape};
-use crate::engine::simulate::{SimOptions, simulate};
+use crate::engine::simulate::{SimOptions, SimScan, simulate};
+use crate::ros::msgs::{Calibrate, CalibrateRequest, Contour, Header, RawScan, RosMsg, RosService};
 
-/// Simulate a miscalibrated tracer, calibrate it on the plate, correct lens scans.
+/// Simulate a miscalibrated tracer, run the node, calibrate it over DDS, correct scans.
 ///
 /// Example:
-///   tracer_calib demo --seed 7
+///   tracer_calib demo --seed 7 --plot demo.svg
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -27,6 +39,15 @@ pub struct Args {
     /// Encoder noise, metres.
     #[arg(long, default_value_t = 5e-6)]
     pub noise: f64,
+    /// DDS domain of the demo's graph (its own, so a cell on this machine is not disturbed).
+    #[arg(long, default_value_t = 77)]
+    pub domain_id: u16,
+    /// Where to write the picture of the plate fit (SVG).
+    #[arg(long, default_value = "demo_calibration.svg")]
+    pub plot: PathBuf,
+    /// The node binary (default: tracer_calib_node beside this program).
+    #[arg(long)]
+    pub node: Option<PathBuf>,
 }
 
 pub fn run(args: &Args) -> i32 {
@@ -39,94 +60,259 @@ pub fn run(args: &Args) -> i32 {
     }
 }
 
-fn demo(args: &Args) -> Result<(), String> {
-    let mut rng = StdRng::seed_from_u64(args.seed);
-    let truth = Mounting { alpha0: 1.7f64.to_radians(), offset: 4.2e-3, delta_l: 1.3e-3 };
-    let plate = PlateSpec::default();
-    let sim = SimOptions { noise: args.noise, quantum: 1e-6, start_step: 57, spikes: 2, ..SimOptions::default() };
-    println!("A tracer with mounting errors alpha0 = 1.7°, d = 4.2 mm, dL = 1.3 mm,");
-    println!(
-        "400 steps a turn, encoder noise {:.3} mm, 1 µm counts, 2 dust spikes of 0.5 mm on the plate scan.",
-        args.noise * 1e3
-    );
-    println!();
-    let plate_scan =
-        simulate(&plate.at(Vector2::new(0.6e-3, -0.4e-3)), &truth, &sim, &mut rng).map_err(|e| e.to_string())?;
-    println!("{:<7} {:>16} {:>16} {:>16}", "", "alpha0 [deg]", "d [mm]", "dL [mm]");
-    println!(
-        "{:<7} {:>16.4} {:>16.4} {:>16.4}",
-        "truth",
-        truth.alpha0.to_degrees(),
-        truth.offset * 1e3,
-        truth.delta_l * 1e3
-    );
-    let mut fitted = None;
-    for model in [ModelKind::Full, ModelKind::Paper] {
-        let cal =
-            calibrate(&plate_scan.scan, &plate, &Options { model, ..Options::default() }).map_err(|e| e.to_string())?;
-        let m = cal.mounting;
-        println!(
-            "{:<7} {:>8.4} ± {:<6.4} {:>8.4} ± {:<6.4} {:>8.4} ± {:<6.4}  ({} samples, {} rejected, rms {:.4} mm, {} iterations)",
-            model.as_str(),
-            m.alpha0.to_degrees(),
-            cal.stddev[0].to_degrees(),
-            m.offset * 1e3,
-            cal.stddev[1] * 1e3,
-            m.delta_l * 1e3,
-            cal.stddev[2] * 1e3,
-            cal.samples_used,
-            cal.samples_rejected,
-            cal.rms_residual * 1e3,
-            cal.iterations
-        );
-        if model == ModelKind::Full {
-            fitted = Some(m);
-        }
-    }
-    let fitted = fitted.expect("the full model ran");
-    println!();
-    println!("Contours traced by the same tracer, RMS distance to where the probe really was:");
-    println!("{:<34} {:>14} {:>14} {:>16}", "shape", "raw [mm]", "corrected [mm]", "radii max [mm]");
-    let lens_sim = SimOptions { noise: args.noise, quantum: 1e-6, ..SimOptions::default() };
-    let ellipse = Ellipse { center: Vector2::new(0.5e-3, -0.3e-3), a: 25e-3, b: 15e-3, angle: 0.1 };
-    let frame = RoundedRect { center: Vector2::new(-0.4e-3, 0.2e-3), half_w: 26e-3, half_h: 16e-3, radius: 8e-3 };
-    show("lens: ellipse 50 x 30 mm", &ellipse, &truth, &fitted, &lens_sim, &mut rng)?;
-    show("frame: rounded rectangle 52 x 32 mm", &frame, &truth, &fitted, &lens_sim, &mut rng)?;
-    println!();
-    println!("(radii max: largest error of the 400 equal-angle radii published in Contour.radii)");
-    Ok(())
+/// The simulated cell: its true mounting errors and the shapes it traces.
+struct Cell {
+    truth: Mounting,
+    plate: PlateSpec,
+    plate_center: Vector2<f64>,
+    rng: StdRng,
+    noise: f64,
 }
 
-fn show(
-    name: &str,
-    shape: &impl Shape,
-    truth: &Mounting,
-    fitted: &Mounting,
-    opt: &SimOptions,
-    rng: &mut StdRng,
-) -> Result<(), String> {
-    let sim = simulate(shape, truth, opt, rng).map_err(|e| e.to_string())?;
-    let rms = |m: &Mounting| {
-        let pts = correct(&sim.scan, m);
-        (pts.iter().zip(&sim.truth).map(|(p, t)| (p - t).norm_squared()).sum::<f64>() / pts.len() as f64).sqrt()
-    };
-    let pts = correct(&sim.scan, fitted);
-    let radii = resample_radii(&pts, 400, default_max_gap(400)).ok_or("the contour does not go all the way round")?;
-    let radii_err = radii
+impl Cell {
+    fn scan(&mut self, shape: &impl Shape, spikes: usize) -> Result<SimScan, String> {
+        let opt = SimOptions { noise: self.noise, quantum: 1e-6, start_step: 57, spikes, ..SimOptions::default() };
+        simulate(shape, &self.truth, &opt, &mut self.rng).map_err(|e| e.to_string())
+    }
+}
+
+fn raw_msg(scan_id: u32, target: u8, sim: &SimScan) -> RawScan {
+    RawScan {
+        header: Header { frame_id: "tracer".into(), ..Header::default() },
+        scan_id,
+        target,
+        steps_per_revolution: sim.scan.steps_per_rev(),
+        step: sim.scan.samples().iter().map(|s| s.step).collect(),
+        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+    }
+}
+
+/// RMS distance between a contour's points and the true touch points, metres.
+fn rms_error(contour: &Contour, truth: &[Vector2<f64>]) -> f64 {
+    let ss: f64 = contour.points.iter().zip(truth).map(|(p, t)| (p.x - t.x).powi(2) + (p.y - t.y).powi(2)).sum();
+    (ss / truth.len().max(1) as f64).sqrt()
+}
+
+/// Largest error of the equal-angle radii against the shape's true radii, metres.
+fn radii_error(contour: &Contour, shape: &impl Shape) -> f64 {
+    let n = contour.radii.len();
+    contour
+        .radii
         .iter()
         .enumerate()
         .map(|(k, r)| {
-            let phi = std::f64::consts::TAU * k as f64 / radii.len() as f64;
-            let u = Vector2::new(phi.cos(), phi.sin());
-            shape.exit(Vector2::zeros(), u).map_or(f64::INFINITY, |h| (h.t - r).abs())
+            let phi = std::f64::consts::TAU * k as f64 / n as f64;
+            shape.exit(Vector2::zeros(), Vector2::new(phi.cos(), phi.sin())).map_or(f64::INFINITY, |h| (h.t - r).abs())
         })
-        .fold(0.0, f64::max);
+        .fold(0.0, f64::max)
+}
+
+struct NodeProcess(Child);
+impl Drop for NodeProcess {
+    fn drop(&mut self) {
+        let _ = Command::new("kill").arg("-TERM").arg(self.0.id().to_string()).status();
+        let _ = self.0.wait();
+    }
+}
+
+fn qos() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 })
+}
+
+/// Wait for `fut` at most `secs` seconds.
+async fn within<T>(secs: u64, what: &str, fut: impl std::future::Future<Output = T>) -> Result<T, String> {
+    let timeout = smol::Timer::after(Duration::from_secs(secs));
+    match futures::future::select(std::pin::pin!(fut), timeout).await {
+        futures::future::Either::Left((v, _)) => Ok(v),
+        futures::future::Either::Right(_) => Err(format!("no {what} within {secs} s")),
+    }
+}
+
+fn demo(args: &Args) -> Result<(), String> {
+    let mut cell = Cell {
+        truth: Mounting { alpha0: 1.7f64.to_radians(), offset: 4.2e-3, delta_l: 1.3e-3 },
+        plate: PlateSpec::default(),
+        plate_center: Vector2::new(0.6e-3, -0.4e-3),
+        rng: StdRng::seed_from_u64(args.seed),
+        noise: args.noise,
+    };
+    let t = cell.truth;
     println!(
-        "{:<34} {:>14.4} {:>14.4} {:>16.4}",
-        name,
-        rms(&Mounting::IDEAL) * 1e3,
-        rms(fitted) * 1e3,
-        radii_err * 1e3
+        "Simulated tracer: alpha0 = {:.3}°, d = {:.3} mm, dL = {:.3} mm; 400 steps a turn, encoder noise {:.3} mm, 1 µm counts.",
+        t.alpha0.to_degrees(),
+        t.offset * 1e3,
+        t.delta_l * 1e3,
+        args.noise * 1e3
     );
+    let node_bin = match &args.node {
+        Some(p) => p.clone(),
+        None => std::env::current_exe().map_err(|e| e.to_string())?.with_file_name("tracer_calib_node"),
+    };
+    if !node_bin.exists() {
+        return Err(format!("{} not found: build it first (cargo build --release --bins)", node_bin.display()));
+    }
+    let state_dir = std::env::temp_dir().join(format!("tracer_calib_demo_{}", std::process::id()));
+    std::fs::create_dir_all(&state_dir).map_err(|e| e.to_string())?;
+    let params_path = state_dir.join("tracer_calibrator.yaml");
+    let started = Instant::now();
+    let node = Command::new(&node_bin)
+        .args(["--ros-args", "-p"])
+        .arg(format!("params_file:={}", params_path.display()))
+        .env("ROS_DOMAIN_ID", args.domain_id.to_string())
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .stdin(Stdio::null())
+        .spawn()
+        .map_err(|e| format!("cannot start {}: {e}", node_bin.display()))?;
+    let node = NodeProcess(node);
+    println!(
+        "Started {} (pid {}) on DDS domain {}, localhost only.",
+        node_bin.file_name().unwrap_or_default().to_string_lossy(),
+        node.0.id(),
+        args.domain_id
+    );
+
+    // This process is the edging cell: a ROS 2 participant on 127.0.0.1 only.
+    let participant = rustdds::DomainParticipantBuilder::new(args.domain_id)
+        .with_only_networks([std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)])
+        .build()
+        .map_err(|e| format!("cannot create a DDS participant: {e:?}"))?;
+    let ctx = Context::from_domain_participant(participant).map_err(|e| format!("{e:?}"))?;
+    let mut peer = ctx
+        .new_node(NodeName::new("/", "edging_cell_demo").unwrap(), NodeOptions::new().enable_rosout(false))
+        .map_err(|e| format!("{e:?}"))?;
+    let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
+    let raw_t = peer
+        .create_topic(&Name::new("/", "raw_scan").unwrap(), RawScan::NAME.message_type_name(), &qos())
+        .map_err(mk)?;
+    let contour_t = peer
+        .create_topic(&Name::new("/", "contour").unwrap(), Contour::NAME.message_type_name(), &qos())
+        .map_err(mk)?;
+    let publisher = peer.create_publisher::<RawScan>(&raw_t, None).map_err(mk)?;
+    let contours = peer.create_subscription::<Contour>(&contour_t, None).map_err(mk)?;
+    let client = peer
+        .create_client::<CalibrateRequest, <Calibrate as RosService>::Response>(
+            ServiceMapping::Enhanced,
+            &Name::new("/", "calibrate").unwrap(),
+            &Calibrate::type_name(),
+            qos(),
+            qos(),
+        )
+        .map_err(mk)?;
+    let spinner = smol::spawn(peer.spinner().map_err(mk)?.spin());
+
+    let plate_shape = cell.plate.at(cell.plate_center);
+    let lens = Ellipse { center: Vector2::new(0.5e-3, -0.3e-3), a: 25e-3, b: 15e-3, angle: 0.1 };
+    let frame = RoundedRect { center: Vector2::new(-0.4e-3, 0.2e-3), half_w: 26e-3, half_h: 16e-3, radius: 8e-3 };
+    let lens_before = cell.scan(&lens, 0)?;
+    let plate_scan = cell.scan(&plate_shape, 2)?;
+    let lens_after = cell.scan(&lens, 0)?;
+    let frame_after = cell.scan(&frame, 0)?;
+
+    let outcome = smol::block_on(async {
+        let mut stream = std::pin::pin!(contours.async_stream());
+        within(15, "answer from the node's /calibrate service", client.wait_for_service(&peer)).await?;
+        println!("Connected to /calibrate after {:.1} s.", started.elapsed().as_secs_f64());
+        // Publish a scan until its contour comes back (the first may go out before the
+        // node's subscription has matched ours).
+        let mut exchange = async |msg: RawScan| -> Result<Contour, String> {
+            for _attempt in 0..10 {
+                publisher.async_publish(msg.clone()).await.map_err(|e| format!("cannot publish: {e:?}"))?;
+                let wait = async {
+                    while let Some(item) = stream.next().await {
+                        if let Ok((c, _)) = item
+                            && c.scan_id == msg.scan_id
+                        {
+                            return Some(c);
+                        }
+                    }
+                    None
+                };
+                if let Ok(Some(c)) = within(1, "contour", wait).await {
+                    return Ok(c);
+                }
+            }
+            Err(format!("no contour for scan {} from the node", msg.scan_id))
+        };
+        let before = exchange(raw_msg(1, RawScan::TARGET_LENS, &lens_before)).await?;
+        println!();
+        println!(
+            "1. Lens scan before calibration: contour calibrated = {}, RMS error {:.3} mm.",
+            before.calibrated,
+            rms_error(&before, &lens_before.truth) * 1e3
+        );
+        exchange(raw_msg(2, RawScan::TARGET_CALIBRATION_PLATE, &plate_scan)).await?;
+        println!("2. Calibration plate traced (scan 2, two dust spikes on it).");
+        let response = within(
+            10,
+            "calibrate response",
+            client.async_call_service(CalibrateRequest { scan_id: 0, dry_run: false }),
+        )
+        .await?
+        .map_err(|e| format!("calibrate call failed: {e:?}"))?;
+        if !response.success {
+            return Err(format!("calibrate failed: {}", response.message));
+        }
+        println!("3. ros2 service call /calibrate tracer_calib_msgs/srv/Calibrate \"{{}}\":");
+        println!("   {}", response.message);
+        println!("{:>14} {:>12} {:>22}", "", "truth", "fit ± standard unc.");
+        for (name, truth, fit, sd, scale, unit) in [
+            ("alpha0", t.alpha0, response.alpha0, response.stddev[0], 180.0 / std::f64::consts::PI, "°"),
+            ("offset d", t.offset, response.offset, response.stddev[1], 1e3, " mm"),
+            ("delta_l dL", t.delta_l, response.delta_l, response.stddev[2], 1e3, " mm"),
+        ] {
+            println!("{name:>14} {:>10.4}{unit:<3} {:>10.4} ± {:.4}{unit}", truth * scale, fit * scale, sd * scale);
+        }
+        let lens_c = exchange(raw_msg(3, RawScan::TARGET_LENS, &lens_after)).await?;
+        let frame_c = exchange(raw_msg(4, RawScan::TARGET_FRAME, &frame_after)).await?;
+        Ok::<_, String>((before, lens_c, frame_c))
+    });
+    let (before, lens_c, frame_c) = outcome?;
+    println!("4. Scans after calibration, RMS distance to where the probe really was:");
+    println!("{:>38} {:>12} {:>14} {:>18}", "", "raw [mm]", "corrected [mm]", "radii max [mm]");
+    let raw_lens = rms_error(&before, &lens_before.truth);
+    println!(
+        "{:>38} {:>12.4} {:>14.4} {:>18.4}",
+        "lens, ellipse 50 x 30 mm",
+        raw_lens * 1e3,
+        rms_error(&lens_c, &lens_after.truth) * 1e3,
+        radii_error(&lens_c, &lens) * 1e3
+    );
+    let raw_frame = correct(&frame_after.scan, &Mounting::IDEAL);
+    let raw_frame_rms = (raw_frame.iter().zip(&frame_after.truth).map(|(p, q)| (p - q).norm_squared()).sum::<f64>()
+        / raw_frame.len() as f64)
+        .sqrt();
+    println!(
+        "{:>38} {:>12.4} {:>14.4} {:>18.4}",
+        "frame, rounded rectangle 52 x 32 mm",
+        raw_frame_rms * 1e3,
+        rms_error(&frame_c, &frame_after.truth) * 1e3,
+        radii_error(&frame_c, &frame) * 1e3
+    );
+    println!("   (corrected errors are the encoder noise; radii: the 400 equal-angle radii of Contour.radii)");
+    println!("5. The node persisted its parameters to {}", params_path.display());
+
+    drop(spinner);
+    let stop = Instant::now();
+    drop(node);
+    println!("   and stopped on SIGTERM in {:.0} ms.", stop.elapsed().as_secs_f64() * 1e3);
+
+    // The same plate scan with both models, offline.
+    println!();
+    println!("The plate scan fitted offline with both models:");
+    let mut full_cal = None;
+    for model in [ModelKind::Full, ModelKind::Paper] {
+        let cal = calibrate(&plate_scan.scan, &cell.plate, &Options { model, ..Options::default() })
+            .map_err(|e| e.to_string())?;
+        println!("   {}", cal.summary());
+        if model == ModelKind::Full {
+            full_cal = Some(cal);
+        }
+    }
+    let cal = full_cal.expect("the full model ran");
+    super::plot::write_calibration_plot(&args.plot, &plate_scan.scan, &cell.plate, &cal)?;
+    println!("Picture of the fit: {}", args.plot.display());
     Ok(())
 }

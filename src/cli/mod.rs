@@ -1,7 +1,11 @@
 //! The offline tool `tracer_calib`: the engine on files, without ROS.
 
 pub mod calibrate;
+pub mod correct;
 pub mod demo;
+pub mod oma;
+pub mod plot;
+pub mod replay;
 pub mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -19,6 +23,10 @@ pub enum Command {
     Calibrate(calibrate::Args),
     Demo(demo::Args),
     Simulate(simulate::Args),
+    Plot(plot::Args),
+    Correct(correct::Args),
+    Replay(replay::Args),
+    Oma(oma::Args),
 }
 
 /// Exit statuses of the tool (CONTRACT.md).
@@ -34,5 +42,9 @@ pub fn run(cli: Cli) -> i32 {
         Command::Calibrate(args) => calibrate::run(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Simulate(args) => simulate::run(&args),
+        Command::Plot(args) => plot::run(&args),
+        Command::Correct(args) => correct::run(&args),
+        Command::Replay(args) => replay::run(&args),
+        Command::Oma(args) => oma::run(&args),
     }
 }

@@ -10,8 +10,10 @@ use super::exit;
 use crate::engine::geometry::Mounting;
 use crate::engine::model::PlateSpec;
 use crate::engine::shape::{Ellipse, RoundedRect};
-use crate::engine::simulate::{SimOptions, simulate};
+use crate::engine::simulate::{SimOptions, SimScan, simulate};
+use crate::io::bag::BagWriter;
 use crate::io::csv::{self, RawRevolution};
+use crate::ros::msgs::{Header, RawScan, Time};
 
 /// The shapes the simulator traces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -24,16 +26,27 @@ pub enum ShapeKind {
     Rect,
 }
 
-/// Simulate one revolution of a miscalibrated tracer around a known shape.
+/// Simulate revolutions of a miscalibrated tracer around known shapes, into a CSV file
+/// (one revolution) or a rosbag2 bag of RawScan messages on /raw_scan (MCAP; a
+/// directory, or a file ending in .mcap).
 ///
-/// Example:
+/// Examples:
 ///   tracer_calib simulate --shape plate --alpha0-deg 2 --offset 0.005 --delta-l 0.002 \
 ///       --noise 1e-5 --out plate.csv
+///   tracer_calib simulate --shape plate --shape ellipse --shape rect --repeat 2 --out scans.mcap
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
-    #[arg(long, value_enum, default_value = "plate")]
-    pub shape: ShapeKind,
+    /// The shape traced (repeatable: a bag gets one scan per shape, in order). Targets:
+    /// plate = TARGET_CALIBRATION_PLATE, ellipse = TARGET_LENS, rect = TARGET_FRAME.
+    #[arg(long = "shape", value_enum, default_values_t = [ShapeKind::Plate])]
+    pub shapes: Vec<ShapeKind>,
+    /// Repeat the sequence of shapes this many times (bags only).
+    #[arg(long, default_value_t = 1)]
+    pub repeat: u32,
+    /// Seconds between scans in a bag.
+    #[arg(long, default_value_t = 1.0)]
+    pub period: f64,
     /// Rail angle error alpha0, degrees.
     #[arg(long, default_value_t = 2.0, allow_hyphen_values = true)]
     pub alpha0_deg: f64,
@@ -80,7 +93,8 @@ pub struct Args {
     pub spikes: usize,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output CSV file ('step,counts').
+    /// Output: a CSV file ('step,counts', one revolution), or a bag (a directory, or a
+    /// file ending in .mcap).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
 }
@@ -99,6 +113,53 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
     if a.meters_per_count.is_nan() || a.meters_per_count <= 0.0 {
         return Err(format!("--meters-per-count must be positive, got {}", a.meters_per_count));
     }
+    let to_csv = a.out.extension().is_some_and(|e| e == "csv");
+    let sequence: Vec<ShapeKind> = (0..a.repeat).flat_map(|_| a.shapes.iter().copied()).collect();
+    if to_csv && sequence.len() != 1 {
+        return Err(format!(
+            "{}: a CSV file holds one revolution; write {} scans to a bag (.mcap or a directory)",
+            a.out.display(),
+            sequence.len()
+        ));
+    }
+    let mut rng = StdRng::seed_from_u64(a.seed);
+    let mut revolutions = Vec::with_capacity(sequence.len());
+    for kind in &sequence {
+        let sim = simulate_one(a, *kind, &mut rng)?;
+        let rev = RawRevolution {
+            step: sim.scan.samples().iter().map(|s| s.step).collect(),
+            counts: sim.scan.samples().iter().map(|s| (s.rho / a.meters_per_count).round() as i32).collect(),
+        };
+        revolutions.push((*kind, rev));
+    }
+    if to_csv {
+        return std::fs::write(&a.out, csv::render(&revolutions[0].1))
+            .map_err(|e| format!("{}: cannot write: {e}", a.out.display()));
+    }
+    let mut writer = BagWriter::create(&a.out).map_err(|e| e.to_string())?;
+    writer.add_topic::<RawScan>("/raw_scan").map_err(|e| e.to_string())?;
+    let start_ns: u64 = 1_700_000_000_000_000_000;
+    for (i, (kind, rev)) in revolutions.into_iter().enumerate() {
+        let t = start_ns + (i as f64 * a.period * 1e9) as u64;
+        let msg = RawScan {
+            header: Header { stamp: Time::from_nanos(t as i64), frame_id: "tracer".into() },
+            scan_id: i as u32 + 1,
+            target: match kind {
+                ShapeKind::Plate => RawScan::TARGET_CALIBRATION_PLATE,
+                ShapeKind::Ellipse => RawScan::TARGET_LENS,
+                ShapeKind::Rect => RawScan::TARGET_FRAME,
+            },
+            steps_per_revolution: a.steps_per_rev,
+            step: rev.step,
+            counts: rev.counts,
+        };
+        writer.write("/raw_scan", t, &msg).map_err(|e| e.to_string())?;
+    }
+    writer.finish().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, String> {
     let m = Mounting { alpha0: a.alpha0_deg.to_radians(), offset: a.offset, delta_l: a.delta_l };
     let center = Vector2::new(a.center_x, a.center_y);
     let opt = SimOptions {
@@ -110,26 +171,21 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
         spikes: a.spikes,
         ..SimOptions::default()
     };
-    let mut rng = StdRng::seed_from_u64(a.seed);
-    let shape: Box<dyn Fn(&mut StdRng) -> Result<_, _>> = match a.shape {
+    let sim = match kind {
         ShapeKind::Plate => {
             let plate = PlateSpec { side: a.plate_side, corner_radius: a.corner_radius };
             plate.validate()?;
-            Box::new(move |rng| simulate(&plate.at(center), &m, &opt, rng))
+            simulate(&plate.at(center), &m, &opt, rng)
         }
         ShapeKind::Ellipse => {
-            let e = Ellipse { center, a: a.width / 2.0, b: a.height / 2.0, angle: 0.0 };
-            Box::new(move |rng| simulate(&e, &m, &opt, rng))
+            simulate(&Ellipse { center, a: a.width / 2.0, b: a.height / 2.0, angle: 0.0 }, &m, &opt, rng)
         }
-        ShapeKind::Rect => {
-            let r = RoundedRect { center, half_w: a.width / 2.0, half_h: a.height / 2.0, radius: a.corner_radius };
-            Box::new(move |rng| simulate(&r, &m, &opt, rng))
-        }
+        ShapeKind::Rect => simulate(
+            &RoundedRect { center, half_w: a.width / 2.0, half_h: a.height / 2.0, radius: a.corner_radius },
+            &m,
+            &opt,
+            rng,
+        ),
     };
-    let sim = shape(&mut rng).map_err(|e| e.to_string())?;
-    let rev = RawRevolution {
-        step: sim.scan.samples().iter().map(|s| s.step).collect(),
-        counts: sim.scan.samples().iter().map(|s| (s.rho / a.meters_per_count).round() as i32).collect(),
-    };
-    std::fs::write(&a.out, csv::render(&rev)).map_err(|e| format!("{}: cannot write: {e}", a.out.display()))
+    sim.map_err(|e| e.to_string())
 }

@@ -1,0 +1,135 @@
+//! `tracer_calib correct`: every raw scan of a bag corrected, as the node would.
+
+use std::path::{Path, PathBuf};
+
+use super::exit;
+use crate::io::bag::{Bag, BagWriter};
+use crate::io::oma::{self, Eye, OmaFile, Trace, TraceType};
+use crate::params::{Parameters, file as params_file};
+use crate::ros::msgs::{Contour, PolygonStamped, RawScan};
+use crate::ros::state::NodeState;
+
+/// Correct every RawScan of a bag with a calibration, into a bag of Contour and
+/// PolygonStamped messages (and optionally VCA/OMA trace files).
+///
+/// Example:
+///   tracer_calib correct --input scans.mcap --params cell1.yaml --out corrected \
+///       --oma lens.oma --eye R
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    /// The bag: a directory with metadata.yaml, a .mcap or a .db3 file.
+    #[arg(long, value_name = "BAG")]
+    pub input: PathBuf,
+    /// The params file with the calibration (as the node persists it).
+    #[arg(long, value_name = "FILE")]
+    pub params: PathBuf,
+    /// Node name whose section of --params applies (default: the file's only section,
+    /// else /tracer_calibrator); also the frame of the written contours' settings.
+    #[arg(long, value_name = "FQN")]
+    pub node: Option<String>,
+    /// Topic of the RawScan messages.
+    #[arg(long, default_value = "/raw_scan")]
+    pub topic: String,
+    /// The bag to write (a directory, or a file ending in .mcap).
+    #[arg(long, value_name = "BAG")]
+    pub out: PathBuf,
+    /// Also write the corrected lens and frame traces as VCA/OMA trace records: one file,
+    /// or FILE_<scan_id>.oma per scan when there are several.
+    #[arg(long, value_name = "FILE")]
+    pub oma: Option<PathBuf>,
+    /// The eye the OMA traces are labelled with.
+    #[arg(long, default_value = "R", value_parser = ["R", "L", "B"])]
+    pub eye: String,
+}
+
+pub fn run(args: &Args) -> i32 {
+    match correct_bag(args) {
+        Ok(summary) => {
+            println!("{summary}");
+            exit::OK
+        }
+        Err(e) => {
+            eprintln!("tracer_calib correct: {e}");
+            exit::BAD_INPUT
+        }
+    }
+}
+
+fn correct_bag(args: &Args) -> Result<String, String> {
+    let file = params_file::read(&args.params).map_err(|e| e.to_string())?;
+    let fqn = args.node.clone().unwrap_or_else(|| match file.sections.as_slice() {
+        [only] if !only.node.contains('*') => format!("/{}", only.node.trim_start_matches('/')),
+        _ => "/tracer_calibrator".into(),
+    });
+    let mut params = Parameters::default();
+    params.apply_file(&file, &fqn, &args.params.display().to_string()).map_err(|e| e.to_string())?;
+    if !params.calibration_valid {
+        eprintln!(
+            "tracer_calib correct: warning: {} has no valid calibration for {fqn} (calibration.valid is false): contours are uncorrected",
+            args.params.display()
+        );
+    }
+    let bag = Bag::open(&args.input).map_err(|e| e.to_string())?;
+    let scans = bag.read::<RawScan>(&args.topic).map_err(|e| e.to_string())?;
+    let mut state = NodeState::new(fqn, params);
+    let mut writer = BagWriter::create(&args.out).map_err(|e| e.to_string())?;
+    writer.add_topic::<Contour>("/contour").map_err(|e| e.to_string())?;
+    writer.add_topic::<PolygonStamped>("/contour_polygon").map_err(|e| e.to_string())?;
+    let mut traces = Vec::new();
+    let (mut corrected, mut rejected) = (0, 0);
+    for (t, msg) in &scans {
+        match state.on_raw_scan(msg) {
+            Ok(out) => {
+                corrected += 1;
+                if msg.target == RawScan::TARGET_LENS || msg.target == RawScan::TARGET_FRAME {
+                    traces.push((msg.scan_id, msg.target, out.contour.radii.clone()));
+                }
+                writer.write("/contour", *t, &out.contour).map_err(|e| e.to_string())?;
+                writer.write("/contour_polygon", *t, &out.polygon).map_err(|e| e.to_string())?;
+            }
+            Err(e) => {
+                rejected += 1;
+                eprintln!("tracer_calib correct: scan {} rejected: {e}", msg.scan_id);
+            }
+        }
+    }
+    let out_path = writer.finish().map_err(|e| e.to_string())?;
+    let mut summary = format!(
+        "{corrected} scans corrected ({}), {rejected} rejected; wrote {}",
+        if state.params.calibration_valid { "calibrated" } else { "uncalibrated" },
+        out_path.display()
+    );
+    if let Some(oma_path) = &args.oma {
+        let written = write_oma(oma_path, &args.eye, &traces)?;
+        summary.push_str(&format!("; OMA: {}", written.join(", ")));
+    }
+    Ok(summary)
+}
+
+/// One OMA file per traced lens or frame (radii present), named after `path`.
+fn write_oma(path: &Path, eye: &str, traces: &[(u32, u8, Vec<f64>)]) -> Result<Vec<String>, String> {
+    let eye = Eye::from_code(eye).ok_or_else(|| format!("--eye: unknown eye '{eye}'"))?;
+    let usable: Vec<_> = traces.iter().filter(|(_, _, r)| !r.is_empty()).collect();
+    if usable.is_empty() {
+        return Err("--oma: no lens or frame scan in the bag goes all the way round: no trace to write".into());
+    }
+    let mut written = Vec::new();
+    for (scan_id, target, radii) in &usable {
+        let trace_type = if *target == RawScan::TARGET_FRAME { TraceType::Frame } else { TraceType::Lens };
+        let file = OmaFile {
+            job: Some(scan_id.to_string()),
+            traces: vec![Trace::equiangular(eye, trace_type, radii.clone())],
+            other: Vec::new(),
+        };
+        let target_path = if usable.len() == 1 {
+            path.to_path_buf()
+        } else {
+            let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "trace".into());
+            path.with_file_name(format!("{stem}_{scan_id}.oma"))
+        };
+        oma::write(&target_path, &file)?;
+        written.push(target_path.display().to_string());
+    }
+    Ok(written)
+}

@@ -1,0 +1,183 @@
+//! `tracer_calib replay`: a bag's scans published into a live ROS graph, like
+//! `ros2 bag play`.
+
+use std::net::{IpAddr, Ipv4Addr};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use ros2_client::{Context, NodeName, NodeOptions, QosProfile, qos::*};
+use rustdds::DomainParticipantBuilder;
+
+use super::exit;
+use crate::io::bag::Bag;
+use crate::ros::args::{RosEnv, ros2_name};
+use crate::ros::msgs::{Contour, RawScan, RosMsg};
+
+/// Publish a bag's RawScan (and Contour) messages with their recorded timing.
+///
+/// Publishing starts once every topic has a subscriber (or after --wait), and the tool
+/// stays until the last messages have had time to be delivered (--linger). DDS settings
+/// come from the environment as for any ROS node: ROS_DOMAIN_ID, and
+/// ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST to stay on 127.0.0.1.
+///
+/// Example:
+///   tracer_calib replay --input scans.mcap --rate 2 --loop 3
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    /// The bag: a directory with metadata.yaml, a .mcap or a .db3 file.
+    #[arg(long, value_name = "BAG")]
+    pub input: PathBuf,
+    /// Only these topics (repeatable; default: every RawScan and Contour topic).
+    #[arg(long = "topic", value_name = "TOPIC")]
+    pub topics: Vec<String>,
+    /// Playback speed factor (2 = twice as fast; 0 = as fast as possible).
+    #[arg(long, default_value_t = 1.0)]
+    pub rate: f64,
+    /// Play the bag this many times.
+    #[arg(long = "loop", default_value_t = 1)]
+    pub loops: u32,
+    /// Seconds to wait for subscribers before publishing anyway.
+    #[arg(long, default_value_t = 10.0)]
+    pub wait: f64,
+    /// Seconds to stay after the last message, for reliable delivery to finish.
+    #[arg(long, default_value_t = 1.0)]
+    pub linger: f64,
+}
+
+pub fn run(args: &Args) -> i32 {
+    match replay(args) {
+        Ok(summary) => {
+            println!("{summary}");
+            exit::OK
+        }
+        Err(e) => {
+            eprintln!("tracer_calib replay: {e}");
+            exit::BAD_INPUT
+        }
+    }
+}
+
+/// One message to publish.
+enum Out {
+    Raw(RawScan),
+    Contour(Contour),
+}
+
+fn replay(args: &Args) -> Result<String, String> {
+    if !(args.rate >= 0.0 && args.rate.is_finite()) {
+        return Err(format!("--rate must be a number >= 0, got {}", args.rate));
+    }
+    let bag = Bag::open(&args.input).map_err(|e| e.to_string())?;
+    let wanted = |name: &str| args.topics.is_empty() || args.topics.iter().any(|t| t == name);
+    // (log time, topic index, message)
+    let mut timeline: Vec<(u64, usize, Out)> = Vec::new();
+    let mut topics: Vec<(String, &'static str)> = Vec::new();
+    for t in bag.topics() {
+        if !wanted(&t.name) {
+            continue;
+        }
+        let idx = topics.len();
+        if t.type_name == RawScan::NAME.ros_name() {
+            for (time, m) in bag.read::<RawScan>(&t.name).map_err(|e| e.to_string())? {
+                timeline.push((time, idx, Out::Raw(m)));
+            }
+            topics.push((t.name.clone(), "raw"));
+        } else if t.type_name == Contour::NAME.ros_name() {
+            for (time, m) in bag.read::<Contour>(&t.name).map_err(|e| e.to_string())? {
+                timeline.push((time, idx, Out::Contour(m)));
+            }
+            topics.push((t.name.clone(), "contour"));
+        }
+    }
+    for t in &args.topics {
+        if !topics.iter().any(|(n, _)| n == t) {
+            return Err(format!("{}: no RawScan or Contour topic {t}", args.input.display()));
+        }
+    }
+    if timeline.is_empty() {
+        return Err(format!("{}: no RawScan or Contour messages to replay", args.input.display()));
+    }
+    timeline.sort_by_key(|(t, _, _)| *t);
+
+    let env = RosEnv::from_env().map_err(|e| e.to_string())?;
+    let mut builder = DomainParticipantBuilder::new(env.domain_id as u16);
+    if env.discovery_range.is_local_only() {
+        builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
+    }
+    let ctx = Context::from_domain_participant(builder.build().map_err(|e| format!("{e:?}"))?)
+        .map_err(|e| format!("{e:?}"))?;
+    let mut node = ctx
+        .new_node(NodeName::new("/", "tracer_calib_replay").unwrap(), NodeOptions::new().enable_rosout(false))
+        .map_err(|e| format!("{e:?}"))?;
+    let qos = QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 100 });
+    let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
+    let mut raw_pubs = Vec::new();
+    let mut contour_pubs = Vec::new();
+    for (name, kind) in &topics {
+        let n = ros2_name(name).map_err(|e| e.to_string())?;
+        if *kind == "raw" {
+            let topic = node.create_topic(&n, RawScan::NAME.message_type_name(), &qos).map_err(mk)?;
+            raw_pubs.push(Some(node.create_publisher::<RawScan>(&topic, None).map_err(mk)?));
+            contour_pubs.push(None);
+        } else {
+            let topic = node.create_topic(&n, Contour::NAME.message_type_name(), &qos).map_err(mk)?;
+            contour_pubs.push(Some(node.create_publisher::<Contour>(&topic, None).map_err(mk)?));
+            raw_pubs.push(None);
+        }
+    }
+    let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
+
+    let deadline = Instant::now() + Duration::from_secs_f64(args.wait.max(0.0));
+    let matched = loop {
+        let all = (0..topics.len()).all(|i| {
+            raw_pubs[i].as_ref().map_or(0, |p| p.get_subscription_count(&node)) > 0
+                || contour_pubs[i].as_ref().map_or(0, |p| p.get_subscription_count(&node)) > 0
+        });
+        if all || Instant::now() >= deadline {
+            break all;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    if !matched {
+        eprintln!(
+            "tracer_calib replay: warning: not every topic has a subscriber after {} s; publishing anyway",
+            args.wait
+        );
+    }
+    let first = timeline[0].0;
+    let mut sent = 0u64;
+    for _ in 0..args.loops {
+        let start = Instant::now();
+        for (time, idx, msg) in &timeline {
+            if args.rate > 0.0 {
+                let due = Duration::from_nanos(((time - first) as f64 / args.rate) as u64);
+                if let Some(wait) = due.checked_sub(start.elapsed()) {
+                    std::thread::sleep(wait);
+                }
+            }
+            let result = match msg {
+                Out::Raw(m) => {
+                    raw_pubs[*idx].as_ref().expect("raw publisher").publish(m.clone()).map_err(|e| format!("{e:?}"))
+                }
+                Out::Contour(m) => contour_pubs[*idx]
+                    .as_ref()
+                    .expect("contour publisher")
+                    .publish(m.clone())
+                    .map_err(|e| format!("{e:?}")),
+            };
+            result.map_err(|e| format!("cannot publish on {}: {e}", topics[*idx].0))?;
+            sent += 1;
+        }
+    }
+    std::thread::sleep(Duration::from_secs_f64(args.linger.max(0.0)));
+    drop(spinner);
+    Ok(format!(
+        "published {sent} messages on {} from {}",
+        topics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", "),
+        args.input.display()
+    ))
+}

@@ -1,0 +1,693 @@
+//! Trace records of the VCA Data Communication Standard ("OMA files"), as edgers read them.
+//!
+//! An OMA file is a list of records `LABEL=VALUE`, one a line, CRLF line ends. A trace is
+//! a `TRCFMT` record followed by its `R=` records:
+//!
+//! ```text
+//! JOB=4711
+//! TRCFMT=1;400;E;R;F
+//! R=2350;2351;2353;2356;2360;2365;2371;2378;2386;2395
+//! R=...
+//! TRCFMT=1;400;E;L;F
+//! R=...
+//! ```
+//!
+//! - `TRCFMT=format;N;E|U;eye;type`: format 1 = ASCII (the only one read or written here;
+//!   2, 3 and 4 are differential and binary encodings, refused with a clear error); `N`
+//!   points; `E` = equiangular, `U` = not (then `A=` records give each point's angle);
+//!   eye `R`, `L` or `B` (both); trace type ([`TraceType`]).
+//! - `R=`: the radii, whole numbers in 1/100 mm, `;`-separated, 10 a line here (a reader
+//!   takes any number a line).
+//! - `A=`: for a `U` trace, the angle of each point, whole numbers in 1/100 degree.
+//! - Every other record (`JOB`, `ZFMT`/`Z=` sag, ...) is kept as it is, not interpreted,
+//!   except `JOB`, which [`OmaFile::job`] carries.
+//!
+//! # Angle convention (ours; state it to whoever reads the file)
+//!
+//! The standard's text was not at hand to confirm its angle origin and direction, so this
+//! module uses **our output frame's convention**, the same as `Contour.radii`: point `i` of an
+//! equiangular trace of `N` points lies at angle `i·2π/N`, measured **counter-clockwise from
+//! the +x axis** of the output frame (`tracer_axis`: origin on the rotation axis, x to the
+//! right and y up when looking at the traced shape the way the tracer's frame is drawn, z
+//! towards the viewer). `A=` angles and [`Trace::angles`] follow the same convention. The
+//! usual reading of the standard (point 0 on the horizontal axis at 0°, counter-clockwise)
+//! matches this if our +x axis is the horizontal axis the edger expects; no mirroring for
+//! left/right eyes is done here: the caller chooses the eye label and the shape.
+//!
+//! Units: radii in metres in code (SI, like the rest of the crate), 1/100 mm in the file;
+//! writing rounds to the nearest 1/100 mm.
+//!
+//! Errors are one line naming the line number (reading) or the trace (writing).
+
+use std::fmt;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The only trace format read and written: ASCII absolute radii.
+pub const FORMAT_ASCII: u32 = 1;
+
+/// Values per `R=`/`A=` line when writing.
+const PER_LINE: usize = 10;
+/// Metres per file unit of radius (1/100 mm).
+const METRES_PER_UNIT: f64 = 1e-5;
+/// Degrees per file unit of angle (1/100 degree).
+const DEGREES_PER_UNIT: f64 = 0.01;
+/// The largest radius written, metres: anything larger is not a spectacle shape.
+const MAX_RADIUS: f64 = 10.0;
+
+/// Which eye a trace is for (the fourth `TRCFMT` field).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Eye {
+    /// `R`
+    Right,
+    /// `L`
+    Left,
+    /// `B`: one trace for both eyes.
+    Both,
+}
+
+impl Eye {
+    /// The letter in the file.
+    pub fn code(self) -> &'static str {
+        match self {
+            Eye::Right => "R",
+            Eye::Left => "L",
+            Eye::Both => "B",
+        }
+    }
+
+    /// The eye of a letter (case-insensitive), if it is one.
+    pub fn from_code(code: &str) -> Option<Self> {
+        match code.to_ascii_uppercase().as_str() {
+            "R" => Some(Eye::Right),
+            "L" => Some(Eye::Left),
+            "B" => Some(Eye::Both),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Eye {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.code())
+    }
+}
+
+/// What was traced (the fifth `TRCFMT` field).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TraceType {
+    /// `F`: the frame's groove (or bevel).
+    Frame,
+    /// `P`: a pattern.
+    Pattern,
+    /// `L`: a lens.
+    Lens,
+    /// `D`: the demo lens that came in the frame.
+    DemoLens,
+}
+
+impl TraceType {
+    /// The letter in the file.
+    pub fn code(self) -> &'static str {
+        match self {
+            TraceType::Frame => "F",
+            TraceType::Pattern => "P",
+            TraceType::Lens => "L",
+            TraceType::DemoLens => "D",
+        }
+    }
+
+    /// The trace type of a letter (case-insensitive), if it is one.
+    pub fn from_code(code: &str) -> Option<Self> {
+        match code.to_ascii_uppercase().as_str() {
+            "F" => Some(TraceType::Frame),
+            "P" => Some(TraceType::Pattern),
+            "L" => Some(TraceType::Lens),
+            "D" => Some(TraceType::DemoLens),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for TraceType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.code())
+    }
+}
+
+/// One eye's trace (format 1, ASCII).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trace {
+    pub eye: Eye,
+    pub trace_type: TraceType,
+    /// Radii about the rotation axis, metres, in point order.
+    pub radii: Vec<f64>,
+    /// `None`: equiangular (`E`), point `i` at `i·2π/N`. `Some`: not equiangular (`U`), the
+    /// angle of each point, radians, counter-clockwise from +x; same length as `radii`.
+    pub angles: Option<Vec<f64>>,
+}
+
+impl Trace {
+    /// An equiangular trace: `radii[i]` (metres) at angle `i·2π/N`, like `Contour.radii`.
+    pub fn equiangular(eye: Eye, trace_type: TraceType, radii: Vec<f64>) -> Self {
+        Trace { eye, trace_type, radii, angles: None }
+    }
+
+    /// `N`, the number of points.
+    pub fn n(&self) -> usize {
+        self.radii.len()
+    }
+
+    /// Whether the points are at equal angles (`E`), with no `A=` records.
+    pub fn is_equiangular(&self) -> bool {
+        self.angles.is_none()
+    }
+
+    /// The format written and read: always [`FORMAT_ASCII`].
+    pub fn format(&self) -> u32 {
+        FORMAT_ASCII
+    }
+
+    /// The angle of point `i`, radians, counter-clockwise from +x.
+    pub fn angle(&self, i: usize) -> f64 {
+        match &self.angles {
+            Some(a) => a[i],
+            None => std::f64::consts::TAU * i as f64 / self.radii.len() as f64,
+        }
+    }
+}
+
+/// The traces of an OMA file, and its other records.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct OmaFile {
+    /// The `JOB` record, if any; written first.
+    pub job: Option<String>,
+    /// The traces, in file order (one a `TRCFMT` block).
+    pub traces: Vec<Trace>,
+    /// Every other record, `(label, value)` in file order, not interpreted (e.g. `ZFMT`,
+    /// `Z`, `DO`). Written after `JOB` and before the traces.
+    pub other: Vec<(String, String)>,
+}
+
+impl OmaFile {
+    /// The first trace for `eye`, if any.
+    pub fn trace(&self, eye: Eye) -> Option<&Trace> {
+        self.traces.iter().find(|t| t.eye == eye)
+    }
+}
+
+/// A trace being read: its `TRCFMT` line and what has come so far.
+struct Pending {
+    line_no: usize,
+    n: usize,
+    trace: Trace,
+    /// Angles in the file's units, for a `U` trace.
+    angles: Vec<f64>,
+}
+
+impl Pending {
+    /// Check the counts and hand over the trace.
+    fn finish(self, path: &str) -> Result<Trace, String> {
+        let Pending { line_no, n, mut trace, angles } = self;
+        if trace.radii.len() != n {
+            return Err(format!(
+                "{path}:{line_no}: TRCFMT declares {n} points, the R= records that follow give {} radii",
+                trace.radii.len()
+            ));
+        }
+        if trace.angles.is_some() {
+            if angles.len() != n {
+                return Err(format!(
+                    "{path}:{line_no}: TRCFMT declares {n} points (not equiangular, U), the A= records that follow give {} angles",
+                    angles.len()
+                ));
+            }
+            trace.angles = Some(angles.iter().map(|a| (a * DEGREES_PER_UNIT).to_radians()).collect());
+        }
+        Ok(trace)
+    }
+}
+
+/// Parse the `;`-separated whole numbers of an `R=` or `A=` record.
+fn parse_values(value: &str, what: &str, unit: &str, path: &str, line_no: usize) -> Result<Vec<i64>, String> {
+    let mut out = Vec::new();
+    let fields: Vec<&str> = value.split(';').map(str::trim).collect();
+    for (k, field) in fields.iter().enumerate() {
+        if field.is_empty() {
+            if k + 1 == fields.len() && k > 0 {
+                break; // a trailing ';'
+            }
+            return Err(format!("{path}:{line_no}: empty {what} value (field {})", k + 1));
+        }
+        let v = field
+            .parse::<i64>()
+            .map_err(|_| format!("{path}:{line_no}: {what} '{field}' is not a whole number ({unit})"))?;
+        out.push(v);
+    }
+    Ok(out)
+}
+
+/// Parse a `TRCFMT` value into a pending trace.
+fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, String> {
+    let fields: Vec<&str> = value.split(';').map(str::trim).collect();
+    if fields.len() < 5 {
+        return Err(format!(
+            "{path}:{line_no}: TRCFMT needs 5 fields 'format;N;E|U;R|L|B;type', got {} in '{value}'",
+            fields.len()
+        ));
+    }
+    let format = fields[0]
+        .parse::<u32>()
+        .map_err(|_| format!("{path}:{line_no}: TRCFMT format '{}' is not a number", fields[0]))?;
+    if format != FORMAT_ASCII {
+        let kind = match format {
+            2 => " (ASCII differential)",
+            3 | 4 => " (binary)",
+            _ => "",
+        };
+        return Err(format!(
+            "{path}:{line_no}: TRCFMT format {format}{kind} is not supported; only format 1 (ASCII absolute radii)"
+        ));
+    }
+    let n = fields[1]
+        .parse::<usize>()
+        .map_err(|_| format!("{path}:{line_no}: TRCFMT point count '{}' is not a whole number", fields[1]))?;
+    if n == 0 {
+        return Err(format!("{path}:{line_no}: TRCFMT point count is 0"));
+    }
+    let equiangular = match fields[2].to_ascii_uppercase().as_str() {
+        "E" => true,
+        "U" => false,
+        other => {
+            return Err(format!(
+                "{path}:{line_no}: TRCFMT third field '{other}' is neither E (equiangular) nor U (angles given)"
+            ));
+        }
+    };
+    let eye = Eye::from_code(fields[3])
+        .ok_or_else(|| format!("{path}:{line_no}: TRCFMT eye '{}' is not R, L or B", fields[3]))?;
+    let trace_type = TraceType::from_code(fields[4]).ok_or_else(|| {
+        format!(
+            "{path}:{line_no}: TRCFMT trace type '{}' is not F (frame), P (pattern), L (lens) or D (demo lens)",
+            fields[4]
+        )
+    })?;
+    Ok(Pending {
+        line_no,
+        n,
+        trace: Trace {
+            eye,
+            trace_type,
+            radii: Vec::with_capacity(n),
+            angles: if equiangular { None } else { Some(Vec::new()) },
+        },
+        angles: Vec::new(),
+    })
+}
+
+/// Parse OMA text; `path` names the file in errors. Lines may end in CRLF or LF; blank
+/// lines are skipped. A file without `TRCFMT` records gives no traces (not an error).
+pub fn parse(text: &str, path: &str) -> Result<OmaFile, String> {
+    let mut out = OmaFile::default();
+    let mut pending: Option<Pending> = None;
+    for (i, raw) in text.split('\n').enumerate() {
+        let line_no = i + 1;
+        let line = raw.trim_matches(|c: char| c.is_whitespace() || c == '\0');
+        if line.is_empty() {
+            continue;
+        }
+        let Some((label, value)) = line.split_once('=') else {
+            let shown: String = line.chars().take(40).collect();
+            return Err(format!("{path}:{line_no}: expected a record LABEL=VALUE, got '{shown}'"));
+        };
+        let label = label.trim().to_ascii_uppercase();
+        let value = value.trim();
+        match label.as_str() {
+            "TRCFMT" => {
+                if let Some(p) = pending.take() {
+                    out.traces.push(p.finish(path)?);
+                }
+                pending = Some(parse_trcfmt(value, path, line_no)?);
+            }
+            "R" => {
+                let Some(p) = pending.as_mut() else {
+                    return Err(format!("{path}:{line_no}: R= record before any TRCFMT record"));
+                };
+                for v in parse_values(value, "radius", "1/100 mm", path, line_no)? {
+                    if v < 0 {
+                        return Err(format!("{path}:{line_no}: radius {v} is negative"));
+                    }
+                    if p.trace.radii.len() == p.n {
+                        return Err(format!(
+                            "{path}:{line_no}: more radii than the {} declared by TRCFMT on line {}",
+                            p.n, p.line_no
+                        ));
+                    }
+                    p.trace.radii.push(v as f64 * METRES_PER_UNIT);
+                }
+            }
+            "A" => {
+                let Some(p) = pending.as_mut() else {
+                    return Err(format!("{path}:{line_no}: A= record before any TRCFMT record"));
+                };
+                if p.trace.angles.is_none() {
+                    return Err(format!(
+                        "{path}:{line_no}: A= record in an equiangular (E) trace (TRCFMT on line {})",
+                        p.line_no
+                    ));
+                }
+                for v in parse_values(value, "angle", "1/100 degree", path, line_no)? {
+                    if p.angles.len() == p.n {
+                        return Err(format!(
+                            "{path}:{line_no}: more angles than the {} declared by TRCFMT on line {}",
+                            p.n, p.line_no
+                        ));
+                    }
+                    p.angles.push(v as f64);
+                }
+            }
+            "JOB" if out.job.is_none() => out.job = Some(value.to_string()),
+            _ => out.other.push((label, value.to_string())),
+        }
+    }
+    if let Some(p) = pending.take() {
+        out.traces.push(p.finish(path)?);
+    }
+    Ok(out)
+}
+
+/// Read an OMA file.
+pub fn read(path: &Path) -> Result<OmaFile, String> {
+    let shown = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| format!("{shown}: cannot read: {e}"))?;
+    // OMA files are ASCII; be lenient with stray bytes rather than refuse the file.
+    parse(&String::from_utf8_lossy(&bytes), &shown)
+}
+
+/// Append `values` as `LABEL=v;v;...` lines, 10 a line, CRLF.
+fn push_values(out: &mut String, label: &str, values: &[i64]) {
+    for chunk in values.chunks(PER_LINE) {
+        out.push_str(label);
+        out.push('=');
+        for (k, v) in chunk.iter().enumerate() {
+            if k > 0 {
+                out.push(';');
+            }
+            let _ = write!(out, "{v}");
+        }
+        out.push_str("\r\n");
+    }
+}
+
+/// Check that a record value can be written on one line.
+fn check_value(what: &str, value: &str) -> Result<(), String> {
+    if value.chars().any(|c| c.is_control()) {
+        return Err(format!("{what} '{}' contains a line break or control character", value.escape_debug()));
+    }
+    Ok(())
+}
+
+/// The text of an OMA file (CRLF line ends): `JOB` if given, the other records, then one
+/// `TRCFMT` block a trace. Radii are rounded to 1/100 mm, angles to 1/100 degree (and
+/// brought into [0°, 360°)).
+pub fn render(file: &OmaFile) -> Result<String, String> {
+    let mut out = String::new();
+    if let Some(job) = &file.job {
+        check_value("JOB", job)?;
+        let _ = write!(out, "JOB={job}\r\n");
+    }
+    for (label, value) in &file.other {
+        if label.is_empty() || label.contains('=') || label.chars().any(|c| c.is_control() || c.is_whitespace()) {
+            return Err(format!("record label '{}' is not a plain label", label.escape_debug()));
+        }
+        check_value(label, value)?;
+        let _ = write!(out, "{label}={value}\r\n");
+    }
+    for (t, trace) in file.traces.iter().enumerate() {
+        let name = format!("trace {} ({} eye)", t + 1, trace.eye);
+        let n = trace.radii.len();
+        if n == 0 {
+            return Err(format!("{name}: no radii"));
+        }
+        let mut radii = Vec::with_capacity(n);
+        for (k, &r) in trace.radii.iter().enumerate() {
+            if !r.is_finite() || !(0.0..MAX_RADIUS).contains(&r) {
+                return Err(format!("{name}: radius {k} is {r} m, not a length in [0, {MAX_RADIUS}) m"));
+            }
+            radii.push((r / METRES_PER_UNIT).round() as i64);
+        }
+        let angles = match &trace.angles {
+            None => None,
+            Some(a) if a.len() != n => {
+                return Err(format!("{name}: {} angles for {n} radii", a.len()));
+            }
+            Some(a) => {
+                let full = (360.0 / DEGREES_PER_UNIT) as i64;
+                let mut units = Vec::with_capacity(n);
+                for (k, &angle) in a.iter().enumerate() {
+                    if !angle.is_finite() {
+                        return Err(format!("{name}: angle {k} is {angle}"));
+                    }
+                    units.push(((angle.to_degrees() / DEGREES_PER_UNIT).round() as i64).rem_euclid(full));
+                }
+                Some(units)
+            }
+        };
+        let _ = write!(
+            out,
+            "TRCFMT={FORMAT_ASCII};{n};{};{};{}\r\n",
+            if angles.is_some() { "U" } else { "E" },
+            trace.eye,
+            trace.trace_type
+        );
+        push_values(&mut out, "R", &radii);
+        if let Some(units) = &angles {
+            push_values(&mut out, "A", units);
+        }
+    }
+    Ok(out)
+}
+
+/// Write an OMA file.
+pub fn write(path: &Path, file: &OmaFile) -> Result<(), String> {
+    let shown = path.display().to_string();
+    let text = render(file).map_err(|e| format!("{shown}: {e}"))?;
+    std::fs::write(path, text).map_err(|e| format!("{shown}: cannot write: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    /// A rounded-rectangle-like lens shape, metres.
+    fn shape(n: usize, scale: f64) -> Vec<f64> {
+        (0..n)
+            .map(|k| {
+                let a = TAU * k as f64 / n as f64;
+                scale * (0.025 + 0.004 * (2.0 * a).cos() + 0.0007 * (4.0 * a).cos() + 0.0003 * a.sin())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn round_trip_two_eyes() {
+        let file = OmaFile {
+            job: Some("4711".into()),
+            traces: vec![
+                Trace::equiangular(Eye::Right, TraceType::Frame, shape(400, 1.0)),
+                Trace::equiangular(Eye::Left, TraceType::Lens, shape(400, 1.01)),
+            ],
+            other: vec![],
+        };
+        let text = render(&file).unwrap();
+        // CRLF everywhere, no bare LF.
+        assert_eq!(text.matches('\n').count(), text.matches("\r\n").count());
+        assert!(text.starts_with("JOB=4711\r\nTRCFMT=1;400;E;R;F\r\nR="));
+        assert!(text.contains("\r\nTRCFMT=1;400;E;L;L\r\n"));
+        // 40 R= lines of 10 values each per eye.
+        let r_lines: Vec<&str> = text.lines().filter(|l| l.starts_with("R=")).collect();
+        assert_eq!(r_lines.len(), 80);
+        assert!(r_lines.iter().all(|l| l[2..].split(';').count() == 10));
+
+        let back = parse(&text, "t.oma").unwrap();
+        assert_eq!(back.job.as_deref(), Some("4711"));
+        assert_eq!(back.traces.len(), 2);
+        for (a, b) in file.traces.iter().zip(&back.traces) {
+            assert_eq!((a.eye, a.trace_type, a.n()), (b.eye, b.trace_type, b.n()));
+            assert!(b.is_equiangular());
+            assert_eq!(b.format(), 1);
+            for (ra, rb) in a.radii.iter().zip(&b.radii) {
+                assert!((ra - rb).abs() <= 0.5e-5 + 1e-12, "{ra} vs {rb}");
+            }
+        }
+        assert_eq!(back.trace(Eye::Left).unwrap().trace_type, TraceType::Lens);
+        assert!(back.trace(Eye::Both).is_none());
+        // Written again, the same text.
+        assert_eq!(render(&back).unwrap(), text);
+    }
+
+    #[test]
+    fn round_trip_partial_line_and_non_equiangular() {
+        let radii = shape(13, 1.0);
+        let angles: Vec<f64> = (0..13).map(|k| (k as f64 * 27.0 + 0.5).to_radians()).collect();
+        let file = OmaFile {
+            job: None,
+            traces: vec![Trace { eye: Eye::Both, trace_type: TraceType::Pattern, radii, angles: Some(angles.clone()) }],
+            other: vec![("DO".into(), "B".into())],
+        };
+        let text = render(&file).unwrap();
+        assert!(text.starts_with("DO=B\r\nTRCFMT=1;13;U;B;P\r\nR="));
+        assert_eq!(text.lines().filter(|l| l.starts_with("R=")).count(), 2);
+        assert!(text.contains("\r\nA=50;2750;5450;"));
+        let back = parse(&text, "t.oma").unwrap();
+        let t = &back.traces[0];
+        assert!(!t.is_equiangular());
+        assert_eq!(back.other, vec![("DO".to_string(), "B".to_string())]);
+        for (k, a) in angles.iter().enumerate() {
+            assert!((t.angle(k) - a).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn angles_are_ours() {
+        let t = Trace::equiangular(Eye::Right, TraceType::Frame, vec![0.02; 4]);
+        assert_eq!(t.angle(0), 0.0);
+        assert!((t.angle(1) - TAU / 4.0).abs() < 1e-15);
+        // Negative angles are written in [0, 360).
+        let file = OmaFile {
+            traces: vec![Trace {
+                eye: Eye::Right,
+                trace_type: TraceType::Frame,
+                radii: vec![0.02, 0.02],
+                angles: Some(vec![-0.5f64.to_radians(), 359.996f64.to_radians()]),
+            }],
+            ..Default::default()
+        };
+        assert!(render(&file).unwrap().contains("A=35950;0\r\n"));
+    }
+
+    #[test]
+    fn hand_made_fixture() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hand_made.oma");
+        let bytes = std::fs::read(&path).unwrap();
+        // The fixture really is CRLF.
+        assert!(bytes.windows(2).filter(|w| w == b"\r\n").count() >= 10);
+        assert!(!bytes.windows(2).any(|w| w[1] == b'\n' && w[0] != b'\r'));
+        let file = read(&path).unwrap();
+        assert_eq!(file.job.as_deref(), Some("HAND-0001"));
+        assert_eq!(file.other, vec![("DO".to_string(), "B".to_string())]);
+        assert_eq!(file.traces.len(), 2);
+        let r = file.trace(Eye::Right).unwrap();
+        let l = file.trace(Eye::Left).unwrap();
+        assert_eq!((r.trace_type, r.n(), r.is_equiangular()), (TraceType::Frame, 40, true));
+        assert_eq!((l.trace_type, l.n(), l.is_equiangular()), (TraceType::Frame, 40, true));
+        assert!((r.radii[0] - 0.02650).abs() < 1e-12);
+        assert!((r.radii[10] - 0.01812).abs() < 1e-12);
+        assert!((r.radii[39] - 0.02623).abs() < 1e-12);
+        assert!((l.radii[0] - 0.02640).abs() < 1e-12);
+        // Left is the right mirrored about the vertical axis: l(i) = r(20 - i).
+        for i in 0..40 {
+            let j = (60 - i) % 40;
+            assert!((l.radii[i] - r.radii[j]).abs() < 1e-12, "point {i}");
+        }
+    }
+
+    #[test]
+    fn hand_made_literal_lf_and_padding() {
+        // LF line ends, spaces around fields, a trailing ';', sag records to skip.
+        let text = "REQ=FIL\nJOB=\"12\"\nTRCFMT= 1;10 ;E; R;F\nR=2500;2400;2300;2200;2100;2000;2100;2200;2300;2400;\n\
+                    ZFMT=1;10;E;R;F\nZ=0;0;0;0;0;0;0;0;0;0\nTRCFMT=1;10;E;L;F\nR=2500;2400;2300;2200;2100\nR=2000;2100;2200;2300;2400\n";
+        let file = parse(text, "x").unwrap();
+        assert_eq!(file.job.as_deref(), Some("\"12\""));
+        assert_eq!(file.traces.len(), 2);
+        assert_eq!(file.traces[0].radii, file.traces[1].radii);
+        assert!((file.traces[0].radii[5] - 0.02).abs() < 1e-12);
+        assert_eq!(file.other.len(), 3);
+        assert_eq!(file.other[0], ("REQ".to_string(), "FIL".to_string()));
+        // No trace at all is not an error.
+        assert!(parse("JOB=1\r\n", "x").unwrap().traces.is_empty());
+    }
+
+    fn err(text: &str) -> String {
+        let e = parse(text, "f.oma").unwrap_err();
+        assert!(!e.contains('\n'), "one line: {e}");
+        e
+    }
+
+    #[test]
+    fn read_errors() {
+        let e = err("JOB=1\r\nTRCFMT=4;512;E;R;F\r\nR=]\x09\x00\r\n");
+        assert!(e.starts_with("f.oma:2: TRCFMT format 4 (binary) is not supported"), "{e}");
+        let e = err("TRCFMT=1;3;E;R;F\r\nR=1;2\r\nTRCFMT=1;3;E;L;F\r\nR=1;2;3\r\n");
+        assert!(e.starts_with("f.oma:1: TRCFMT declares 3 points, the R= records that follow give 2"), "{e}");
+        let e = err("TRCFMT=1;3;E;R;F\r\nR=1;2\r\nR=3;4\r\n");
+        assert!(e.starts_with("f.oma:3: more radii than the 3 declared by TRCFMT on line 1"), "{e}");
+        let e = err("TRCFMT=1;3;E;R;F\r\nR=1;2.5;3\r\n");
+        assert!(e.starts_with("f.oma:2: radius '2.5' is not a whole number"), "{e}");
+        let e = err("TRCFMT=1;3;E;R;F\r\nR=1;;3\r\n");
+        assert!(e.starts_with("f.oma:2: empty radius value"), "{e}");
+        let e = err("TRCFMT=1;3;E;R;F\r\nR=1;-2;3\r\n");
+        assert!(e.starts_with("f.oma:2: radius -2 is negative"), "{e}");
+        let e = err("TRCFMT=1;0;E;R;F\r\n");
+        assert!(e.starts_with("f.oma:1: TRCFMT point count is 0"), "{e}");
+        let e = err("TRCFMT=1;x;E;R;F\r\n");
+        assert!(e.starts_with("f.oma:1: TRCFMT point count 'x'"), "{e}");
+        let e = err("TRCFMT=1;3;E;R\r\n");
+        assert!(e.starts_with("f.oma:1: TRCFMT needs 5 fields"), "{e}");
+        let e = err("TRCFMT=1;3;X;R;F\r\n");
+        assert!(e.contains(":1: TRCFMT third field 'X'"), "{e}");
+        let e = err("TRCFMT=1;3;E;Q;F\r\n");
+        assert!(e.contains(":1: TRCFMT eye 'Q'"), "{e}");
+        let e = err("TRCFMT=1;3;E;R;Z\r\n");
+        assert!(e.contains(":1: TRCFMT trace type 'Z'"), "{e}");
+        let e = err("JOB=1\r\nR=1;2;3\r\n");
+        assert!(e.starts_with("f.oma:2: R= record before any TRCFMT"), "{e}");
+        let e = err("JOB=1\r\n\r\nhello\r\n");
+        assert!(e.starts_with("f.oma:3: expected a record LABEL=VALUE, got 'hello'"), "{e}");
+        let e = err("TRCFMT=1;2;E;R;F\r\nR=1;2\r\nA=0;18000\r\n");
+        assert!(e.starts_with("f.oma:3: A= record in an equiangular (E) trace"), "{e}");
+        let e = err("TRCFMT=1;2;U;R;F\r\nR=1;2\r\nA=0\r\n");
+        assert!(e.starts_with("f.oma:1: TRCFMT declares 2 points (not equiangular, U), the A= records"), "{e}");
+        let e = err("TRCFMT=1;2;U;R;F\r\nR=1;2\r\nA=0;1;2\r\n");
+        assert!(e.starts_with("f.oma:3: more angles"), "{e}");
+    }
+
+    #[test]
+    fn write_errors() {
+        let one = |radii: Vec<f64>| OmaFile {
+            traces: vec![Trace::equiangular(Eye::Left, TraceType::Frame, radii)],
+            ..Default::default()
+        };
+        assert_eq!(render(&one(vec![])).unwrap_err(), "trace 1 (L eye): no radii");
+        assert!(render(&one(vec![0.02, f64::NAN])).unwrap_err().starts_with("trace 1 (L eye): radius 1 is NaN m"));
+        assert!(render(&one(vec![-0.01])).unwrap_err().contains("radius 0 is -0.01 m"));
+        let mut f = one(vec![0.02; 3]);
+        f.traces[0].angles = Some(vec![0.0; 2]);
+        assert_eq!(render(&f).unwrap_err(), "trace 1 (L eye): 2 angles for 3 radii");
+        let mut f = one(vec![0.02; 3]);
+        f.job = Some("a\r\nTRCFMT=4".into());
+        assert!(render(&f).unwrap_err().starts_with("JOB 'a\\r\\nTRCFMT=4' contains a line break"));
+        let mut f = one(vec![0.02; 3]);
+        f.other.push(("A=B".into(), "1".into()));
+        assert!(render(&f).unwrap_err().contains("is not a plain label"));
+    }
+
+    #[test]
+    fn file_round_trip() {
+        let dir = std::env::temp_dir().join(format!("tracer_calib_oma_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.oma");
+        let file = OmaFile {
+            job: Some("7".into()),
+            traces: vec![Trace::equiangular(Eye::Right, TraceType::Frame, shape(512, 1.0))],
+            ..Default::default()
+        };
+        write(&path, &file).unwrap();
+        let back = read(&path).unwrap();
+        assert_eq!(back.traces[0].n(), 512);
+        let missing = read(&dir.join("missing.oma")).unwrap_err();
+        assert!(missing.contains("missing.oma: cannot read"), "{missing}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
