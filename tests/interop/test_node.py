@@ -453,6 +453,194 @@ def test_bad_scans_and_diagnostics(peer):
         node.stop()
 
 
+def test_wire_bad_input(peer):
+    """Malformed RawScans on the wire, every field wrong in turn: each is rejected and
+    counted; the node keeps publishing good scans and answering /calibrate."""
+    node = NodeProcess("wire", ["-r", "__node:=wire_tracer"])
+    try:
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        diags = peer.subscribe(DiagnosticArray, "/diagnostics")
+        steps, counts = simulate("plate_w", "plate", seed=8)
+        peer.send_scan(pub, raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, steps, counts), contours)
+        huge = 1_000_000
+        bad = [
+            raw_scan(10, 1, [], []),  # empty arrays
+            raw_scan(11, 1, steps, []),  # counts empty
+            raw_scan(12, 1, steps, counts + [1]),  # lengths differ
+            raw_scan(13, 1, [s + 400 for s in steps], counts),  # step out of range
+            raw_scan(14, 1, [0] * 400, counts),  # one step measured 400 times
+            raw_scan(15, 9, steps, counts),  # unknown target
+            raw_scan(16, 1, steps, counts, n=0),  # steps_per_revolution 0
+            raw_scan(17, 1, steps, counts, n=2**32 - 1),  # steps_per_revolution huge
+            raw_scan(18, 1, list(range(huge)), [22500] * huge, n=huge),  # a 10^6-sample scan
+        ]
+        for m in bad:
+            pub.publish(m)
+        # Geometry that gives no plate: all counts zero, and absurd lengths. Valid scans
+        # (they are corrected), but no calibration may come out of them.
+        peer.send_scan(pub, raw_scan(20, 1, steps, [0] * len(steps)), contours)
+        r = peer.call("/calibrate", Calibrate.Request(scan_id=20))
+        assert not r.success and r.message, r
+        peer.send_scan(pub, raw_scan(21, 1, steps, [2**31 - 1 - (s % 2) * 2**31 for s in steps]), contours)
+        r = peer.call("/calibrate", Calibrate.Request(scan_id=21))
+        assert not r.success, r
+        assert all(math.isfinite(v) for v in (r.alpha0, r.offset, r.delta_l, r.rms_residual)), r
+        # Still serving.
+        peer.send_scan(pub, raw_scan(30, RawScan.TARGET_CALIBRATION_PLATE, steps, counts), contours)
+        r = peer.call("/calibrate", Calibrate.Request(scan_id=30))
+        assert r.success, r.message
+        assert not any(c.scan_id in range(10, 19) for c in contours)
+
+        def counted():
+            for d in diags:
+                for st in d.status:
+                    kv = {v.key: v.value for v in st.values}
+                    if "wire_tracer" in st.name and kv.get("scans_rejected") == str(len(bad)):
+                        return True
+            return False
+
+        peer.spin_until(counted, 10, f"diagnostics counting {len(bad)} rejected scans")
+        out = node.output()
+        assert "more than the limit" in out or "rejected" in out, out
+    finally:
+        took = node.stop()
+    assert took < 1.0, took
+
+
+def test_concurrent_calls_and_a_vanishing_peer(peer):
+    """16 calibrate calls at once are all answered (one fit at a time); a client that
+    dies before its answer does not wedge the node."""
+    node = NodeProcess("concurrent", ["-r", "__node:=busy_tracer"])
+    try:
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        peer.send_scan(pub, raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *simulate("plate_c", "plate", seed=9)), contours)
+        # A client process that sends a request and dies at once.
+        code = """
+import os, rclpy, time
+from rclpy.node import Node
+from tracer_calib_msgs.srv import Calibrate
+rclpy.init()
+n = Node('doomed_client')
+c = n.create_client(Calibrate, '/calibrate')
+deadline = time.monotonic() + 15
+while not c.service_is_ready() and time.monotonic() < deadline:
+    rclpy.spin_once(n, timeout_sec=0.05)
+for _ in range(3):
+    c.call_async(Calibrate.Request())
+    rclpy.spin_once(n, timeout_sec=0.001)
+os._exit(0)
+"""
+        doomed = subprocess.run([sys.executable, "-c", code], timeout=60)
+        assert doomed.returncode == 0
+        clients = [peer.node.create_client(Calibrate, "/calibrate") for _ in range(16)]
+        for c in clients:
+            peer.spin_until(c.service_is_ready, 15, "the service")
+        t0 = time.monotonic()
+        futures = [c.call_async(Calibrate.Request(scan_id=1, dry_run=(i % 2 == 1))) for i, c in enumerate(clients)]
+        peer.spin_until(lambda: all(f.done() for f in futures), 30, "16 answers")
+        took = time.monotonic() - t0
+        results = [f.result() for f in futures]
+        assert all(r.success for r in results), [r.message for r in results if not r.success]
+        assert len({(r.alpha0, r.offset) for r in results}) == 1, "every fit of the same scan is the same"
+        print(f"    16 concurrent calls answered in {took * 1e3:.0f} ms", flush=True)
+    finally:
+        node.stop()
+
+
+def test_kill_during_writes():
+    """SIGKILL at random moments while the node persists parameter changes as fast as it
+    can: the params file is always complete (old or new), never half written."""
+    import random
+
+    random.seed(4)
+    path = os.path.join(WORK, "killed.yaml")
+    with open(path, "w") as f:
+        f.write("tracer_calibrator:\n  ros__parameters:\n    output_frame_id: frame_0\n")
+    setter = os.path.join(WORK, "setter.py")
+    with open(setter, "w") as f:
+        f.write("""
+import sys, time, rclpy
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+rclpy.init()
+n = Node('setter')
+pc = AsyncParameterClient(n, '/tracer_calibrator')
+deadline = time.monotonic() + 20
+while not pc.services_are_ready() and time.monotonic() < deadline:
+    rclpy.spin_once(n, timeout_sec=0.05)
+i = 1
+while True:
+    fut = pc.set_parameters([Parameter('output_frame_id', value=f'frame_{i}'), Parameter('resample_points', value=i % 1000)])
+    t = time.monotonic()
+    while not fut.done() and time.monotonic() - t < 2:
+        rclpy.spin_once(n, timeout_sec=0.01)
+    i += 1
+""")
+    setter_proc = subprocess.Popen([sys.executable, setter], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    seen = set()
+    try:
+        for round_ in range(12):
+            node = subprocess.Popen([NODE_BIN, "--ros-args", "--params-file", path], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            time.sleep(random.uniform(1.0, 2.5))
+            node.send_signal(signal.SIGKILL)
+            node.wait()
+            with open(path) as f:
+                text = f.read()
+            back = subprocess.run([TOOL_BIN, "calibrate", "--input", "/nonexistent.csv", "--params", path, "--json"], capture_output=True, text=True)
+            assert "cannot read" in back.stderr and path not in back.stderr, (round_, back.stderr, text)
+            assert text.startswith("# Parameters of tracer_calib_node") or text.startswith("tracer_calibrator:"), text
+            frame = [l for l in text.splitlines() if "output_frame_id" in l]
+            assert len(frame) == 1, text
+            seen.add(frame[0].split(":", 1)[1].strip())
+    finally:
+        setter_proc.kill()
+        setter_proc.wait()
+    assert len(seen) > 3, f"the node hardly wrote anything: {seen}"
+    print(f"    12 kills, the file was whole every time ({len(seen)} different versions seen)", flush=True)
+
+
+def test_read_only_and_full_disk(peer):
+    """A params file on a read-only or a full file system: calibrate answers
+    success: false with the reason, and the calibration stays in force in memory."""
+    for kind, mount_opts, fill in [("read-only", "ro", False), ("full", "size=64k", True)]:
+        mnt = os.path.join(WORK, f"mnt_{kind}")
+        os.makedirs(mnt, exist_ok=True)
+        initial = "tracer_calibrator:\n  ros__parameters:\n    plate.side: 0.045\n"
+        script = f"""
+set -e
+mount -t tmpfs -o size=64k tmpfs {mnt}
+printf '{initial}' > {mnt}/params.yaml
+if [ {int(fill)} = 1 ]; then dd if=/dev/zero of={mnt}/filler bs=4k 2>/dev/null || true; fi
+mount -o remount,{mount_opts} {mnt}
+exec {NODE_BIN} --ros-args -r __node:=disk_tracer -p params_file:={mnt}/params.yaml --params-file {mnt}/params.yaml
+"""
+        log = open(os.path.join(WORK, f"disk_{kind}.log"), "w")
+        proc = subprocess.Popen(["unshare", "--mount", "--propagation", "private", "sh", "-c", script], stdout=log, stderr=subprocess.STDOUT)
+        try:
+            pub = peer.publisher("/raw_scan")
+            contours = peer.subscribe(Contour, "/contour")
+            peer.send_scan(pub, raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *simulate(f"plate_{kind}", "plate", seed=11)), contours)
+            r = peer.call("/calibrate", Calibrate.Request(scan_id=1))
+            assert not r.success, (kind, r)
+            assert "applied in memory but not persisted" in r.message, (kind, r.message)
+            reason = "Read-only file system" if kind == "read-only" else "No space left on device"
+            assert reason in r.message, (kind, r.message)
+            c = peer.send_scan(pub, raw_scan(2, RawScan.TARGET_LENS, *simulate(f"lens_{kind}", "ellipse", seed=12)), contours)
+            assert c.calibrated, f"{kind}: the calibration is not in force"
+            pc = peer.param_client("/disk_tracer")
+            got = peer.param(lambda: pc.get_parameters(["calibration.valid", "calibration.alpha0"])).values
+            assert got[0].bool_value is True and got[1].double_value == r.alpha0, got
+            bad = peer.param(lambda: pc.set_parameters([Parameter("output_frame_id", value="x")])).results[0]
+            assert not bad.successful and reason in bad.reason, (kind, bad)
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            proc.wait(timeout=5)
+            log.close()
+
+
 FIXTURES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "fixtures")
 
 
@@ -523,6 +711,10 @@ def main():
         ("bad_scans_and_diagnostics", lambda: test_bad_scans_and_diagnostics(peer)),
         ("replay_foreign_bags", lambda: test_replay_foreign_bags(peer)),
         ("bad_params_file_stops_the_node", test_bad_params_file_stops_the_node),
+        ("wire_bad_input", lambda: test_wire_bad_input(peer)),
+        ("concurrent_calls_and_a_vanishing_peer", lambda: test_concurrent_calls_and_a_vanishing_peer(peer)),
+        ("kill_during_writes", test_kill_during_writes),
+        ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
     ]
     only = sys.argv[1:]
     passed = failed = 0
