@@ -293,7 +293,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 debug!("cannot publish diagnostics: {e:?}");
             }
             tick += 1;
-            if tick % 5 == 0 {
+            if tick.is_multiple_of(5) {
                 release_freed_memory();
             }
             smol::Timer::after(Duration::from_secs(1)).await;
