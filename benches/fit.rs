@@ -122,11 +122,11 @@ fn bench(c: &mut Criterion) {
     let params = tracer_calib::params::Parameters { calibration: m, calibration_valid: true, ..Default::default() };
     let mut state = NodeState::new("/tracer_calibrator".into(), params);
     c.bench_function("node/on_raw_scan_400 (validate, correct, resample, build messages)", |b| {
-        b.iter(|| state.on_raw_scan(black_box(&raw)).unwrap())
+        b.iter(|| state.on_raw_scan(black_box(&raw), true).unwrap())
     });
-    let out = state.on_raw_scan(&raw).unwrap();
+    let out = state.on_raw_scan(&raw, true).unwrap();
     c.bench_function("node/encode Contour + PolygonStamped (CDR)", |b| {
-        b.iter(|| (to_cdr(black_box(&out.contour)).unwrap(), to_cdr(black_box(&out.polygon)).unwrap()))
+        b.iter(|| (to_cdr(black_box(&out.contour)).unwrap(), to_cdr(black_box(out.polygon.as_ref().unwrap())).unwrap()))
     });
     c.bench_function("node/decode RawScan (CDR)", |b| {
         let bytes = to_cdr(&raw).unwrap();

@@ -62,6 +62,20 @@ fn relay() {
     let sub = node.create_subscription::<RawScan>(&t_in, None).unwrap();
     let publisher = node.create_publisher::<RawScan>(&t_out, None).unwrap();
     let contour_pub = node.create_publisher::<Contour>(&t_contour, None).unwrap();
+    let t_polygon = node
+        .create_topic(
+            &Name::new("/", "relay_polygon").unwrap(),
+            tracer_calib::ros::msgs::type_names::POLYGON_STAMPED.message_type_name(),
+            &qos(),
+        )
+        .unwrap();
+    let polygon_pub = node.create_publisher::<tracer_calib::ros::msgs::PolygonStamped>(&t_polygon, None).unwrap();
+    let polygon = tracer_calib::ros::msgs::PolygonStamped {
+        header: Header::default(),
+        polygon: tracer_calib::ros::msgs::Polygon {
+            points: (0..400).map(|k| tracer_calib::ros::msgs::Point32 { x: k as f32, y: 0.0, z: 0.0 }).collect(),
+        },
+    };
     let contour = Contour {
         header: Header::default(),
         scan_id: 0,
@@ -78,6 +92,9 @@ fn relay() {
             if msg.target == RawScan::TARGET_CALIBRATION_PLATE {
                 // Asked for the Contour-sized answer.
                 let _ = contour_pub.async_publish(Contour { scan_id: msg.scan_id, ..contour.clone() }).await;
+                if std::env::var_os("RELAY_POLYGON").is_some() {
+                    let _ = polygon_pub.async_publish(polygon.clone()).await;
+                }
             } else {
                 let _ = publisher.async_publish(msg).await;
             }

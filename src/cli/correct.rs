@@ -79,14 +79,16 @@ fn correct_bag(args: &Args) -> Result<String, String> {
     let mut traces = Vec::new();
     let (mut corrected, mut rejected) = (0, 0);
     for (t, msg) in &scans {
-        match state.on_raw_scan(msg) {
+        match state.on_raw_scan(msg, true) {
             Ok(out) => {
                 corrected += 1;
                 if msg.target == RawScan::TARGET_LENS || msg.target == RawScan::TARGET_FRAME {
                     traces.push((msg.scan_id, msg.target, out.contour.radii.clone()));
                 }
                 writer.write("/contour", *t, &out.contour).map_err(|e| e.to_string())?;
-                writer.write("/contour_polygon", *t, &out.polygon).map_err(|e| e.to_string())?;
+                if let Some(polygon) = &out.polygon {
+                    writer.write("/contour_polygon", *t, polygon).map_err(|e| e.to_string())?;
+                }
             }
             Err(e) => {
                 rejected += 1;

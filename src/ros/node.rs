@@ -226,13 +226,17 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                     continue;
                 }
             };
-            let outcome = state.lock().expect("state lock").on_raw_scan(&msg);
+            // The polygon (for RViz) only when someone listens to it.
+            let with_polygon = polygon_pub.get_subscription_count(&node) > 0;
+            let outcome = state.lock().expect("state lock").on_raw_scan(&msg, with_polygon);
             match outcome {
                 Ok(out) => {
                     if let Err(e) = contour_pub.async_publish(out.contour).await {
                         warn!("cannot publish a contour: {e:?}");
                     }
-                    if let Err(e) = polygon_pub.async_publish(out.polygon).await {
+                    if let Some(polygon) = out.polygon
+                        && let Err(e) = polygon_pub.async_publish(polygon).await
+                    {
                         warn!("cannot publish a polygon: {e:?}");
                     }
                 }

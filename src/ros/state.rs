@@ -63,7 +63,8 @@ pub struct NodeState {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Corrected {
     pub contour: Contour,
-    pub polygon: PolygonStamped,
+    /// The same points as a `PolygonStamped`, when asked for (someone listens).
+    pub polygon: Option<PolygonStamped>,
 }
 
 /// What a calibrate request did.
@@ -105,9 +106,10 @@ impl NodeState {
             .map_err(|e| e.to_string())
     }
 
-    /// Handle one raw scan: validate, keep it if it is of the plate, correct it.
-    /// An error is a rejected scan (counted).
-    pub fn on_raw_scan(&mut self, msg: &RawScan) -> Result<Corrected, String> {
+    /// Handle one raw scan: validate, keep it if it is of the plate, correct it, and
+    /// build the `PolygonStamped` too if `with_polygon`. An error is a rejected scan
+    /// (counted).
+    pub fn on_raw_scan(&mut self, msg: &RawScan, with_polygon: bool) -> Result<Corrected, String> {
         self.stats.scans_received += 1;
         let scan = match self.validate(msg) {
             Ok(s) => s,
@@ -138,12 +140,12 @@ impl NodeState {
             Vec::new()
         };
         let header = Header { stamp: msg.header.stamp, frame_id: self.params.output_frame_id.clone() };
-        let polygon = PolygonStamped {
+        let polygon = with_polygon.then(|| PolygonStamped {
             header: header.clone(),
             polygon: Polygon {
                 points: points.iter().map(|p| Point32 { x: p.x as f32, y: p.y as f32, z: 0.0 }).collect(),
             },
-        };
+        });
         let contour = Contour {
             header,
             scan_id: msg.scan_id,
@@ -336,16 +338,16 @@ mod tests {
     fn scans_are_corrected_once_calibrated() {
         let m = Mounting { alpha0: 0.02, offset: 0.004, delta_l: 0.001 };
         let mut st = NodeState::new("/tracer_calibrator".into(), Parameters::default());
-        let before = st.on_raw_scan(&plate_msg(1, &m)).unwrap();
+        let before = st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
         assert!(!before.contour.calibrated);
         assert_eq!(before.contour.points.len(), 400);
         assert_eq!(before.contour.radii.len(), 400);
-        assert_eq!(before.polygon.polygon.points.len(), 400);
+        assert_eq!(before.polygon.as_ref().unwrap().polygon.points.len(), 400);
         let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
         assert!(out.response.success, "{}", out.response.message);
         assert!((out.response.offset - 0.004).abs() < 1e-5);
         assert_eq!(out.response.stddev.len(), 3);
-        let after = st.on_raw_scan(&plate_msg(2, &m)).unwrap();
+        let after = st.on_raw_scan(&plate_msg(2, &m), true).unwrap();
         assert!(after.contour.calibrated);
         assert_eq!(st.stats.calibrations_applied, 1);
     }
@@ -367,11 +369,11 @@ mod tests {
             (RawScan { step: good.step.iter().map(|s| s + 400).collect(), ..good.clone() }, "is out of range"),
         ];
         for (i, (msg, want)) in cases.iter().enumerate() {
-            let e = st.on_raw_scan(msg).unwrap_err();
+            let e = st.on_raw_scan(msg, true).unwrap_err();
             assert!(e.contains(want), "case {i}: {e}");
             assert_eq!(st.stats.scans_rejected, i as u64 + 1);
         }
-        assert!(st.on_raw_scan(&good).is_ok());
+        assert!(st.on_raw_scan(&good, true).is_ok());
         assert_eq!(st.stats.scans_received, cases.len() as u64 + 1);
     }
 
@@ -382,7 +384,7 @@ mod tests {
         assert!(!out.response.success);
         assert!(out.response.message.starts_with("no calibration-plate scan received yet"), "{}", out.response.message);
         let m = Mounting { alpha0: 0.01, offset: 0.003, delta_l: 0.001 };
-        st.on_raw_scan(&plate_msg(5, &m)).unwrap();
+        st.on_raw_scan(&plate_msg(5, &m), true).unwrap();
         assert!(st.on_calibrate(&CalibrateRequest::default()).response.success);
         let in_force = st.params.calibration;
         // A wrong plate size: the fit is refused, the calibration stays.
@@ -400,7 +402,7 @@ mod tests {
     fn dry_runs_change_nothing_and_persisting_failures_are_reported() {
         let m = Mounting { alpha0: 0.01, offset: 0.003, delta_l: 0.001 };
         let mut st = NodeState::new("/t".into(), Parameters::default());
-        st.on_raw_scan(&plate_msg(1, &m)).unwrap();
+        st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
         let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true });
         assert!(out.response.success && out.applied.is_none());
         assert!(!st.params.calibration_valid);
