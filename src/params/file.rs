@@ -318,6 +318,27 @@ pub fn render(fqn: &str, params: &[(String, ParamValue)], comment: &str) -> Stri
     out
 }
 
+/// Remove the temporary files a writer killed mid-write left beside `path`
+/// (`.NAME.tmp.PID` whose process is gone); returns how many. A live writer's file is
+/// left alone.
+pub fn remove_stale_temp_files(path: &Path) -> usize {
+    let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else { return 0 };
+    let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+    let prefix = format!(".{}.tmp.", name.to_string_lossy());
+    let Ok(entries) = fs::read_dir(dir) else { return 0 };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let Some(pid) = file.to_str().and_then(|f| f.strip_prefix(&prefix)) else { continue };
+        let Ok(pid) = pid.parse::<u32>() else { continue };
+        let alive = pid == std::process::id() || Path::new(&format!("/proc/{pid}")).exists();
+        if !alive && fs::remove_file(entry.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
 /// Replace `path` with `contents` atomically: a temporary file beside it, written and
 /// `fsync`ed, renamed over `path`, and the directory `fsync`ed.
 pub fn write_atomic(path: &Path, contents: &str) -> std::io::Result<()> {
@@ -435,6 +456,13 @@ mod tests {
         write_atomic(&path, "new\n").unwrap();
         assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");
         assert_eq!(fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left behind");
+        // A temporary file of a dead writer is cleaned up, a live one's is not.
+        let stale = dir.join(".p.yaml.tmp.4000000000");
+        let live = dir.join(format!(".p.yaml.tmp.{}", std::process::id()));
+        fs::write(&stale, "half").unwrap();
+        fs::write(&live, "busy").unwrap();
+        assert_eq!(remove_stale_temp_files(&path), 1);
+        assert!(!stale.exists() && live.exists());
         fs::remove_dir_all(&dir).unwrap();
     }
 }

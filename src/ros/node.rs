@@ -126,6 +126,12 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         warn!("{w}");
     }
     let fqn = identity.fully_qualified_name();
+    if !params.params_file.is_empty() {
+        let removed = params_file::remove_stale_temp_files(std::path::Path::new(&params.params_file));
+        if removed > 0 {
+            info!("removed {removed} temporary file(s) a killed writer left beside {}", params.params_file);
+        }
+    }
     let state = Arc::new(Mutex::new(NodeState::new(fqn.clone(), params.clone())));
 
     // Parameters: validated by the same rules as the params file; a change is applied

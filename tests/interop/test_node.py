@@ -599,6 +599,9 @@ while True:
         setter_proc.kill()
         setter_proc.wait()
     assert len(seen) > 3, f"the node hardly wrote anything: {seen}"
+    # Temporary files of killed writes are cleaned up when the node starts again.
+    leftovers = [f for f in os.listdir(WORK) if f.startswith(".killed.yaml.tmp.")]
+    assert len(leftovers) <= 1, leftovers
     print(f"    12 kills, the file was whole every time ({len(seen)} different versions seen)", flush=True)
 
 
