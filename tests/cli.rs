@@ -172,3 +172,88 @@ fn demo_runs() {
     let svg_text = std::fs::read_to_string(&svg).unwrap();
     assert!(svg_text.starts_with("<?xml") || svg_text.starts_with("<svg"), "{}", &svg_text[..100]);
 }
+
+/// The bag and file tools on bad paths and bad files: one line naming the problem, exit 2.
+#[test]
+fn tools_reject_bad_paths_and_files_with_one_line() {
+    let garbage = temp("garbage.mcap");
+    std::fs::write(&garbage, b"not an mcap file at all").unwrap();
+    let g = garbage.to_str().unwrap();
+    let params = temp("ok_params.yaml");
+    std::fs::write(&params, "tracer_calibrator:\n  ros__parameters:\n    calibration.valid: false\n").unwrap();
+    let p = params.to_str().unwrap();
+    let bad_oma = temp("bad.oma");
+    std::fs::write(&bad_oma, "TRCFMT=1;4;E;R;F\r\nR=100;200;x;400\r\n").unwrap();
+    let out = temp("out_bag");
+    let o = out.to_str().unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["calibrate", "--input", "/nonexistent/bag.mcap"], "/nonexistent/bag.mcap"),
+        (vec!["calibrate", "--input", g], "garbage.mcap"),
+        (vec!["correct", "--input", "/nonexistent/bag", "--params", p, "--out", o], "/nonexistent/bag"),
+        (vec!["correct", "--input", g, "--params", p, "--out", o], "garbage.mcap"),
+        (vec!["correct", "--input", g, "--params", "/nonexistent.yaml", "--out", o], "/nonexistent.yaml"),
+        (vec!["replay", "--input", "/nonexistent/bag.db3"], "/nonexistent/bag.db3"),
+        (vec!["plot", "--input", "/nonexistent.csv", "--out", o], "/nonexistent.csv"),
+        (vec!["oma", "--input", "/nonexistent.oma"], "/nonexistent.oma"),
+        (vec!["oma", "--input", bad_oma.to_str().unwrap()], "bad.oma:2"),
+        (vec!["simulate", "--out", "/nonexistent/dir/x.csv"], "/nonexistent/dir/x.csv"),
+    ];
+    for (args, want) in &cases {
+        let o = tool(args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let err = stderr(&o);
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: one line, got:\n{err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}
+
+/// simulate -> correct -> oma, the offline path an edging cell without ROS would use.
+#[test]
+fn simulate_correct_and_read_the_oma_back() {
+    let bag = temp("sim_bag");
+    let _ = std::fs::remove_dir_all(&bag);
+    let b = bag.to_str().unwrap();
+    let o = tool(&["simulate", "--shape", "plate", "--shape", "ellipse", "--noise", "2e-6", "--out", b]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cal = tool(&["calibrate", "--input", b, "--json"]);
+    assert_eq!(cal.status.code(), Some(0), "{}", stderr(&cal));
+    let v = json(&cal);
+    let params = temp("sim_cal.yaml");
+    std::fs::write(
+        &params,
+        format!(
+            "tracer_calibrator:\n  ros__parameters:\n    calibration.alpha0: {}\n    calibration.offset: {}\n    calibration.delta_l: {}\n    calibration.valid: true\n",
+            v["alpha0"], v["offset"], v["delta_l"]
+        ),
+    )
+    .unwrap();
+    let out = temp("sim_corrected.mcap");
+    let oma_path = temp("sim_lens.oma");
+    let o = tool(&[
+        "correct",
+        "--input",
+        b,
+        "--params",
+        params.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--oma",
+        oma_path.to_str().unwrap(),
+        "--eye",
+        "L",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).starts_with("2 scans corrected (calibrated), 0 rejected"));
+    let o = tool(&["oma", "--input", oma_path.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = json(&o);
+    let t = &v["traces"][0];
+    assert_eq!(t["eye"], "L");
+    assert_eq!(t["n"], 400);
+    // The simulated ellipse is 50 x 30 mm centred at (0.8, -0.5) mm: radius at 0° is
+    // 25.8 mm, at 90° 15.0 mm (to 1/100 mm and the fit's error).
+    let r = t["radii"].as_array().unwrap();
+    assert!((r[0].as_f64().unwrap() - 0.0258).abs() < 3e-5, "{}", r[0]);
+    let y = (0.015f64.powi(2) * (1.0 - (0.0008f64 / 0.025).powi(2))).sqrt() - 0.0005;
+    assert!((r[100].as_f64().unwrap() - y).abs() < 3e-5, "{} vs {y}", r[100]);
+}

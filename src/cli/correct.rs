@@ -64,14 +64,14 @@ fn correct_bag(args: &Args) -> Result<String, String> {
     });
     let mut params = Parameters::default();
     params.apply_file(&file, &fqn, &args.params.display().to_string()).map_err(|e| e.to_string())?;
+    let bag = Bag::open(&args.input).map_err(|e| e.to_string())?;
+    let scans = bag.read::<RawScan>(&args.topic).map_err(|e| e.to_string())?;
     if !params.calibration_valid {
         eprintln!(
             "tracer_calib correct: warning: {} has no valid calibration for {fqn} (calibration.valid is false): contours are uncorrected",
             args.params.display()
         );
     }
-    let bag = Bag::open(&args.input).map_err(|e| e.to_string())?;
-    let scans = bag.read::<RawScan>(&args.topic).map_err(|e| e.to_string())?;
     let mut state = NodeState::new(fqn, params);
     let mut writer = BagWriter::create(&args.out).map_err(|e| e.to_string())?;
     writer.add_topic::<Contour>("/contour").map_err(|e| e.to_string())?;
