@@ -16,6 +16,7 @@
 //! old one.
 
 use std::net::{IpAddr, Ipv4Addr};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -214,6 +215,10 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         env.domain_id, env.discovery_range
     );
 
+    // Whether anyone subscribes to the polygons: asking ros2-client costs ~70 µs (it
+    // walks the discovered graph), too much per scan, so the diagnostics tick asks
+    // once a second.
+    let polygon_wanted = AtomicBool::new(true);
     let scans = async {
         let mut stream = std::pin::pin!(subscription.async_stream());
         let mut limit = RateLimit::new(Duration::from_secs(1));
@@ -233,7 +238,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 }
             };
             // The polygon (for RViz) only when someone listens to it.
-            let with_polygon = polygon_pub.get_subscription_count(&node) > 0;
+            let with_polygon = polygon_wanted.load(Ordering::Relaxed);
             let outcome = state.lock().expect("state lock").on_raw_scan(&msg, with_polygon);
             match outcome {
                 Ok(out) => {
@@ -298,6 +303,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     let diagnostics = async {
         let mut tick = 0u64;
         loop {
+            polygon_wanted.store(polygon_pub.get_subscription_count(&node) > 0, Ordering::Relaxed);
             let msg = state.lock().expect("state lock").diagnostics(Time::now());
             if let Err(e) = diag_pub.async_publish(msg).await {
                 debug!("cannot publish diagnostics: {e:?}");
