@@ -2,16 +2,15 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
-
 use super::exit;
-use crate::engine::calibrate::{Calibration, Options, calibrate};
+use crate::engine::calibrate::{Options, calibrate};
 use crate::engine::model::ModelKind;
 use crate::engine::scan::Scan;
 use crate::io::bag::Bag;
 use crate::io::csv;
 use crate::params::{Parameters, ParamsFile, file as params_file};
-use crate::ros::msgs::RawScan;
+use crate::ros::msgs::{CalibrateResponse, RawScan};
+use crate::ros::state::response_for;
 
 /// Fit alpha0, d and dL to a scan of the calibration plate.
 ///
@@ -67,38 +66,11 @@ impl clap::ValueEnum for ModelKind {
     }
 }
 
-/// The Calibrate response's fields (CONTRACT.md), as JSON.
-#[derive(Debug, Clone, PartialEq, Serialize, Default)]
-pub struct Response {
-    pub success: bool,
-    pub message: String,
-    pub alpha0: f64,
-    pub offset: f64,
-    pub delta_l: f64,
-    pub stddev: Vec<f64>,
-    pub rms_residual: f64,
-    pub iterations: u32,
-    pub samples_used: u32,
-}
+/// The Calibrate response (CONTRACT.md): its fields, in its order, are the JSON output.
+pub type Response = CalibrateResponse;
 
-impl Response {
-    pub fn success(cal: &Calibration) -> Self {
-        Response {
-            success: true,
-            message: cal.summary(),
-            alpha0: cal.mounting.alpha0,
-            offset: cal.mounting.offset,
-            delta_l: cal.mounting.delta_l,
-            stddev: cal.stddev.to_vec(),
-            rms_residual: cal.rms_residual,
-            iterations: cal.iterations as u32,
-            samples_used: cal.samples_used as u32,
-        }
-    }
-
-    pub fn failure(message: impl Into<String>) -> Self {
-        Response { success: false, message: message.into(), ..Response::default() }
-    }
+fn failure(message: impl Into<String>) -> Response {
+    Response { success: false, message: message.into(), ..Response::default() }
 }
 
 /// Settings from defaults, then --params, then the explicit flags.
@@ -199,12 +171,12 @@ pub fn run(args: &Args) -> i32 {
     let outcome = settings(args).and_then(|p| load_scan(args, &p).map(|scan| (p, scan)));
     let (p, scan) = match outcome {
         Ok(v) => v,
-        Err(e) => return report(args, &Response::failure(e), exit::BAD_INPUT),
+        Err(e) => return report(args, &failure(e), exit::BAD_INPUT),
     };
     let opts = Options { model: p.model, ..Options::default() };
     match calibrate(&scan, &p.plate, &opts) {
-        Ok(cal) => report(args, &Response::success(&cal), exit::OK),
-        Err(e) => report(args, &Response::failure(format!("calibration failed: {e}")), exit::FIT_FAILED),
+        Ok(cal) => report(args, &response_for(&cal, cal.summary()), exit::OK),
+        Err(e) => report(args, &failure(format!("calibration failed: {e}")), exit::FIT_FAILED),
     }
 }
 

@@ -13,7 +13,7 @@ use super::msgs::{
     CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, DiagnosticStatus, Header, KeyValue, Point, Point32,
     Polygon, PolygonStamped, RawScan,
 };
-use crate::engine::calibrate::{Options, calibrate};
+use crate::engine::calibrate::{Calibration, Options, calibrate};
 use crate::engine::correct::{Corrector, default_max_gap, resample_radii};
 use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
@@ -189,17 +189,7 @@ impl NodeState {
             Err(e) => return fail(self, format!("calibration failed on scan {scan_id}: {e}")),
         };
         self.stats.last_fit_rms = Some(cal.rms_residual);
-        let mut response = CalibrateResponse {
-            success: true,
-            message: format!("scan {scan_id}: {}", cal.summary()),
-            alpha0: cal.mounting.alpha0,
-            offset: cal.mounting.offset,
-            delta_l: cal.mounting.delta_l,
-            stddev: cal.stddev.to_vec(),
-            rms_residual: cal.rms_residual,
-            iterations: cal.iterations as u32,
-            samples_used: cal.samples_used as u32,
-        };
+        let mut response = response_for(&cal, format!("scan {scan_id}: {}", cal.summary()));
         if req.dry_run {
             response.message = format!("dry run, not applied: {}", response.message);
             self.stats.last_fit_message = response.message.clone();
@@ -276,6 +266,21 @@ impl NodeState {
                 ],
             }],
         }
+    }
+}
+
+/// The Calibrate response of a successful fit (the node's, and the offline tool's JSON).
+pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
+    CalibrateResponse {
+        success: true,
+        message,
+        alpha0: cal.mounting.alpha0,
+        offset: cal.mounting.offset,
+        delta_l: cal.mounting.delta_l,
+        stddev: cal.stddev.to_vec(),
+        rms_residual: cal.rms_residual,
+        iterations: cal.iterations as u32,
+        samples_used: cal.samples_used as u32,
     }
 }
 
