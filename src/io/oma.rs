@@ -54,6 +54,8 @@ const METRES_PER_UNIT: f64 = 1e-5;
 const DEGREES_PER_UNIT: f64 = 0.01;
 /// The largest radius written, metres: anything larger is not a spectacle shape.
 const MAX_RADIUS: f64 = 10.0;
+/// Points preallocated for a trace at most, whatever its `TRCFMT` declares.
+const MAX_PREALLOCATED_POINTS: usize = 10_000;
 
 /// Which eye a trace is for (the fourth `TRCFMT` field).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -138,7 +140,9 @@ impl fmt::Display for TraceType {
 /// One eye's trace (format 1, ASCII).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trace {
+    /// Which eye (`R`, `L`, `B`).
     pub eye: Eye,
+    /// What was traced (`F`, `P`, `L`, `D`).
     pub trace_type: TraceType,
     /// Radii about the rotation axis, metres, in point order.
     pub radii: Vec<f64>,
@@ -298,7 +302,9 @@ fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, Stri
         trace: Trace {
             eye,
             trace_type,
-            radii: Vec::with_capacity(n),
+            // `n` comes from the file: preallocate for real traces only, so that an absurd
+            // count is the "declares N points" error at the end of the trace, not an abort.
+            radii: Vec::with_capacity(n.min(MAX_PREALLOCATED_POINTS)),
             angles: if equiangular { None } else { Some(Vec::new()) },
         },
         angles: Vec::new(),

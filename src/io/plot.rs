@@ -31,6 +31,7 @@ pub struct Outline<'a> {
 /// What [`contours_svg`] draws.
 #[derive(Debug, Clone, Copy)]
 pub struct ContourPlot<'a> {
+    /// Title above the plot.
     pub title: &'a str,
     /// Points as the uncalibrated tracer reports them, metres.
     pub raw: &'a [Vector2<f64>],
@@ -56,14 +57,18 @@ pub struct ResidualSample {
 pub struct ResidualPlot<'a> {
     /// Title; the RMS and the sample counts are appended.
     pub title: &'a str,
+    /// The samples, in any order (e.g. scan order).
     pub samples: &'a [ResidualSample],
 }
 
 /// What [`calibration_report_svg`] draws.
 #[derive(Debug, Clone, Copy)]
 pub struct CalibrationReport<'a> {
+    /// Title above both plots.
     pub title: &'a str,
+    /// The left plot.
     pub contours: ContourPlot<'a>,
+    /// The right plot.
     pub residuals: ResidualPlot<'a>,
     /// The fit summary, printed under the plots (wrapped; `\n` starts a new line).
     pub summary: &'a str,
@@ -371,42 +376,58 @@ enum Marker<'a> {
     Line { color: &'a str, dash: &'a str },
 }
 
-/// A row of legend entries under the x-axis label.
+/// Legend entries under the x-axis label: one centred row, or two if one is too wide.
 fn draw_legend(out: &mut String, f: &Frame, items: &[(Marker<'_>, String)]) {
-    let y = f.y0 + f.h + 66.0;
-    // Rough text width at 12 px; centre the row.
-    let widths: Vec<f64> = items.iter().map(|(_, t)| 26.0 + 6.6 * t.chars().count() as f64 + 18.0).collect();
-    let total: f64 = widths.iter().sum();
-    let mut x = f.x0 + ((f.w - total) / 2.0).max(-M_LEFT + 8.0);
+    // Rough text width at 12 px.
+    let widths: Vec<f64> = items.iter().map(|(_, t)| 26.0 + 6.6 * t.chars().count() as f64 + 16.0).collect();
+    let room = f.w + M_LEFT + M_RIGHT - 16.0;
+    let mut rows: Vec<Vec<usize>> = vec![Vec::new()];
+    let mut used = 0.0;
+    for (k, w) in widths.iter().enumerate() {
+        if used + w > room && !rows.last().expect("never empty").is_empty() {
+            rows.push(Vec::new());
+            used = 0.0;
+        }
+        rows.last_mut().expect("never empty").push(k);
+        used += w;
+    }
+    let y0 = f.y0 + f.h + if rows.len() > 1 { 60.0 } else { 66.0 };
     out.push_str("<g class=\"legend\">\n");
-    for ((marker, text), w) in items.iter().zip(&widths) {
-        let (mx, my) = (x + 10.0, y - 4.0);
-        let _ = match marker {
-            Marker::Dot(c) => writeln!(out, r#"<circle cx="{mx:.1}" cy="{my:.1}" r="3" fill="{c}"/>"#),
-            Marker::Ring(c) => {
-                writeln!(
-                    out,
-                    r#"<circle cx="{mx:.1}" cy="{my:.1}" r="3" fill="none" stroke="{c}" stroke-width="1.2"/>"#
-                )
-            }
-            Marker::Cross(c) => {
-                writeln!(out, r#"<path d="{}" stroke="{c}" stroke-width="1.6" fill="none"/>"#, cross_path(mx, my, 4.0))
-            }
-            Marker::Plus(c) => {
-                writeln!(out, r#"<path d="{}" stroke="{c}" stroke-width="1.2" fill="none"/>"#, plus_path(mx, my, 5.0))
-            }
-            Marker::Triangle(c) => writeln!(out, r#"<path d="{}" fill="{c}"/>"#, triangle_path(mx, my, 5.0, true)),
-            Marker::Line { color, dash } => writeln!(
-                out,
-                r#"<line x1="{:.1}" y1="{my:.1}" x2="{:.1}" y2="{my:.1}" stroke="{color}" stroke-width="1.5" stroke-dasharray="{dash}"/>"#,
-                mx - 10.0,
-                mx + 10.0
-            ),
-        };
-        let _ = writeln!(out, r#"<text x="{:.1}" y="{y:.1}">{}</text>"#, x + 26.0, xml_escape(text));
-        x += w;
+    for (r, row) in rows.iter().enumerate() {
+        let y = y0 + 19.0 * r as f64;
+        let total: f64 = row.iter().map(|&k| widths[k]).sum();
+        let mut x = f.x0 + ((f.w - total) / 2.0).max(-M_LEFT + 8.0);
+        for &k in row {
+            let (marker, text) = &items[k];
+            draw_marker(out, marker, x + 10.0, y - 4.0);
+            let _ = writeln!(out, r#"<text x="{:.1}" y="{y:.1}">{}</text>"#, x + 26.0, xml_escape(text));
+            x += widths[k];
+        }
     }
     out.push_str("</g>\n");
+}
+
+/// A legend entry's marker centred at `(mx, my)`.
+fn draw_marker(out: &mut String, marker: &Marker<'_>, mx: f64, my: f64) {
+    let _ = match marker {
+        Marker::Dot(c) => writeln!(out, r#"<circle cx="{mx:.1}" cy="{my:.1}" r="3" fill="{c}"/>"#),
+        Marker::Ring(c) => {
+            writeln!(out, r#"<circle cx="{mx:.1}" cy="{my:.1}" r="3" fill="none" stroke="{c}" stroke-width="1.2"/>"#)
+        }
+        Marker::Cross(c) => {
+            writeln!(out, r#"<path d="{}" stroke="{c}" stroke-width="1.6" fill="none"/>"#, cross_path(mx, my, 4.0))
+        }
+        Marker::Plus(c) => {
+            writeln!(out, r#"<path d="{}" stroke="{c}" stroke-width="1.2" fill="none"/>"#, plus_path(mx, my, 5.0))
+        }
+        Marker::Triangle(c) => writeln!(out, r#"<path d="{}" fill="{c}"/>"#, triangle_path(mx, my - 4.0, 5.0, true)),
+        Marker::Line { color, dash } => writeln!(
+            out,
+            r#"<line x1="{:.1}" y1="{my:.1}" x2="{:.1}" y2="{my:.1}" stroke="{color}" stroke-width="1.5" stroke-dasharray="{dash}"/>"#,
+            mx - 10.0,
+            mx + 10.0
+        ),
+    };
 }
 
 fn cross_path(x: f64, y: f64, s: f64) -> String {
@@ -424,7 +445,7 @@ fn no_data(out: &mut String, f: &Frame) {
         out,
         r##"<text class="no-data" x="{:.1}" y="{:.1}" text-anchor="middle" font-size="16" fill="#888888">no data</text>"##,
         f.x0 + f.w / 2.0,
-        f.y0 + f.h / 2.0
+        f.y0 + f.h / 2.0 - 24.0
     );
 }
 
@@ -490,17 +511,6 @@ fn contour_panel(out: &mut String, x0: f64, y0: f64, w: f64, h: f64, plot: &Cont
     draw_axes(out, &f, plot.title, &x_axis, &y_axis);
 
     let mut legend = Vec::new();
-    if let Some(reference) = plot.reference {
-        let _ = writeln!(
-            out,
-            r#"<g class="reference" fill="none" stroke="{C_REFERENCE}" stroke-width="1.2" stroke-linejoin="round">"#
-        );
-        for run in polyline_runs(&f, reference.points, reference.closed) {
-            let _ = writeln!(out, r#"<polyline points="{run}"/>"#);
-        }
-        out.push_str("</g>\n");
-        legend.push((Marker::Line { color: C_REFERENCE, dash: "none" }, reference.label.to_string()));
-    }
     let count = |pts: &[Vector2<f64>]| pts.iter().filter(|p| finite(p)).count();
     let _ = writeln!(out, r#"<g class="raw" fill="none" stroke="{C_RAW}" stroke-width="1">"#);
     for p in plot.raw.iter().filter(|p| finite(p)) {
@@ -514,6 +524,18 @@ fn contour_panel(out: &mut String, x0: f64, y0: f64, w: f64, h: f64, plot: &Cont
     }
     out.push_str("</g>\n");
     legend.push((Marker::Dot(C_CORRECTED), format!("corrected ({})", count(plot.corrected))));
+    // The reference on top: a thin line through the corrected points when the fit is good.
+    if let Some(reference) = plot.reference {
+        let _ = writeln!(
+            out,
+            r#"<g class="reference" fill="none" stroke="{C_REFERENCE}" stroke-width="1" stroke-linejoin="round">"#
+        );
+        for run in polyline_runs(&f, reference.points, reference.closed) {
+            let _ = writeln!(out, r#"<polyline points="{run}"/>"#);
+        }
+        out.push_str("</g>\n");
+        legend.push((Marker::Line { color: C_REFERENCE, dash: "none" }, reference.label.to_string()));
+    }
     // The rotation axis: the frame's origin.
     if f.xlo < 0.0 && 0.0 < f.xhi && f.ylo < 0.0 && 0.0 < f.yhi {
         let _ = writeln!(
@@ -745,7 +767,15 @@ mod tests {
             .collect()
     }
 
-    fn sample_data() -> (Vec<Vector2<f64>>, Vec<Vector2<f64>>, Vec<Vector2<f64>>, Vec<ResidualSample>) {
+    /// A plate scan's worth of plot inputs: raw, corrected, true outline, residuals.
+    struct SampleData {
+        raw: Vec<Vector2<f64>>,
+        corrected: Vec<Vector2<f64>>,
+        truth: Vec<Vector2<f64>>,
+        residuals: Vec<ResidualSample>,
+    }
+
+    fn sample_data() -> SampleData {
         let c = Vector2::new(0.0012, -0.0007);
         let truth = plate_outline(400, 0.0225, 0.003, c);
         let mut state = 12345u64;
@@ -768,12 +798,12 @@ mod tests {
             .collect();
         residuals[57] = ResidualSample { angle: residuals[57].angle, residual: 4.1e-4, used: false };
         residuals[230] = ResidualSample { angle: residuals[230].angle, residual: -8.0e-6, used: false };
-        (raw, corrected, truth, residuals)
+        SampleData { raw, corrected, truth, residuals }
     }
 
     #[test]
     fn contours_points_and_scaling() {
-        let (raw, corrected, truth, _) = sample_data();
+        let SampleData { raw, corrected, truth, .. } = sample_data();
         let mut raw_nan = raw.clone();
         raw_nan[3].x = f64::NAN;
         raw_nan[4].y = f64::INFINITY;
@@ -822,7 +852,7 @@ mod tests {
 
     #[test]
     fn residual_markers() {
-        let (_, _, _, mut residuals) = sample_data();
+        let SampleData { mut residuals, .. } = sample_data();
         residuals[10].residual = f64::NAN;
         residuals[11].angle = f64::NAN;
         let svg = residuals_svg(&ResidualPlot { title: "Fit residuals", samples: &residuals });
@@ -881,7 +911,7 @@ mod tests {
 
     #[test]
     fn report_side_by_side() {
-        let (raw, corrected, truth, residuals) = sample_data();
+        let SampleData { raw, corrected, truth, residuals } = sample_data();
         let summary = "full model: alpha0 = 1.6884° ± 0.0130°, d = 4.2044 ± 0.0061 mm, dL = 1.3002 ± 0.0011 mm, rms residual 0.0050 mm, 398 samples used, 2 rejected, 7 iterations, and a <tag> & \"quote\" with\u{7} a bell\nsecond line";
         let svg = calibration_report_svg(&CalibrationReport {
             title: "Calibration of tracer 1",
@@ -931,7 +961,7 @@ mod tests {
     #[test]
     #[ignore]
     fn write_samples() {
-        let (raw, corrected, truth, residuals) = sample_data();
+        let SampleData { raw, corrected, truth, residuals } = sample_data();
         let contours = ContourPlot {
             title: "Calibration plate: raw vs corrected",
             raw: &raw,
@@ -945,5 +975,12 @@ mod tests {
         let summary = "full model: alpha0 = 1.6884° ± 0.0130°, d = 4.2044 ± 0.0061 mm, dL = 1.3002 ± 0.0011 mm, rms residual 0.0050 mm, 398 samples used, 2 rejected, 7 iterations";
         let report = CalibrationReport { title: "Tracer calibration report", contours, residuals: res, summary };
         std::fs::write(dir.join("tracer_calib_report.svg"), calibration_report_svg(&report)).unwrap();
+        let empty = CalibrationReport {
+            title: "Empty",
+            contours: ContourPlot { title: "No contour", raw: &[], corrected: &[], reference: None },
+            residuals: ResidualPlot { title: "No residuals", samples: &[] },
+            summary: "no fit",
+        };
+        std::fs::write(dir.join("tracer_calib_empty.svg"), calibration_report_svg(&empty)).unwrap();
     }
 }
