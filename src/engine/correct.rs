@@ -112,6 +112,15 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
             false
         }
     });
+    // And across the wrap: `rem_euclid` gives `TAU` itself for a tiny negative angle, the
+    // same direction as angle 0 (else a zero-width segment: infinite slopes).
+    if let (Some(&first), Some(&last)) = (polar.first(), polar.last())
+        && polar.len() > 1
+        && first.0 + TAU - last.0 < 1e-12
+    {
+        polar[0].1 = 0.5 * (first.1 + last.1);
+        polar.pop();
+    }
     let n = polar.len();
     if n < 3 {
         return None;
@@ -155,7 +164,9 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
         let (s2, s3) = (s * s, s * s * s);
         let r =
             (2.0 * s3 - 3.0 * s2 + 1.0) * r0 + (s3 - 2.0 * s2 + s) * m0 + (-2.0 * s3 + 3.0 * s2) * r1 + (s3 - s2) * m1;
-        out.push(r);
+        // Between a point near the axis and a far one the cubic can dip below zero; a
+        // radius is a distance, and the contour there is at the axis.
+        out.push(if r < 0.0 { 0.0 } else { r });
     }
     Some(out)
 }

@@ -263,7 +263,9 @@ fn array(items: &[Node]) -> Option<ParamValue> {
     } else if all(|v| v.as_f64().is_some()) {
         ParamValue::DoubleArray(values.iter().filter_map(ParamValue::as_f64).collect())
     } else if all(|v| matches!(v, ParamValue::String(_))) {
-        ParamValue::StringArray(values.iter().map(|v| v.to_string()).collect())
+        ParamValue::StringArray(
+            values.iter().filter_map(|v| if let ParamValue::String(s) = v { Some(s.clone()) } else { None }).collect(),
+        )
     } else {
         return None;
     })
@@ -310,6 +312,11 @@ pub fn render(fqn: &str, params: &[(String, ParamValue)], comment: &str) -> Stri
     let mut out = String::new();
     for line in comment.lines() {
         out.push_str(&format!("# {line}\n"));
+    }
+    if params.is_empty() {
+        // A bare `ros__parameters:` would be null, not a map: no reader takes it.
+        out.push_str(&format!("{key}:\n  ros__parameters: {{}}\n"));
+        return out;
     }
     out.push_str(&format!("{key}:\n  ros__parameters:\n"));
     for (name, value) in params {

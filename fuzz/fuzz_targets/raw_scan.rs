@@ -1,0 +1,109 @@
+//! The node's whole handling of one raw scan, from the CDR bytes a DDS reader hands over:
+//! decode, `NodeState::on_raw_scan` (validate, keep plate scans, correct, resample), and
+//! for scans that validate (and are small enough) the calibration fit.
+//!
+//! Invariants besides "no panic":
+//! - a published contour has one finite point per sample, `z = 0`, and its radii are
+//!   either empty or `resample_points` finite, non-negative numbers; the polygon (when
+//!   asked for) matches;
+//! - a rejected scan is counted and leaves a message;
+//! - a successful calibration has finite numbers and `alpha0` in `(-pi/4, pi/4]`.
+#![no_main]
+
+use std::f64::consts::FRAC_PI_4;
+
+use libfuzzer_sys::fuzz_target;
+use tracer_calib::engine::ModelKind;
+use tracer_calib::engine::calibrate::{Calibration, Options, calibrate};
+use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::params::Parameters;
+use tracer_calib::ros::msgs::{RawScan, from_cdr};
+use tracer_calib::ros::state::NodeState;
+
+/// The fit is the expensive part: only scans up to this many samples are fitted.
+const MAX_FIT_SAMPLES: usize = 2000;
+
+fuzz_target!(|data: &[u8]| {
+    let Ok(msg) = from_cdr::<RawScan>(data) else { return };
+
+    // An uncalibrated node with the defaults, and a calibrated one.
+    let mut plain = NodeState::new("/tracer_calibrator".into(), Parameters::default());
+    handle(&mut plain, &msg, true);
+    let mut params = Parameters::default();
+    params.calibration = Mounting { alpha0: 0.03, offset: 0.004, delta_l: -0.001 };
+    params.calibration_valid = true;
+    params.resample_points = 360;
+    let mut calibrated = NodeState::new("/cell1/tracer".into(), params);
+    let accepted = handle(&mut calibrated, &msg, false);
+    assert_eq!(accepted, plain.stats.scans_rejected == 0, "the calibration changed whether a scan is accepted");
+
+    // The fit, on scans that validate.
+    let Ok(scan) = plain.validate(&msg) else { return };
+    if scan.len() > MAX_FIT_SAMPLES {
+        return;
+    }
+    let model = if msg.scan_id & 1 == 0 { ModelKind::Full } else { ModelKind::Paper };
+    let opts = Options { model, ..Options::default() };
+    if let Ok(cal) = calibrate(&scan, &plain.params.plate, &opts) {
+        check_calibration(&cal, scan.len());
+    }
+});
+
+/// `on_raw_scan` and its invariants; whether the scan was accepted.
+fn handle(st: &mut NodeState, msg: &RawScan, with_polygon: bool) -> bool {
+    let before = st.stats.clone();
+    match st.on_raw_scan(msg, with_polygon) {
+        Ok(out) => {
+            assert_eq!(st.stats.contours_published, before.contours_published + 1);
+            let c = &out.contour;
+            assert_eq!(c.points.len(), msg.step.len(), "one point per sample");
+            assert_eq!(c.scan_id, msg.scan_id);
+            assert_eq!(c.target, msg.target);
+            assert_eq!(c.calibrated, st.params.calibration_valid);
+            for p in &c.points {
+                assert!(p.x.is_finite() && p.y.is_finite() && p.z == 0.0, "contour point {p:?}");
+            }
+            assert!(
+                c.radii.is_empty() || c.radii.len() == st.params.resample_points,
+                "{} radii, resample_points = {}",
+                c.radii.len(),
+                st.params.resample_points
+            );
+            for r in &c.radii {
+                assert!(r.is_finite() && *r >= 0.0, "radius {r}");
+            }
+            assert_eq!(out.polygon.is_some(), with_polygon);
+            if let Some(polygon) = &out.polygon {
+                let poly = &polygon.polygon.points;
+                assert_eq!(poly.len(), c.points.len());
+                for p in poly {
+                    assert!(p.x.is_finite() && p.y.is_finite() && p.z == 0.0, "polygon point {p:?}");
+                }
+                assert_eq!(polygon.header, c.header);
+            }
+            assert_eq!(c.header.frame_id, st.params.output_frame_id);
+            true
+        }
+        Err(e) => {
+            assert!(!e.is_empty());
+            assert_eq!(st.stats.scans_rejected, before.scans_rejected + 1);
+            assert!(st.stats.last_rejection.contains(&e));
+            false
+        }
+    }
+}
+
+fn check_calibration(cal: &Calibration, n: usize) {
+    let m = &cal.mounting;
+    assert!(m.alpha0.is_finite() && m.offset.is_finite() && m.delta_l.is_finite(), "{m:?}");
+    assert!(m.alpha0 > -FRAC_PI_4 && m.alpha0 <= FRAC_PI_4, "alpha0 {} outside (-pi/4, pi/4]", m.alpha0);
+    assert!(cal.plate_center.iter().all(|v| v.is_finite()), "plate centre {:?}", cal.plate_center);
+    assert!(cal.stddev.iter().all(|s| s.is_finite() && *s >= 0.0), "stddev {:?}", cal.stddev);
+    assert!(cal.covariance.iter().all(|v| v.is_finite()), "covariance {:?}", cal.covariance);
+    assert!(cal.rms_residual.is_finite() && cal.rms_residual >= 0.0, "rms {}", cal.rms_residual);
+    assert!(cal.residuals.iter().all(|(r, _)| r.is_finite()), "a residual is not finite");
+    assert_eq!(cal.residuals.len(), n);
+    assert!(cal.samples_used <= n);
+    assert_eq!(cal.residuals.iter().filter(|(_, used)| *used).count(), cal.samples_used);
+    let _ = cal.summary();
+}

@@ -1,0 +1,127 @@
+//! Regression tests for what fuzzing found (`fuzz/`, `scripts/fuzz.sh`): each replays the
+//! minimised input through the same code path as its fuzz target and asserts the right
+//! behaviour, a clear error rather than a panic or an abort.
+
+use nalgebra::Vector2;
+use tracer_calib::engine::correct::resample_radii;
+use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::io::oma;
+use tracer_calib::params::file as params_file;
+use tracer_calib::params::{ParamValue, Parameters};
+use tracer_calib::ros::msgs::{RawScan, from_cdr};
+use tracer_calib::ros::state::NodeState;
+
+/// `fuzz/fuzz_targets/oma.rs`: a `TRCFMT` declaring an absurd point count made the reader
+/// preallocate that many radii (`Vec::with_capacity(N)`): out of memory, or a "capacity
+/// overflow" panic, before any radius was read. Now it is the usual count mismatch error.
+#[test]
+fn oma_absurd_point_count_is_an_error_not_an_allocation() {
+    for n in ["99999999999", "4444444446", "18446744073709551615"] {
+        let text = format!("TRCFMT=1;{n};E;R;F\r\nR=2350;2351\r\n");
+        let e = oma::parse(&text, "huge.oma").unwrap_err();
+        assert_eq!(e, format!("huge.oma:1: TRCFMT declares {n} points, the R= records that follow give 2 radii"));
+    }
+    // The fuzzer's own input, unminimised: CRLF, the TRCFMT, then a non-ASCII label.
+    let crash = b"\r\nTRCFMT=1;4444444446;E;R;F\r\n\xd4=2";
+    let e = oma::parse(&String::from_utf8_lossy(crash), "crash.oma").unwrap_err();
+    assert!(e.starts_with("crash.oma:2: TRCFMT declares 4444444446 points"), "{e}");
+}
+
+/// The calibrated node of `fuzz/fuzz_targets/raw_scan.rs`.
+fn calibrated_node() -> NodeState {
+    let mut params = Parameters::default();
+    params.calibration = Mounting { alpha0: 0.03, offset: 0.004, delta_l: -0.001 };
+    params.calibration_valid = true;
+    params.resample_points = 360;
+    NodeState::new("/cell1/tracer".into(), params)
+}
+
+/// `fuzz/fuzz_targets/raw_scan.rs`: a 3-sample scan of a 4-step revolution, one sample
+/// 5 µm from the axis (counts -5) between two at 20 mm. The equal-angle resampling (a
+/// cubic Hermite spline of radius over angle) dipped below zero next to the point near
+/// the axis: the published `Contour.radii` held negative distances (down to -0.074 mm).
+/// Now a radius is never negative.
+#[test]
+fn resampled_radii_are_never_negative() {
+    const CDR: [u8; 64] = [
+        0x00, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00,
+        0x00, 0x00, 0x06, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x04, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00,
+        0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00, 0x20, 0x4e,
+        0x00, 0x00, 0x08, 0x52, 0x00, 0x00, 0xfb, 0xff, 0xff, 0xff,
+    ];
+    let msg: RawScan = from_cdr(&CDR).unwrap();
+    assert_eq!(
+        (msg.steps_per_revolution, &msg.step[..], &msg.counts[..]),
+        (4, &[0, 1, 3][..], &[20_000, 21_000, -5][..])
+    );
+    let out = calibrated_node().on_raw_scan(&msg, true).unwrap();
+    assert_eq!(out.contour.radii.len(), 360);
+    for (k, r) in out.contour.radii.iter().enumerate() {
+        assert!(r.is_finite() && *r >= 0.0, "radius {k} is {r}");
+    }
+    assert!(out.contour.points.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
+}
+
+/// `fuzz/fuzz_targets/params_file.rs` (found with the empty file): `params::file::render`
+/// of no parameters wrote a bare `ros__parameters:` (a YAML null), which no reader takes
+/// back ("expected a map of parameter names to values"). Now it writes an empty map.
+#[test]
+fn rendering_no_parameters_reads_back() {
+    let parsed = params_file::parse("", "fuzz").unwrap();
+    assert!(parsed.sections.is_empty());
+    for fqn in ["/tracer_calibrator", "/cell1/tracer"] {
+        let list: Vec<(String, ParamValue)> =
+            parsed.entries_for(fqn).map(|e| (e.name.clone(), e.value.clone())).collect();
+        let text = params_file::render(fqn, &list, "nothing to say");
+        let back = params_file::parse(&text, "fuzz").unwrap_or_else(|e| panic!("{e}\n{text}"));
+        assert_eq!(back.entries_for(fqn).count(), 0, "{text}");
+        assert_eq!(back.sections.len(), 1, "{text}");
+        let mut p = Parameters::default();
+        assert!(p.apply_file(&back, fqn, "fuzz").unwrap().is_empty());
+        assert_eq!(p, Parameters::default());
+    }
+}
+
+/// `fuzz/fuzz_targets/raw_scan.rs`: steps 0, 1, 3 of a 6-step revolution, the third 5 µm
+/// *behind* the axis (counts -5), so its point lies at angle -1e-16, which `rem_euclid`
+/// maps to 2π itself: the same direction as the first point, at angle 0, but not merged
+/// with it. The resampling then had a zero-width segment and published `inf` radii (and
+/// NaN ones) in `Contour.radii`, with the default, uncalibrated parameters.
+#[test]
+fn resampled_radii_are_finite_when_two_points_meet_across_the_wrap() {
+    const CDR: [u8; 64] = [
+        0x00, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00,
+        0x00, 0x00, 0x06, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x06, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00,
+        0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00, 0x20, 0x4e,
+        0x00, 0x00, 0x08, 0x52, 0x00, 0x00, 0xfb, 0xff, 0xff, 0xff,
+    ];
+    let msg: RawScan = from_cdr(&CDR).unwrap();
+    assert_eq!((msg.steps_per_revolution, &msg.step[..], &msg.counts[..]), (6, &[0, 1, 3][..], &[20_000, 21_000, -5][..]));
+    for mut st in [NodeState::new("/tracer_calibrator".into(), Parameters::default()), calibrated_node()] {
+        let out = st.on_raw_scan(&msg, true).unwrap();
+        for (k, r) in out.contour.radii.iter().enumerate() {
+            assert!(r.is_finite() && *r >= 0.0, "radius {k} is {r}");
+        }
+    }
+    // The resampling itself: a point at angle 0 and one at a hair below 2π are one.
+    let pts = [Vector2::new(0.02, 0.0), Vector2::new(0.0, 0.021), Vector2::new(-0.02, 0.0), Vector2::new(5e-6, -1e-21)];
+    let radii = resample_radii(&pts, 8, 10.0).unwrap();
+    assert!(radii.iter().all(|r| r.is_finite() && *r >= 0.0), "{radii:?}");
+}
+
+/// `fuzz/fuzz_targets/params_file.rs`: a quoted string in a sequence came out of the
+/// reader with YAML quotes in its value (`[a, "b c"]` gave `["a", "'b c'"]`: the items
+/// were turned into strings with `to_string`, which writes YAML), and each render and
+/// read added another layer of quotes.
+#[test]
+fn quoted_strings_in_arrays_read_as_written() {
+    let text = "n:\n  ros__parameters:\n    tags: [a, \"b \\x25c\", 'd e', \"1\", '']\n";
+    let f = params_file::parse(text, "fuzz").unwrap();
+    let want = ParamValue::StringArray(vec!["a".into(), "b %c".into(), "d e".into(), "1".into(), String::new()]);
+    let got: Vec<_> = f.entries_for("/n").map(|e| e.value.clone()).collect();
+    assert_eq!(got, [want.clone()]);
+    let rendered = params_file::render("/n", &[("tags".into(), want.clone())], "");
+    let back = params_file::parse(&rendered, "fuzz").unwrap();
+    assert_eq!(back.entries_for("/n").map(|e| e.value.clone()).collect::<Vec<_>>(), [want.clone()], "{rendered}");
+    assert_eq!(ParamValue::parse_yaml(&want.to_yaml()).unwrap(), want);
+}
