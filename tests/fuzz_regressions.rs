@@ -96,7 +96,10 @@ fn resampled_radii_are_finite_when_two_points_meet_across_the_wrap() {
         0x00, 0x00, 0x08, 0x52, 0x00, 0x00, 0xfb, 0xff, 0xff, 0xff,
     ];
     let msg: RawScan = from_cdr(&CDR).unwrap();
-    assert_eq!((msg.steps_per_revolution, &msg.step[..], &msg.counts[..]), (6, &[0, 1, 3][..], &[20_000, 21_000, -5][..]));
+    assert_eq!(
+        (msg.steps_per_revolution, &msg.step[..], &msg.counts[..]),
+        (6, &[0, 1, 3][..], &[20_000, 21_000, -5][..])
+    );
     for mut st in [NodeState::new("/tracer_calibrator".into(), Parameters::default()), calibrated_node()] {
         let out = st.on_raw_scan(&msg, true).unwrap();
         for (k, r) in out.contour.radii.iter().enumerate() {
