@@ -29,10 +29,12 @@ fn oma_absurd_point_count_is_an_error_not_an_allocation() {
 
 /// The calibrated node of `fuzz/fuzz_targets/raw_scan.rs`.
 fn calibrated_node() -> NodeState {
-    let mut params = Parameters::default();
-    params.calibration = Mounting { alpha0: 0.03, offset: 0.004, delta_l: -0.001 };
-    params.calibration_valid = true;
-    params.resample_points = 360;
+    let params = Parameters {
+        calibration: Mounting { alpha0: 0.03, offset: 0.004, delta_l: -0.001 },
+        calibration_valid: true,
+        resample_points: 360,
+        ..Parameters::default()
+    };
     NodeState::new("/cell1/tracer".into(), params)
 }
 
@@ -122,7 +124,7 @@ fn quoted_strings_in_arrays_read_as_written() {
     let f = params_file::parse(text, "fuzz").unwrap();
     let want = ParamValue::StringArray(vec!["a".into(), "b %c".into(), "d e".into(), "1".into(), String::new()]);
     let got: Vec<_> = f.entries_for("/n").map(|e| e.value.clone()).collect();
-    assert_eq!(got, [want.clone()]);
+    assert_eq!(got, std::slice::from_ref(&want));
     let rendered = params_file::render("/n", &[("tags".into(), want.clone())], "");
     let back = params_file::parse(&rendered, "fuzz").unwrap();
     assert_eq!(back.entries_for("/n").map(|e| e.value.clone()).collect::<Vec<_>>(), [want.clone()], "{rendered}");

@@ -280,7 +280,16 @@ def test_calibrate_and_correct(peer):
         assert r.samples_used == 400 and r.iterations > 0 and 0 < r.rms_residual < 2e-5, r
 
         c = peer.send_scan(pub, raw_scan(11, RawScan.TARGET_LENS, *lens), contours)
-        peer.spin_until(lambda: any(len(p.polygon.points) == 400 and p.header.stamp.sec == 1700000011 for p in polygons), 10, "the lens polygon")
+        # The node builds polygons only while someone subscribes (it checks once a
+        # second), so a subscriber that has just joined may miss the first: resend.
+        deadline = time.monotonic() + 15
+        while not any(p.header.stamp.sec == 1700000011 for p in polygons):
+            assert time.monotonic() < deadline, "no PolygonStamped for the lens scan"
+            pub.publish(raw_scan(11, RawScan.TARGET_LENS, *lens))
+            try:
+                peer.spin_until(lambda: any(p.header.stamp.sec == 1700000011 for p in polygons), 1.0, "a polygon")
+            except AssertionError:
+                pass
         assert c.calibrated and c.target == RawScan.TARGET_LENS
         assert c.header.frame_id == "tracer_axis" and c.header.stamp.sec == 1700000011
         assert len(c.points) == 400 and all(p.z == 0.0 for p in c.points)
