@@ -127,6 +127,10 @@ fn quoted_strings_in_arrays_read_as_written() {
     assert_eq!(got, std::slice::from_ref(&want));
     let rendered = params_file::render("/n", &[("tags".into(), want.clone())], "");
     let back = params_file::parse(&rendered, "fuzz").unwrap();
-    assert_eq!(back.entries_for("/n").map(|e| e.value.clone()).collect::<Vec<_>>(), [want.clone()], "{rendered}");
+    assert_eq!(
+        back.entries_for("/n").map(|e| e.value.clone()).collect::<Vec<_>>(),
+        std::slice::from_ref(&want),
+        "{rendered}"
+    );
     assert_eq!(ParamValue::parse_yaml(&want.to_yaml()).unwrap(), want);
 }
