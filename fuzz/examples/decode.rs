@@ -1,6 +1,6 @@
 // scratch: corpus stats for raw_scan
-use tracer_calib::engine::calibrate::{Options, calibrate};
 use tracer_calib::engine::ModelKind;
+use tracer_calib::engine::calibrate::{Options, calibrate};
 use tracer_calib::params::Parameters;
 use tracer_calib::ros::msgs::{RawScan, from_cdr};
 use tracer_calib::ros::state::NodeState;
@@ -16,7 +16,9 @@ fn main() {
             let st = NodeState::new("/t".into(), Parameters::default());
             let Ok(scan) = st.validate(&m) else { continue };
             val += 1;
-            if scan.len() > 2000 { continue }
+            if scan.len() > 2000 {
+                continue;
+            }
             fit += 1;
             let model = if m.scan_id & 1 == 0 { ModelKind::Full } else { ModelKind::Paper };
             match calibrate(&scan, &st.params.plate, &Options { model, ..Options::default() }) {

@@ -92,6 +92,15 @@ fn main() {
             },
         ),
     ];
+    // The fuzz target reads parameters for a third node from frame_id:
+    // "meters_per_count[,alpha0,offset,delta_l]"; resample_points from scan_id / 2.
+    let mut tuned = scan_msg(&plate, &m, &noisy, 5, 720, RawScan::TARGET_CALIBRATION_PLATE);
+    tuned.header.frame_id = "1e-6,0.035,0.004,0.0015".into();
+    let mut coarse = scan_msg(&plate, &m, &noisy, 6, 2 * 360 + 1, RawScan::TARGET_CALIBRATION_PLATE);
+    coarse.counts.iter_mut().for_each(|c| *c /= 10);
+    coarse.header.frame_id = "1e-5".into();
+    let scans: Vec<(&str, RawScan)> =
+        scans.into_iter().chain([("plate_tuned", tuned), ("plate_coarse", coarse)]).collect();
     for (name, msg) in &scans {
         put("raw_scan", &format!("{name}.cdr"), &to_cdr(msg).unwrap());
     }
@@ -113,7 +122,11 @@ fn main() {
     p.calibration_valid = true;
     p.output_frame_id = "cell 1: axis # 'x'".into();
     p.params_file = "/var/lib/tracer/params.yaml".into();
-    put("params_file", "persisted.yaml", params_file::render("/cell1/tracer", &p.to_list(), "written by the node").as_bytes());
+    put(
+        "params_file",
+        "persisted.yaml",
+        params_file::render("/cell1/tracer", &p.to_list(), "written by the node").as_bytes(),
+    );
     put(
         "params_file",
         "types.yaml",
@@ -173,7 +186,16 @@ fn main() {
             "-e",
             "/enclave",
         ],
-        &["node", "plain", "--ros-args", "-p", "calibration.valid:=\"yes\"", "--ros-args", "-p", "calibration.alpha0:=0x1p-3"],
+        &[
+            "node",
+            "plain",
+            "--ros-args",
+            "-p",
+            "calibration.valid:=\"yes\"",
+            "--ros-args",
+            "-p",
+            "calibration.alpha0:=0x1p-3",
+        ],
     ];
     for (i, argv) in argvs.iter().enumerate() {
         put("ros_args", &format!("argv{i}"), argv.join("\0").as_bytes());

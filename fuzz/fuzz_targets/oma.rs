@@ -30,7 +30,8 @@ fuzz_target!(|data: &[u8]| {
         }
     }
     let Ok(rendered) = oma::render(&file) else { return };
-    let back = oma::parse(&rendered, "fuzz.oma").unwrap_or_else(|e| panic!("rendered file does not parse: {e}\n{rendered}"));
+    let back =
+        oma::parse(&rendered, "fuzz.oma").unwrap_or_else(|e| panic!("rendered file does not parse: {e}\n{rendered}"));
     assert_eq!(back.job, file.job);
     assert_eq!(back.other, file.other);
     assert_eq!(back.traces.len(), file.traces.len());

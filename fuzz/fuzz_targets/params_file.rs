@@ -15,8 +15,7 @@ use tracer_calib::params::{ParamValue, Parameters};
 
 const PATH: &str = "fuzz";
 /// The comment the node writes at the top of the file it persists.
-const COMMENT: &str =
-    "Parameters of tracer_calib_node, written by the node after each change.\nLoad with: --ros-args --params-file THIS_FILE";
+const COMMENT: &str = "Parameters of tracer_calib_node, written by the node after each change.\nLoad with: --ros-args --params-file THIS_FILE";
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };

@@ -16,7 +16,7 @@ use libfuzzer_sys::fuzz_target;
 use tracer_calib::engine::ModelKind;
 use tracer_calib::engine::calibrate::{Calibration, Options, calibrate};
 use tracer_calib::engine::geometry::Mounting;
-use tracer_calib::params::Parameters;
+use tracer_calib::params::{ParamValue, Parameters, names};
 use tracer_calib::ros::msgs::{RawScan, from_cdr};
 use tracer_calib::ros::state::NodeState;
 
@@ -37,17 +37,45 @@ fuzz_target!(|data: &[u8]| {
     let accepted = handle(&mut calibrated, &msg, false);
     assert_eq!(accepted, plain.stats.scans_rejected == 0, "the calibration changed whether a scan is accepted");
 
-    // The fit, on scans that validate.
-    let Ok(scan) = plain.validate(&msg) else { return };
+    // A node with parameters taken from fields the node only copies or ignores: `frame_id`
+    // as "meters_per_count[,alpha0,offset,delta_l]", `resample_points` from `scan_id`.
+    // Each goes through `Parameters::set`: only values the node would accept are used.
+    let mut fitter = plain;
+    if let Some(params) = tuned_params(&msg) {
+        let mut tuned = NodeState::new("/tuned".into(), params);
+        handle(&mut tuned, &msg, true);
+        fitter = tuned;
+    }
+
+    // The fit (with the tuned node's encoder scale, if any), on scans that validate.
+    let Ok(scan) = fitter.validate(&msg) else { return };
     if scan.len() > MAX_FIT_SAMPLES {
         return;
     }
     let model = if msg.scan_id & 1 == 0 { ModelKind::Full } else { ModelKind::Paper };
     let opts = Options { model, ..Options::default() };
-    if let Ok(cal) = calibrate(&scan, &plain.params.plate, &opts) {
+    if let Ok(cal) = calibrate(&scan, &fitter.params.plate, &opts) {
         check_calibration(&cal, scan.len());
     }
 });
+
+/// Parameters from `frame_id`, "meters_per_count[,alpha0,offset,delta_l]" (with the
+/// calibration in force if it is given), and `resample_points` from `scan_id`.
+fn tuned_params(msg: &RawScan) -> Option<Parameters> {
+    let mut p = Parameters::default();
+    let mut fields = msg.header.frame_id.split(',').map(|f| f.trim().parse::<f64>());
+    let mpc = fields.next()?.ok()?;
+    p.set(names::METERS_PER_COUNT, &ParamValue::Double(mpc)).ok()?;
+    for name in [names::ALPHA0, names::OFFSET, names::DELTA_L] {
+        match fields.next() {
+            None => break,
+            Some(v) => p.set(name, &ParamValue::Double(v.ok()?)).ok()?,
+        }
+        p.calibration_valid = true;
+    }
+    p.set(names::RESAMPLE_POINTS, &ParamValue::Integer(i64::from(msg.scan_id >> 1) % 4097)).ok()?;
+    Some(p)
+}
 
 /// `on_raw_scan` and its invariants; whether the scan was accepted.
 fn handle(st: &mut NodeState, msg: &RawScan, with_polygon: bool) -> bool {
