@@ -94,7 +94,7 @@ fn rms_error(contour: &Contour, truth: &[Vector2<f64>]) -> f64 {
 }
 
 /// Largest error of the equal-angle radii against the shape's true radii, metres.
-fn radii_error(contour: &Contour, shape: &impl Shape) -> f64 {
+fn radii_error(contour: &Contour, shape: &dyn Shape) -> f64 {
     let n = contour.radii.len();
     contour
         .radii
@@ -272,25 +272,28 @@ fn demo(args: &Args) -> Result<(), String> {
     let (before, lens_c, frame_c) = outcome?;
     println!("4. Scans after calibration, RMS distance to where the probe really was:");
     println!("{:>38} {:>12} {:>14} {:>18}", "", "raw [mm]", "corrected [mm]", "radii max [mm]");
-    let raw_lens = rms_error(&before, &lens_before.truth);
-    println!(
-        "{:>38} {:>12.4} {:>14.4} {:>18.4}",
-        "lens, ellipse 50 x 30 mm",
-        raw_lens * 1e3,
-        rms_error(&lens_c, &lens_after.truth) * 1e3,
-        radii_error(&lens_c, &lens) * 1e3
-    );
     let raw_frame = correct(&frame_after.scan, &Mounting::IDEAL);
     let raw_frame_rms = (raw_frame.iter().zip(&frame_after.truth).map(|(p, q)| (p - q).norm_squared()).sum::<f64>()
         / raw_frame.len() as f64)
         .sqrt();
-    println!(
-        "{:>38} {:>12.4} {:>14.4} {:>18.4}",
-        "frame, rounded rectangle 52 x 32 mm",
-        raw_frame_rms * 1e3,
-        rms_error(&frame_c, &frame_after.truth) * 1e3,
-        radii_error(&frame_c, &frame) * 1e3
-    );
+    for (name, raw_rms, contour, truth, shape) in [
+        (
+            "lens, ellipse 50 x 30 mm",
+            rms_error(&before, &lens_before.truth),
+            &lens_c,
+            &lens_after.truth,
+            &lens as &dyn Shape,
+        ),
+        ("frame, rounded rectangle 52 x 32 mm", raw_frame_rms, &frame_c, &frame_after.truth, &frame as &dyn Shape),
+    ] {
+        println!(
+            "{:>38} {:>12.4} {:>14.4} {:>18.4}",
+            name,
+            raw_rms * 1e3,
+            rms_error(contour, truth) * 1e3,
+            radii_error(contour, shape) * 1e3
+        );
+    }
     println!("   (corrected errors are the encoder noise; radii: the 400 equal-angle radii of Contour.radii)");
     println!("5. The node persisted its parameters to {}", params_path.display());
 
