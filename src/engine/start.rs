@@ -21,7 +21,7 @@
 //! arcs that shrinks as the estimate improves: 45 %, 25 %, 10 % of the flat's half
 //! length) enter the solve. A seed grid of 15° in `alpha0` and `S/4.5` in `d` keeps
 //! every true value within the tolerance of some seed; the candidate with the lowest
-//! full-model cost wins. Measured in `tests/convergence.rs`: every case of
+//! full-model cost wins. Tested in `tests/engine.rs` (`converges_across_the_whole_region`): every case of
 //! `alpha0 ∈ (-45°, 45°]`, `|d| <= 20 mm` converges.
 
 use nalgebra::{SMatrix, SVector, Vector2};
