@@ -8,7 +8,7 @@ use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::io::oma;
 use tracer_calib::params::file as params_file;
 use tracer_calib::params::{ParamValue, Parameters};
-use tracer_calib::ros::msgs::{RawScan, from_cdr};
+use tracer_calib::ros::msgs::{CalibrateRequest, RawScan, from_cdr};
 use tracer_calib::ros::state::NodeState;
 
 /// `fuzz/fuzz_targets/oma.rs`: a `TRCFMT` declaring an absurd point count made the reader
@@ -133,4 +133,49 @@ fn quoted_strings_in_arrays_read_as_written() {
         "{rendered}"
     );
     assert_eq!(ParamValue::parse_yaml(&want.to_yaml()).unwrap(), want);
+}
+
+/// `fuzz/fuzz_targets/raw_scan.rs`, its node with parameters from the message (`frame_id`
+/// "meters_per_count[,alpha0,offset,delta_l]"): parameters the node accepts (any positive
+/// finite `encoder.meters_per_count`, any finite `calibration.offset` / `delta_l`) can put
+/// the corrected points near 1e308 m: `Contour.radii` came out NaN (sqrt(x² + y²)
+/// overflows) and the `PolygonStamped` points inf (f32). Now such a scan is refused with
+/// a message naming the parameters, and counted; a plate scan is still kept for
+/// `/calibrate`.
+#[test]
+fn contours_out_of_float_range_are_refused() {
+    let msg = RawScan {
+        target: RawScan::TARGET_CALIBRATION_PLATE,
+        steps_per_revolution: 8,
+        step: (0..8).collect(),
+        counts: vec![1_000_000_000; 8],
+        ..Default::default()
+    };
+    let cases: [&[(&str, f64)]; 3] = [
+        &[("encoder.meters_per_count", 1e299)],
+        &[("calibration.offset", 1e308)],
+        &[("encoder.meters_per_count", 1e-6), ("calibration.delta_l", -1e300)],
+    ];
+    for case in cases {
+        let mut p = Parameters::default();
+        for (name, v) in case {
+            p.set(name, &ParamValue::Double(*v)).unwrap();
+        }
+        p.calibration_valid = case.iter().any(|(n, _)| n.starts_with("calibration."));
+        let mut st = NodeState::new("/tuned".into(), p);
+        let e = st.on_raw_scan(&msg, true).unwrap_err();
+        assert!(e.contains("is out of range (check encoder.meters_per_count and the calibration)"), "{case:?}: {e}");
+        assert_eq!(st.stats.scans_rejected, 1);
+        assert_eq!(st.stats.contours_published, 0);
+        // The plate scan was kept: /calibrate finds it (and fails on its own terms).
+        let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true });
+        assert!(!out.response.message.contains("no calibration-plate scan"), "{}", out.response.message);
+    }
+    // The largest scale that still fits is published, finite.
+    let mut p = Parameters::default();
+    p.set("encoder.meters_per_count", &ParamValue::Double(1e28)).unwrap();
+    let out = NodeState::new("/tuned".into(), p).on_raw_scan(&msg, true).unwrap();
+    assert!(out.contour.points.iter().all(|q| q.x.is_finite() && q.y.is_finite()));
+    assert!(out.contour.radii.iter().all(|r| r.is_finite() && *r >= 0.0), "{:?}", out.contour.radii);
+    assert!(out.polygon.unwrap().polygon.points.iter().all(|q| q.x.is_finite() && q.y.is_finite()));
 }

@@ -98,7 +98,7 @@ fn main() {
     tuned.header.frame_id = "1e-6,0.035,0.004,0.0015".into();
     let mut coarse = scan_msg(&plate, &m, &noisy, 6, 2 * 360 + 1, RawScan::TARGET_CALIBRATION_PLATE);
     coarse.counts.iter_mut().for_each(|c| *c /= 10);
-    coarse.header.frame_id = "1e-5".into();
+    coarse.header.frame_id = "1e-05".into();
     let scans: Vec<(&str, RawScan)> =
         scans.into_iter().chain([("plate_tuned", tuned), ("plate_coarse", coarse)]).collect();
     for (name, msg) in &scans {
@@ -117,11 +117,13 @@ fn main() {
             put("params_file", path.file_name().unwrap().to_str().unwrap(), &fs::read(&path).unwrap());
         }
     }
-    let mut p = Parameters::default();
-    p.calibration = m;
-    p.calibration_valid = true;
-    p.output_frame_id = "cell 1: axis # 'x'".into();
-    p.params_file = "/var/lib/tracer/params.yaml".into();
+    let p = Parameters {
+        calibration: m,
+        calibration_valid: true,
+        output_frame_id: "cell 1: axis # 'x'".into(),
+        params_file: "/var/lib/tracer/params.yaml".into(),
+        ..Parameters::default()
+    };
     put(
         "params_file",
         "persisted.yaml",

@@ -7,7 +7,9 @@
 //!   either empty or `resample_points` finite, non-negative numbers; the polygon (when
 //!   asked for) matches;
 //! - a rejected scan is counted and leaves a message;
-//! - a successful calibration has finite numbers and `alpha0` in `(-pi/4, pi/4]`.
+//! - a successful calibration has finite numbers and `alpha0` in `(-pi/4, pi/4]`; applied,
+//!   it corrects the same scan to a finite contour, and the parameters the node would
+//!   persist load back to the same values.
 #![no_main]
 
 use std::f64::consts::FRAC_PI_4;
@@ -16,6 +18,7 @@ use libfuzzer_sys::fuzz_target;
 use tracer_calib::engine::ModelKind;
 use tracer_calib::engine::calibrate::{Calibration, Options, calibrate};
 use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::params::file as params_file;
 use tracer_calib::params::{ParamValue, Parameters, names};
 use tracer_calib::ros::msgs::{RawScan, from_cdr};
 use tracer_calib::ros::state::NodeState;
@@ -29,10 +32,12 @@ fuzz_target!(|data: &[u8]| {
     // An uncalibrated node with the defaults, and a calibrated one.
     let mut plain = NodeState::new("/tracer_calibrator".into(), Parameters::default());
     handle(&mut plain, &msg, true);
-    let mut params = Parameters::default();
-    params.calibration = Mounting { alpha0: 0.03, offset: 0.004, delta_l: -0.001 };
-    params.calibration_valid = true;
-    params.resample_points = 360;
+    let params = Parameters {
+        calibration: Mounting { alpha0: 0.03, offset: 0.004, delta_l: -0.001 },
+        calibration_valid: true,
+        resample_points: 360,
+        ..Parameters::default()
+    };
     let mut calibrated = NodeState::new("/cell1/tracer".into(), params);
     let accepted = handle(&mut calibrated, &msg, false);
     assert_eq!(accepted, plain.stats.scans_rejected == 0, "the calibration changed whether a scan is accepted");
@@ -56,6 +61,16 @@ fuzz_target!(|data: &[u8]| {
     let opts = Options { model, ..Options::default() };
     if let Ok(cal) = calibrate(&scan, &fitter.params.plate, &opts) {
         check_calibration(&cal, scan.len());
+        // Applied as `/calibrate` does: the scans it corrects stay finite, and the
+        // parameters it persists load back.
+        fitter.params.calibration = cal.mounting;
+        fitter.params.calibration_valid = true;
+        handle(&mut fitter, &msg, true);
+        let text = params_file::render(&fitter.fqn, &fitter.params.to_list(), "fuzz");
+        let file = params_file::parse(&text, "fuzz").unwrap_or_else(|e| panic!("{e}\n{text}"));
+        let mut back = Parameters::default();
+        back.apply_file(&file, &fitter.fqn, "fuzz").unwrap_or_else(|e| panic!("{e}\n{text}"));
+        assert_eq!(back, fitter.params, "the persisted calibration loads back differently:\n{text}");
     }
 });
 

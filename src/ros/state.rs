@@ -24,6 +24,9 @@ use crate::params::{Parameters, file as params_file};
 pub const MAX_SAMPLES: usize = 1 << 16;
 /// Largest `steps_per_revolution` accepted.
 pub const MAX_STEPS_PER_REV: u32 = 1 << 20;
+/// Largest coordinate of a corrected point, metres: what a `Point32` of the polygon holds.
+/// (Any contour of a real tracer is a few centimetres.)
+pub const MAX_COORDINATE: f64 = f32::MAX as f64;
 /// Calibration-plate scans kept for `/calibrate`.
 pub const PLATE_SCANS_KEPT: usize = 16;
 
@@ -133,6 +136,19 @@ impl NodeState {
             _ => self.corrector.insert(Corrector::new(mounting, scan.steps_per_rev())),
         };
         let points = corrector.correct(&scan);
+        // Extreme but accepted parameters (encoder.meters_per_count, calibration.offset,
+        // calibration.delta_l up to 1e308) can put points beyond what a float32 polygon or
+        // a radius (sqrt(x² + y²)) can hold: refuse the scan rather than publish inf/NaN.
+        // (A plate scan is kept above all the same: it is what a recalibration needs.)
+        if let Some(i) = points.iter().position(|p| !(p.x.abs() <= MAX_COORDINATE && p.y.abs() <= MAX_COORDINATE)) {
+            let e = format!(
+                "sample {i}: the corrected point ({}, {}) m is out of range (check encoder.meters_per_count and the calibration)",
+                points[i].x, points[i].y
+            );
+            self.stats.scans_rejected += 1;
+            self.stats.last_rejection = format!("scan {}: {e}", msg.scan_id);
+            return Err(e);
+        }
         let radii = if self.params.resample_points > 0 {
             resample_radii(&points, self.params.resample_points, default_max_gap(scan.steps_per_rev()))
                 .unwrap_or_default()
