@@ -105,7 +105,7 @@ fn flag(name: &str) -> &'static str {
 }
 
 /// The only section's node name, else the default node's.
-fn default_section(file: &ParamsFile) -> String {
+pub fn default_section(file: &ParamsFile) -> String {
     match file.sections.as_slice() {
         [only] if !only.node.contains('*') => format!("/{}", only.node.trim_start_matches('/')),
         _ => "/tracer_calibrator".to_string(),

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::calibrate::default_section;
 use super::exit;
 use crate::io::bag::{Bag, BagWriter};
 use crate::io::oma::{self, Eye, OmaFile, Trace, TraceType};
@@ -58,10 +59,7 @@ pub fn run(args: &Args) -> i32 {
 
 fn correct_bag(args: &Args) -> Result<String, String> {
     let file = params_file::read(&args.params).map_err(|e| e.to_string())?;
-    let fqn = args.node.clone().unwrap_or_else(|| match file.sections.as_slice() {
-        [only] if !only.node.contains('*') => format!("/{}", only.node.trim_start_matches('/')),
-        _ => "/tracer_calibrator".into(),
-    });
+    let fqn = args.node.clone().unwrap_or_else(|| default_section(&file));
     let mut params = Parameters::default();
     params.apply_file(&file, &fqn, &args.params.display().to_string()).map_err(|e| e.to_string())?;
     let bag = Bag::open(&args.input).map_err(|e| e.to_string())?;
