@@ -215,9 +215,11 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         env.domain_id, env.discovery_range
     );
 
-    // Whether anyone subscribes to the polygons: asking ros2-client costs ~70 µs (it
-    // walks the discovered graph), too much per scan, so the diagnostics tick asks
-    // once a second.
+    // Whether anyone subscribes to the polygons: asking costs ~70 µs (it walks the
+    // discovered graph), too much per scan, so the diagnostics tick asks once a second.
+    // By topic name over the discovered readers: `Publisher::get_subscription_count`
+    // logs an error every time it is asked before a first subscriber ever matched.
+    let polygon_topic_name = polygon_name.to_string();
     let polygon_wanted = AtomicBool::new(true);
     let scans = async {
         let mut stream = std::pin::pin!(subscription.async_stream());
@@ -303,7 +305,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     let diagnostics = async {
         let mut tick = 0u64;
         loop {
-            polygon_wanted.store(polygon_pub.get_subscription_count(&node) > 0, Ordering::Relaxed);
+            polygon_wanted.store(node.subscription_count(&polygon_topic_name) > 0, Ordering::Relaxed);
             let msg = state.lock().expect("state lock").diagnostics(Time::now());
             if let Err(e) = diag_pub.async_publish(msg).await {
                 debug!("cannot publish diagnostics: {e:?}");

@@ -311,6 +311,12 @@ def test_calibrate_and_correct(peer):
         assert abs(back["calibration.offset"] - r.offset) < 1e-12, back
         assert back["plate.side"] == 0.045 and back["model"] == "full" and back["resample_points"] == 400, back
         assert back["encoder.meters_per_count"] == 1e-6, back
+
+        # Quiet by default: nothing at error level in normal operation (asking
+        # ros2-client's Publisher for its subscriber count logged an error every
+        # second until a first polygon subscriber had matched).
+        errors = [line for line in node.output().splitlines() if "ERROR" in line]
+        assert not errors, "\n".join(errors)
     finally:
         took = node.stop()
     assert took < 1.0, f"the node took {took:.2f} s to shut down"
@@ -731,7 +737,11 @@ def main():
         ("kill_during_writes", test_kill_during_writes),
         ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
     ]
-    only = sys.argv[1:]
+    only = [a.removeprefix("test_") for a in sys.argv[1:]]
+    unknown = sorted(set(only) - {name for name, _ in tests})
+    if unknown:
+        print(f"interop: no such test: {', '.join(unknown)} (have: {', '.join(n for n, _ in tests)})", flush=True)
+        os._exit(2)
     passed = failed = 0
     for name, fn in tests:
         if only and name not in only:
