@@ -94,15 +94,22 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
     if m == 0 {
         return None;
     }
+    // Polar angle in [0, 2π] (atan2's (-π, π] shifted, no fmod) and radius.
     let mut polar: Vec<(f64, f64)> = points
         .iter()
-        .filter(|p| p.norm() > 0.0 && p.x.is_finite() && p.y.is_finite())
-        .map(|p| (p.y.atan2(p.x).rem_euclid(TAU), p.norm()))
+        .filter(|p| p.x.is_finite() && p.y.is_finite())
+        .filter_map(|p| {
+            let r2 = p.x * p.x + p.y * p.y;
+            (r2 > 0.0).then(|| {
+                let a = p.y.atan2(p.x);
+                (if a < 0.0 { a + TAU } else { a }, r2.sqrt())
+            })
+        })
         .collect();
     if polar.len() < 3 {
         return None;
     }
-    polar.sort_by(|a, b| a.0.total_cmp(&b.0));
+    sort_by_angle(&mut polar);
     // Merge points at (numerically) the same angle: average their radii.
     polar.dedup_by(|b, a| {
         if (b.0 - a.0).abs() < 1e-12 {
@@ -112,7 +119,7 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
             false
         }
     });
-    // And across the wrap: `rem_euclid` gives `TAU` itself for a tiny negative angle, the
+    // And across the wrap: a tiny negative angle shifted by 2π is `TAU` itself, the
     // same direction as angle 0 (else a zero-width segment: infinite slopes).
     if let (Some(&first), Some(&last)) = (polar.first(), polar.last())
         && polar.len() > 1
@@ -125,13 +132,15 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
     if n < 3 {
         return None;
     }
-    // Unwrapped angles and radii with two points of padding on each side, so that
-    // neighbours of every point (and every segment) are at plain indices.
-    let at = |i: isize| {
-        let (t, r) = polar[i.rem_euclid(n as isize) as usize];
-        (t + i.div_euclid(n as isize) as f64 * TAU, r)
-    };
-    let (theta, radius): (Vec<f64>, Vec<f64>) = (-2..n as isize + 2).map(at).unzip();
+    // Unwrapped angles and radii with two points of padding on each side (the last two
+    // one turn back, the first two one turn on), so that neighbours of every point (and
+    // every segment) are at plain indices.
+    let padded = polar[n - 2..]
+        .iter()
+        .map(|&(t, r)| (t - TAU, r))
+        .chain(polar.iter().copied())
+        .chain(polar[..2].iter().map(|&(t, r)| (t + TAU, r)));
+    let (theta, radius): (Vec<f64>, Vec<f64>) = padded.unzip();
     let max_seen = theta.windows(2).skip(1).take(n).map(|w| w[1] - w[0]).fold(0.0, f64::max);
     if max_seen > max_gap {
         return None;
@@ -169,6 +178,17 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
         out.push(if r < 0.0 { 0.0 } else { r });
     }
     Some(out)
+}
+
+/// Sort `(angle, radius)` pairs by angle. A scan traced in step order is already sorted
+/// but for where it crosses angle 0: then a rotation is enough (O(n), no comparisons
+/// sort).
+fn sort_by_angle(polar: &mut [(f64, f64)]) {
+    let cut = polar.windows(2).position(|w| w[1].0 < w[0].0).map_or(0, |i| i + 1);
+    polar.rotate_left(cut);
+    if !polar.is_sorted_by(|a, b| a.0 <= b.0) {
+        polar.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
 }
 
 /// The default largest angular gap for [`resample_radii`]: ten steps of the scan's
