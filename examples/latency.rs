@@ -4,14 +4,18 @@
 //! bash scripts/bench_latency.sh [ITERATIONS]        (runs this in a private netns)
 //! ```
 //!
-//! Two round trips are timed in the same run, alternating, with one message in flight:
+//! Round trips are timed in the same run, one message in flight, every path once per
+//! round in a fresh random order (so that no path always comes first after the pause):
 //! - **node**: this process publishes a 400-sample `RawScan` on `/raw_scan`;
 //!   `tracer_calib_node` (a separate process) corrects it and publishes a `Contour`,
 //!   which this process receives;
 //! - **bare**: the same `RawScan` goes to a relay process (this example run with
-//!   `--relay`) that answers with rustdds alone, no computation: once with the
+//!   `--relay relay`) that answers with rustdds alone, no computation: once with the
 //!   `RawScan` itself, once with a ready-made `Contour` of the node's size (400 points,
-//!   400 radii) carrying the scan's id.
+//!   400 radii) carrying the scan's id;
+//! - **control**: a second, identical relay process (`--relay control`) answering with
+//!   the Contour. The two relays run the same code, so their difference is the
+//!   resolution of the comparison on this machine (process placement, wake-ups).
 //!
 //! All paths cross two processes and two DDS hops. Against the Contour relay, the
 //! difference is what the node itself adds: decoding, validation, correction,
@@ -25,11 +29,19 @@ use std::time::{Duration, Instant};
 use futures::StreamExt;
 use nalgebra::Vector2;
 use rand::SeedableRng;
+use rand::seq::SliceRandom;
 use ros2_client::{Context, Name, NodeName, NodeOptions, QosProfile, qos::*};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
 use tracer_calib::ros::msgs::{Contour, Header, RawScan, RosMsg};
+
+/// The timed paths.
+const NODE: usize = 0;
+const RELAY_ECHO: usize = 1;
+const RELAY: usize = 2;
+const CONTROL: usize = 3;
+const PATHS: usize = 4;
 
 fn qos() -> QosProfile {
     QosProfile::publisher_default()
@@ -48,23 +60,19 @@ fn context() -> Context {
 
 /// `--relay`: answer every RawScan from /relay_in on /relay_out (the scan itself) and
 /// /relay_contour (a fixed Contour of the node's size with the scan's id).
-fn relay() {
+fn relay(prefix: &str) {
     let ctx = context();
-    let mut node =
-        ctx.new_node(NodeName::new("/", "bare_relay").unwrap(), NodeOptions::new().enable_rosout(false)).unwrap();
-    let t_in =
-        node.create_topic(&Name::new("/", "relay_in").unwrap(), RawScan::NAME.message_type_name(), &qos()).unwrap();
-    let t_out =
-        node.create_topic(&Name::new("/", "relay_out").unwrap(), RawScan::NAME.message_type_name(), &qos()).unwrap();
-    let t_contour = node
-        .create_topic(&Name::new("/", "relay_contour").unwrap(), Contour::NAME.message_type_name(), &qos())
-        .unwrap();
+    let mut node = ctx.new_node(NodeName::new("/", prefix).unwrap(), NodeOptions::new().enable_rosout(false)).unwrap();
+    let name = |suffix: &str| Name::new("/", &format!("{prefix}_{suffix}")).unwrap();
+    let t_in = node.create_topic(&name("in"), RawScan::NAME.message_type_name(), &qos()).unwrap();
+    let t_out = node.create_topic(&name("out"), RawScan::NAME.message_type_name(), &qos()).unwrap();
+    let t_contour = node.create_topic(&name("contour"), Contour::NAME.message_type_name(), &qos()).unwrap();
     let sub = node.create_subscription::<RawScan>(&t_in, None).unwrap();
     let publisher = node.create_publisher::<RawScan>(&t_out, None).unwrap();
     let contour_pub = node.create_publisher::<Contour>(&t_contour, None).unwrap();
     let t_polygon = node
         .create_topic(
-            &Name::new("/", "relay_polygon").unwrap(),
+            &name("polygon"),
             tracer_calib::ros::msgs::type_names::POLYGON_STAMPED.message_type_name(),
             &qos(),
         )
@@ -122,8 +130,9 @@ impl Drop for Children {
 }
 
 fn main() {
-    if std::env::args().any(|a| a == "--relay") {
-        return relay();
+    let argv: Vec<String> = std::env::args().collect();
+    if argv.get(1).map(String::as_str) == Some("--relay") {
+        return relay(&argv[2]);
     }
     let iterations: usize = std::env::args().nth(1).map_or(2000, |s| s.parse().expect("ITERATIONS"));
     let node_bin = std::env::var("TRACER_CALIB_NODE").unwrap_or_else(|_| "target/release/tracer_calib_node".into());
@@ -133,9 +142,10 @@ fn main() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap_or_else(|e| panic!("cannot start {node_bin}: {e}"));
-    let relay = Command::new(&me).arg("--relay").spawn().unwrap();
+    let relay = Command::new(&me).args(["--relay", "relay"]).spawn().unwrap();
+    let control = Command::new(&me).args(["--relay", "control"]).spawn().unwrap();
     let node_pid = node.id();
-    let _children = Children(vec![node, relay]);
+    let _children = Children(vec![node, relay, control]);
 
     // The scan: a 50 x 30 mm lens traced by a miscalibrated tracer.
     let m = Mounting { alpha0: 0.03, offset: 0.004, delta_l: 0.0015 };
@@ -161,11 +171,15 @@ fn main() {
     let relay_in_t = topic(&mut n, "relay_in", RawScan::NAME.message_type_name());
     let relay_out_t = topic(&mut n, "relay_out", RawScan::NAME.message_type_name());
     let relay_contour_t = topic(&mut n, "relay_contour", Contour::NAME.message_type_name());
+    let control_in_t = topic(&mut n, "control_in", RawScan::NAME.message_type_name());
+    let control_contour_t = topic(&mut n, "control_contour", Contour::NAME.message_type_name());
     let to_node = n.create_publisher::<RawScan>(&raw_t, None).unwrap();
     let from_node = n.create_subscription::<Contour>(&contour_t, None).unwrap();
     let to_relay = n.create_publisher::<RawScan>(&relay_in_t, None).unwrap();
     let from_relay = n.create_subscription::<RawScan>(&relay_out_t, None).unwrap();
     let from_relay_contour = n.create_subscription::<Contour>(&relay_contour_t, None).unwrap();
+    let to_control = n.create_publisher::<RawScan>(&control_in_t, None).unwrap();
+    let from_control = n.create_subscription::<Contour>(&control_contour_t, None).unwrap();
     let spinner = smol::spawn(n.spinner().unwrap().spin());
 
     let rss_start = rss_kib(node_pid);
@@ -173,36 +187,49 @@ fn main() {
         let mut contours = std::pin::pin!(from_node.async_stream());
         let mut relayed = std::pin::pin!(from_relay.async_stream());
         let mut relayed_contours = std::pin::pin!(from_relay_contour.async_stream());
-        let mut lat: [Vec<f64>; 3] = Default::default();
-        let warmup = 300;
+        let mut controlled = std::pin::pin!(from_control.async_stream());
+        let mut lat: [Vec<f64>; PATHS] = Default::default();
+        let warmup_rounds = 100;
         let mut lost = 0;
-        for i in 0..(warmup + 3 * iterations) {
-            let path = i % 3; // 0: node, 1: relay (RawScan back), 2: relay (Contour back)
-            let id = i as u32 + 1;
-            let target = if path == 2 { RawScan::TARGET_CALIBRATION_PLATE } else { RawScan::TARGET_LENS };
-            let msg = RawScan { scan_id: id, target, ..template.clone() };
-            let t0 = Instant::now();
-            let publish = if path == 0 { to_node.async_publish(msg).await } else { to_relay.async_publish(msg).await };
-            publish.expect("publish");
-            let got = async {
-                loop {
-                    let back = match path {
-                        0 => contours.next().await.and_then(|r| r.ok()).map(|(c, _)| c.scan_id),
-                        1 => relayed.next().await.and_then(|r| r.ok()).map(|(r, _)| r.scan_id),
-                        _ => relayed_contours.next().await.and_then(|r| r.ok()).map(|(c, _)| c.scan_id),
-                    };
-                    if back == Some(id) {
-                        return;
-                    }
+        let mut id = 0u32;
+        let mut order: [usize; PATHS] = std::array::from_fn(|p| p);
+        for round in 0..(warmup_rounds + iterations) {
+            // Every path once a round, in a fresh random order: no path always goes first.
+            order.shuffle(&mut rng);
+            for &path in &order {
+                id += 1;
+                // The relays answer a TARGET_CALIBRATION_PLATE scan with the Contour.
+                let target = if path == RELAY_ECHO { RawScan::TARGET_LENS } else { RawScan::TARGET_CALIBRATION_PLATE };
+                let msg = RawScan { scan_id: id, target, ..template.clone() };
+                let t0 = Instant::now();
+                match path {
+                    NODE => to_node.async_publish(RawScan { target: RawScan::TARGET_LENS, ..msg }).await,
+                    CONTROL => to_control.async_publish(msg).await,
+                    _ => to_relay.async_publish(msg).await,
                 }
-            };
-            let timeout = smol::Timer::after(Duration::from_secs(if i < warmup { 5 } else { 1 }));
-            match futures::future::select(std::pin::pin!(got), timeout).await {
-                futures::future::Either::Left(_) if i >= warmup => lat[path].push(t0.elapsed().as_secs_f64() * 1e6),
-                futures::future::Either::Left(_) => {}
-                futures::future::Either::Right(_) => lost += 1,
+                .expect("publish");
+                let got = async {
+                    loop {
+                        let back = match path {
+                            NODE => contours.next().await.and_then(|r| r.ok()).map(|(c, _)| c.scan_id),
+                            RELAY_ECHO => relayed.next().await.and_then(|r| r.ok()).map(|(r, _)| r.scan_id),
+                            RELAY => relayed_contours.next().await.and_then(|r| r.ok()).map(|(c, _)| c.scan_id),
+                            _ => controlled.next().await.and_then(|r| r.ok()).map(|(c, _)| c.scan_id),
+                        };
+                        if back == Some(id) {
+                            return;
+                        }
+                    }
+                };
+                let warm = round >= warmup_rounds;
+                let timeout = smol::Timer::after(Duration::from_secs(if warm { 1 } else { 5 }));
+                match futures::future::select(std::pin::pin!(got), timeout).await {
+                    futures::future::Either::Left(_) if warm => lat[path].push(t0.elapsed().as_secs_f64() * 1e6),
+                    futures::future::Either::Left(_) => {}
+                    futures::future::Either::Right(_) => lost += 1,
+                }
+                smol::Timer::after(Duration::from_millis(2)).await;
             }
-            smol::Timer::after(Duration::from_millis(2)).await;
         }
         if lost > 0 {
             println!("{lost} round trips timed out (discovery warm-up included)");
@@ -229,10 +256,11 @@ fn main() {
         );
         med
     };
-    println!("round trip, 400-sample RawScan, loopback, reliable, one message in flight:");
-    let node_med = report("via tracer_calib_node (Contour back)", &lat[0]);
-    let bare_med = report("via a bare relay (RawScan back)", &lat[1]);
-    let sized_med = report("via a bare relay (same-size Contour back)", &lat[2]);
+    println!("round trip, 400-sample RawScan, loopback, reliable, one message in flight, paths in random order:");
+    let node_med = report("via tracer_calib_node (Contour back)", &lat[NODE]);
+    let bare_med = report("via a bare relay (RawScan back)", &lat[RELAY_ECHO]);
+    let sized_med = report("via a bare relay (same-size Contour back)", &lat[RELAY]);
+    let control_med = report("via a second bare relay (control)", &lat[CONTROL]);
     println!(
         "the node adds {:.1} µs ({:+.1} %) to the same-size bare median; {:.1} µs ({:+.1} %) to the RawScan echo",
         node_med - sized_med,
@@ -241,9 +269,14 @@ fn main() {
         100.0 * (node_med / bare_med - 1.0)
     );
     println!(
+        "control: two identical bare relays (separate processes) differ by {:.1} µs ({:+.1} %)",
+        control_med - sized_med,
+        100.0 * (control_med / sized_med - 1.0)
+    );
+    println!(
         "node RSS: {} KiB at start, {} KiB after {} scans",
         rss_start.map_or("?".into(), |v| v.to_string()),
         rss_end.map_or("?".into(), |v| v.to_string()),
-        3 * iterations + 300
+        lat.iter().map(Vec::len).sum::<usize>()
     );
 }
