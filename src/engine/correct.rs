@@ -192,9 +192,11 @@ fn sort_by_angle(polar: &mut [(f64, f64)]) {
 }
 
 /// The default largest angular gap for [`resample_radii`]: ten steps of the scan's
-/// revolution, and never less than 5°.
+/// revolution, never less than 5° and never more than 90° (with very coarse steps, ten
+/// of them would be more than a turn: a scan missing most of its contour would still
+/// get radii).
 pub fn default_max_gap(steps_per_rev: u32) -> f64 {
-    (10.0 * TAU / f64::from(steps_per_rev.max(1))).max(5f64.to_radians())
+    (10.0 * TAU / f64::from(steps_per_rev.max(1))).clamp(5f64.to_radians(), TAU / 4.0)
 }
 
 #[cfg(test)]
@@ -245,6 +247,26 @@ mod tests {
             let want = e.exit(Vector2::zeros(), u).unwrap().t;
             assert!((r - want).abs() < 2e-7, "k={k} {r} {want}");
         }
+    }
+
+    #[test]
+    fn the_default_gap_is_ten_steps_within_5_and_90_degrees() {
+        assert!((default_max_gap(400) - 10.0 * TAU / 400.0).abs() < 1e-15);
+        assert_eq!(default_max_gap(100_000), 5f64.to_radians());
+        assert_eq!(default_max_gap(4), TAU / 4.0);
+        assert_eq!(default_max_gap(0), TAU / 4.0);
+        // A coarse 8-step tracer: one missing step still goes round, two do not.
+        let ring = |skip: &[usize]| -> Vec<Vector2<f64>> {
+            (0..8)
+                .filter(|k| !skip.contains(k))
+                .map(|k| {
+                    let a = TAU * k as f64 / 8.0;
+                    Vector2::new(0.02 * a.cos(), 0.02 * a.sin())
+                })
+                .collect()
+        };
+        assert!(resample_radii(&ring(&[3]), 16, default_max_gap(8)).is_some());
+        assert!(resample_radii(&ring(&[3, 4]), 16, default_max_gap(8)).is_none());
     }
 
     #[test]
