@@ -5,7 +5,7 @@
 //! |---|---|---|
 //! | subscription | `raw_scan` | reliable, keep last 100, volatile |
 //! | publisher | `contour`, `contour_polygon` | reliable, keep last 10, volatile |
-//! | service | `calibrate` (Fast DDS "Enhanced" mapping) | reliable, keep last 10 |
+//! | service | `calibrate` (Fast DDS "Enhanced" mapping) | reliable, keep last 1000 |
 //! | publisher | `/diagnostics`, 1 Hz | reliable, keep last 10 |
 //!
 //! Why: every scan is a measurement an edger acts on, so delivery is reliable (as the
@@ -73,6 +73,12 @@ impl Config {
         Ok(Config { identity, args, env, params })
     }
 }
+
+/// Calibrate requests waiting for the one-at-a-time fit. The DDS reader drops the
+/// oldest unread sample past this depth, and a dropped request is a caller waiting
+/// forever: with ROS's service default of 10, eleven calls arriving during one fit
+/// would lose one. A request is a few bytes, so the bound is generous.
+const CALIBRATE_QUEUE: usize = 1000;
 
 fn reliable(depth: usize) -> QosProfile {
     QosProfile::publisher_default()
@@ -205,8 +211,8 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             ServiceMapping::Enhanced,
             &service_name,
             &Calibrate::type_name(),
-            reliable(10),
-            reliable(10),
+            reliable(CALIBRATE_QUEUE),
+            reliable(CALIBRATE_QUEUE),
         )
         .map_err(mk)?;
     let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
@@ -273,6 +279,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                     continue;
                 }
             };
+            debug!("calibrate request {id:?}: scan_id {}, dry_run {}", req.scan_id, req.dry_run);
             // One fit at a time: the loop handles a request to the end before the next.
             let outcome = state.lock().expect("state lock").on_calibrate(&req);
             if let Some(m) = outcome.applied {
@@ -296,8 +303,9 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 rosout!(node, ros2_client::ros2::LogLevel::Warn, "calibrate: {}", r.message);
                 warn!("calibrate: {}", r.message);
             }
-            if let Err(e) = server.async_send_response(id, outcome.response).await {
-                warn!("cannot send a calibrate response: {e:?}");
+            match server.async_send_response(id, outcome.response).await {
+                Ok(()) => debug!("calibrate response {id:?} sent"),
+                Err(e) => warn!("cannot send a calibrate response: {e:?}"),
             }
         }
     };

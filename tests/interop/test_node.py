@@ -140,7 +140,7 @@ class Peer:
             for n in RUNNING:
                 n.check_alive()
             self.executor.spin_once(timeout_sec=0.05)
-        raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        raise AssertionError(f"timed out after {timeout} s waiting for {what() if callable(what) else what}")
 
     def subscribe(self, msg_type, topic):
         box = []
@@ -524,7 +524,7 @@ def test_wire_bad_input(peer):
 
 
 def test_concurrent_calls_and_a_vanishing_peer(peer):
-    """16 calibrate calls at once are all answered (one fit at a time); a client that
+    """64 calibrate calls at once from 16 clients are all answered (one fit at a time); a client that
     dies before its answer does not wedge the node."""
     node = NodeProcess("concurrent", ["-r", "__node:=busy_tracer"])
     try:
@@ -555,14 +555,22 @@ os._exit(0)
             # Discovery first (a request sent before the node has matched this client is
             # lost, as on any volatile topic): one answered call each, then the burst.
             peer.retry(lambda c=c: c.call_async(Calibrate.Request(scan_id=1, dry_run=True)), "a warm-up answer")
+        # The burst: four calls outstanding per client, 64 in all, half of them applying
+        # (and persisting) the result. The node fits one at a time, so most wait in its
+        # request queue, which must hold them all (ROS's default depth of 10 lost some,
+        # and their callers waited forever). The clients take their replies only once
+        # all have been sent: each client's reply queue (ROS's default, KEEP_LAST 10)
+        # must then hold its own four, which it can only if the node sends a reply to
+        # its client alone (sent to every client, 64 replies pushed most out).
         t0 = time.monotonic()
-        futures = [c.call_async(Calibrate.Request(scan_id=1, dry_run=(i % 2 == 1))) for i, c in enumerate(clients)]
-        peer.spin_until(lambda: all(f.done() for f in futures), 30, "16 answers")
+        futures = [c.call_async(Calibrate.Request(scan_id=1, dry_run=(i % 2 == 1))) for _ in range(4) for i, c in enumerate(clients)]
+        time.sleep(3)
+        peer.spin_until(lambda: all(f.done() for f in futures), 30, lambda: f"{len(futures)} answers (got {sum(f.done() for f in futures)})")
         took = time.monotonic() - t0
         results = [f.result() for f in futures]
         assert all(r.success for r in results), [r.message for r in results if not r.success]
         assert len({(r.alpha0, r.offset) for r in results}) == 1, "every fit of the same scan is the same"
-        print(f"    16 concurrent calls answered in {took * 1e3:.0f} ms", flush=True)
+        print(f"    {len(futures)} concurrent calls from 16 clients answered in {took * 1e3:.0f} ms", flush=True)
     finally:
         node.stop()
 

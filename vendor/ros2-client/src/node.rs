@@ -933,6 +933,12 @@ impl Node {
     }
   }
 
+  // PATCH (tracer_calib): for `Server`, which sends a response to the client's
+  // reader alone when this map shows it matched.
+  pub(crate) fn writers_to_remote_readers(&self) -> Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>> {
+    Arc::clone(&self.writers_to_remote_readers)
+  }
+
   pub(crate) fn get_publisher_count(&self, subscription_guid: GUID) -> usize {
     self
       .readers_to_remote_writers

@@ -9,6 +9,10 @@ use rustdds::{rpc::*, *};
 #[allow(unused_imports)]
 use log::{debug, error, info, warn};
 use futures::{StreamExt, pin_mut, stream::FusedStream};
+use std::{
+  collections::{BTreeMap, BTreeSet},
+  sync::{Arc, Mutex},
+};
 
 use crate::{
   error::{CreateResult, ReadError, ReadResult, WriteError, WriteResult},
@@ -30,6 +34,9 @@ where
   service_mapping: ServiceMapping,
   request_receiver: SimpleDataReaderR<RequestWrapper<Req>>,
   response_sender: DataWriterR<ResponseWrapper<Resp>>,
+  // PATCH (tracer_calib): the node's map of local writers to the remote readers
+  // matched with them, kept by the Spinner; see `write_options`.
+  matched_readers: Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>>,
 }
 
 impl<Req, Resp> Server<Req, Resp>
@@ -65,7 +72,42 @@ where
       service_mapping,
       request_receiver,
       response_sender,
+      matched_readers: node.writers_to_remote_readers(),
     })
+  }
+
+  /// PATCH (tracer_calib): the write options of a response, sent to the requesting
+  /// client's reader alone when it is known.
+  ///
+  /// A Fast DDS client (rmw_fastrtps since ros2/rmw_fastrtps#390) puts the GUID of its
+  /// response reader in the request's related sample identity, the `writer_gid` of
+  /// `rmw_req_id` here. Sent to every matched reader, each response reaches every
+  /// client of the service; a client's reply queue (KEEP_LAST 10 by default) then
+  /// fills with other clients' replies in a burst, and its own are dropped. When that
+  /// GUID is a reader matched with our response writer, the response goes to it
+  /// alone (the others get a GAP); otherwise (other vendors, a match not seen yet)
+  /// to all, as before.
+  fn write_options(&self, rmw_req_id: RmwRequestId) -> WriteOptions {
+    let options = WriteOptionsBuilder::new()
+      .source_timestamp(Timestamp::now()) // always add source timestamp
+      // TODO: Check if this is right. Cyclone mapping does not send
+      // Related Sample Identity in
+      // WriteOptions (QoS ParameterList), but within data payload.
+      // But maybe it is not harmful to send it in both?
+      .related_sample_identity(SampleIdentity::from(rmw_req_id));
+    let client_reader = GUID::from(rmw_req_id.writer_gid);
+    let matched = self.service_mapping == ServiceMapping::Enhanced
+      && self
+        .matched_readers
+        .lock()
+        .unwrap()
+        .get(&self.response_sender.guid())
+        .is_some_and(|readers| readers.contains(&client_reader));
+    if matched {
+      options.to_single_reader(client_reader).build()
+    } else {
+      options.build()
+    }
   }
 
   /// Receive a request from Client.
@@ -95,14 +137,7 @@ where
       RepresentationIdentifier::CDR_LE,
       response,
     )?;
-    let write_opts = WriteOptionsBuilder::new()
-      .source_timestamp(Timestamp::now()) // always add source timestamp
-      .related_sample_identity(SampleIdentity::from(rmw_req_id))
-      // TODO: Check if this is right. Cyclone mapping does not send
-      // Related Sample Identity in
-      // WriteOptions (QoS ParameterList), but within data payload.
-      // But maybe it is not harmful to send it in both?
-      .build();
+    let write_opts = self.write_options(rmw_req_id);
     self
       .response_sender
       .write_with_options(resp_wrapper, write_opts)
@@ -169,14 +204,7 @@ where
       "async_send_response: related_sample_identity = {:?}",
       SampleIdentity::from(rmw_req_id)
     );
-    let write_opts = WriteOptionsBuilder::new()
-      .source_timestamp(Timestamp::now()) // always add source timestamp
-      .related_sample_identity(SampleIdentity::from(rmw_req_id))
-      // TODO: Check if this is right. Cyclone mapping does not send
-      // Related Sample Identity in
-      // WriteOptions (QoS ParameterList), but within data payload.
-      // But maybe it is not harmful to send it in both?
-      .build();
+    let write_opts = self.write_options(rmw_req_id);
     self
       .response_sender
       .async_write_with_options(resp_wrapper, write_opts)
