@@ -139,13 +139,20 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
     if max_seen > max_gap {
         return None;
     }
-    // Three-point non-uniform slope at each knot but the outermost two.
+    // Per segment [i, i+1]: 1/h and the secant (r_{i+1} - r_i)/h.
+    let mut inv_h = Vec::with_capacity(n + 3);
+    let mut secant = Vec::with_capacity(n + 3);
+    for w in knots.windows(2) {
+        let ih = 1.0 / (w[1].0 - w[0].0);
+        inv_h.push(ih);
+        secant.push((w[1].1 - w[0].1) * ih);
+    }
+    // Three-point non-uniform slope at each knot but the outermost two: the secants
+    // either side weighted by the other side's width, (h1 d0 + h0 d1) / (h0 + h1).
     let mut slope = vec![0.0; n + 4];
     for i in 1..n + 3 {
-        let ((t0, r0), (t1, r1), (t2, r2)) = (knots[i - 1], knots[i], knots[i + 1]);
-        let (h0, h1) = (t1 - t0, t2 - t1);
-        let (d0, d1) = ((r1 - r0) / h0, (r2 - r1) / h1);
-        slope[i] = (h1 * d0 + h0 * d1) / (h0 + h1);
+        let (h0, h1) = (knots[i].0 - knots[i - 1].0, knots[i + 1].0 - knots[i].0);
+        slope[i] = (h1 * secant[i - 1] + h0 * secant[i]) / (h0 + h1);
     }
     let mut out = Vec::with_capacity(m);
     // Walk the targets and the segments together: both are sorted by angle. Segment
@@ -159,7 +166,7 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
         }
         let ((t0, r0), (t1, r1)) = (knots[seg], knots[seg + 1]);
         let h = t1 - t0;
-        let s = ((phi - t0) / h).clamp(0.0, 1.0);
+        let s = ((phi - t0) * inv_h[seg]).clamp(0.0, 1.0);
         let (m0, m1) = (slope[seg] * h, slope[seg + 1] * h);
         let (s2, s3) = (s * s, s * s * s);
         let r =
@@ -205,7 +212,9 @@ fn polar_angle(y: f64, x: f64) -> f64 {
         return if a < 0.0 { a + TAU } else { a };
     }
     // u = (t - c) / (1 + t c) = (num - c den) / (den + c num).
-    let k = (num / den * 8.0).round() as usize;
+    // The nearest eighth (t ≥ 0: truncation of t·8 + ½; `round` is a library call on
+    // baseline x86-64).
+    let k = (num / den * 8.0 + 0.5) as usize;
     let c = k as f64 * 0.125;
     let u = (num - c * den) / (den + c * num);
     let u2 = u * u;
