@@ -557,8 +557,9 @@ os._exit(0)
             peer.retry(lambda c=c: c.call_async(Calibrate.Request(scan_id=1, dry_run=True)), "a warm-up answer")
         # The burst: four calls outstanding per client, 64 in all, half of them applying
         # (and persisting) the result. The node fits one at a time, so most wait in its
-        # request queue, which must hold them all (ROS's default depth of 10 lost some,
-        # and their callers waited forever). The clients take their replies only once
+        # request queue, which must hold them all (at ROS's default depth of 10, the
+        # eleventh call arriving during one fit would push the oldest out, its caller
+        # waiting forever). The clients take their replies only once
         # all have been sent: each client's reply queue (ROS's default, KEEP_LAST 10)
         # must then hold its own four, which it can only if the node sends a reply to
         # its client alone (sent to every client, 64 replies pushed most out).
