@@ -153,35 +153,30 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
     if max_seen > max_gap {
         return None;
     }
-    // Per segment [i, i+1]: 1/h and the secant (r_{i+1} - r_i)/h.
-    let mut inv_h = Vec::with_capacity(n + 3);
-    let mut secant = Vec::with_capacity(n + 3);
-    for w in knots.windows(2) {
-        let ih = 1.0 / (w[1].0 - w[0].0);
-        inv_h.push(ih);
-        secant.push((w[1].1 - w[0].1) * ih);
-    }
-    // Three-point non-uniform slope at each knot but the outermost two: the secants
-    // either side weighted by the other side's width, (h1 d0 + h0 d1) / (h0 + h1).
-    let mut slope = vec![0.0; n + 4];
-    for i in 1..n + 3 {
-        let (h0, h1) = (knots[i].0 - knots[i - 1].0, knots[i + 1].0 - knots[i].0);
-        slope[i] = (h1 * secant[i - 1] + h0 * secant[i]) / (h0 + h1);
-    }
+    // Three-point non-uniform slope at knot i (1 ≤ i ≤ n + 2): the secants either side
+    // weighted by the other side's width, (h1 d0 + h0 d1) / (h0 + h1). Computed as the
+    // walk below reaches each knot: no arrays to fill (and to bring back into cache).
+    let slope = |i: usize| {
+        let ((t0, r0), (t1, r1), (t2, r2)) = (knots[i - 1], knots[i], knots[i + 1]);
+        let (h0, h1) = (t1 - t0, t2 - t1);
+        (h1 * ((r1 - r0) / h0) + h0 * ((r2 - r1) / h1)) / (h0 + h1)
+    };
     let mut out = Vec::with_capacity(m);
     // Walk the targets and the segments together: both are sorted by angle. Segment
     // [seg, seg+1] in knot indices; knot 1 is the last point one turn back.
     let mut seg = 1;
+    let (mut slope0, mut slope1) = (slope(1), slope(2));
     let dphi = TAU / m as f64;
     for k in 0..m {
         let phi = k as f64 * dphi;
         while knots[seg + 1].0 < phi {
             seg += 1;
+            (slope0, slope1) = (slope1, slope(seg + 1));
         }
         let ((t0, r0), (t1, r1)) = (knots[seg], knots[seg + 1]);
         let h = t1 - t0;
-        let s = ((phi - t0) * inv_h[seg]).clamp(0.0, 1.0);
-        let (m0, m1) = (slope[seg] * h, slope[seg + 1] * h);
+        let s = ((phi - t0) / h).clamp(0.0, 1.0);
+        let (m0, m1) = (slope0 * h, slope1 * h);
         let (s2, s3) = (s * s, s * s * s);
         let r =
             (2.0 * s3 - 3.0 * s2 + 1.0) * r0 + (s3 - 2.0 * s2 + s) * m0 + (-2.0 * s3 + 3.0 * s2) * r1 + (s3 - s2) * m1;
