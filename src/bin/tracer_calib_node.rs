@@ -58,11 +58,15 @@ fn main() -> ExitCode {
     }
 }
 
-/// Warnings by default; rustdds' per-datagram size warnings only as errors.
+/// Warnings by default; rustdds' per-datagram size warnings only as errors, and not its
+/// multicast-leave error at shutdown.
 fn init_logging(args: &RosArgs) {
     let mut builder = env_logger::Builder::new();
     builder.filter_level(log::LevelFilter::Warn);
     builder.filter_module("rustdds", log::LevelFilter::Error);
+    // Its only error: leaving the discovery multicast group as the participant closes,
+    // which fails (harmlessly) on loopback-only set-ups, two ERROR lines a shutdown.
+    builder.filter_module("rustdds::network::udp_listener", log::LevelFilter::Off);
     if let Some(level) = args.log_level.and_then(|l| l.level_filter()) {
         builder.filter_module("tracer_calib", level);
         builder.filter_module("tracer_calib_node", level);
