@@ -62,8 +62,9 @@ fn context() -> Context {
     Context::from_domain_participant(dp).expect("context")
 }
 
-/// `--relay`: answer every RawScan from /relay_in on /relay_out (the scan itself) and
-/// /relay_contour (a fixed Contour of the node's size with the scan's id).
+/// `--relay PREFIX`: answer every RawScan from /PREFIX_in on /PREFIX_out (the scan
+/// itself, for a lens scan) or /PREFIX_contour (a fixed Contour of the node's size with
+/// the scan's id, for a plate scan).
 fn relay(prefix: &str) {
     let ctx = context();
     let mut node = ctx.new_node(NodeName::new("/", prefix).unwrap(), NodeOptions::new().enable_rosout(false)).unwrap();
@@ -148,6 +149,11 @@ impl RelayCopies {
             .collect();
         RelayCopies(copies)
     }
+
+    /// Start copy `i` as the relay `name` (`--relay name`).
+    fn spawn(&self, i: usize, name: &str) -> Child {
+        Command::new(&self.0[i]).args(["--relay", name]).spawn().unwrap()
+    }
 }
 impl Drop for RelayCopies {
     fn drop(&mut self) {
@@ -178,12 +184,12 @@ fn main() {
     // edging cell do.
     // One process a path, so that each, like the node, handles one message a round (a
     // relay serving two paths ran warmer, and ~25 µs faster, than one serving one).
-    let copies = RelayCopies::new(&me, &["echo", "relay", "control"]);
-    let echo = Command::new(&copies.0[0]).args(["--relay", "echo"]).spawn().unwrap();
-    let relay = Command::new(&copies.0[1]).args(["--relay", "relay"]).spawn().unwrap();
-    let control = Command::new(&copies.0[2]).args(["--relay", "control"]).spawn().unwrap();
+    let relays = ["echo", "relay", "control"];
+    let copies = RelayCopies::new(&me, &relays);
     let node_pid = node.id();
-    let _children = Children(vec![node, echo, relay, control]);
+    let mut children = vec![node];
+    children.extend(relays.iter().enumerate().map(|(i, name)| copies.spawn(i, name)));
+    let _children = Children(children);
 
     // The scan: a 50 x 30 mm lens traced by a miscalibrated tracer.
     let m = Mounting { alpha0: 0.03, offset: 0.004, delta_l: 0.0015 };

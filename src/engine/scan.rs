@@ -78,9 +78,6 @@ impl Scan {
         if steps.len() != counts.len() {
             return Err(ScanError::LengthMismatch { steps: steps.len(), lengths: counts.len() });
         }
-        if steps_per_rev == 0 {
-            return Err(ScanError::ZeroStepsPerRevolution);
-        }
         let samples = steps.iter().zip(counts).map(|(&step, &c)| Sample { step, rho: f64::from(c) * meters_per_count });
         Self::from_samples(steps_per_rev, samples.collect())
     }

@@ -16,11 +16,10 @@
 //! old one.
 
 use std::net::{IpAddr, Ipv4Addr};
+use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-use std::pin::Pin;
 
 use futures::{StreamExt, stream::FuturesUnordered};
 use log::{debug, error, info, warn};

@@ -311,7 +311,6 @@ def test_calibrate_and_correct(peer):
         assert abs(back["calibration.offset"] - r.offset) < 1e-12, back
         assert back["plate.side"] == 0.045 and back["model"] == "full" and back["resample_points"] == 400, back
         assert back["encoder.meters_per_count"] == 1e-6, back
-
     finally:
         took = node.stop()
     assert took < 1.0, f"the node took {took:.2f} s to shut down"
