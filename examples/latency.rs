@@ -40,6 +40,13 @@ use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
 use tracer_calib::ros::msgs::{Contour, Header, RawScan, RosMsg};
 
+/// Round trips in the first 20 s are not timed. Every process's heap grows while
+/// rustdds' reader and writer caches fill up to their steady state (samples are freed
+/// in batches every few seconds): at this rate the node and the relays fault in fresh
+/// pages, ~3 a round trip, for 12-15 s, then hardly any. The figures are the steady
+/// state a node running for hours is in.
+const WARMUP: Duration = Duration::from_secs(20);
+
 /// The timed paths.
 const NODE: usize = 0;
 const RELAY_ECHO: usize = 1;
@@ -120,6 +127,13 @@ fn rss_kib(pid: u32) -> Option<u64> {
     status.lines().find(|l| l.starts_with("VmRSS:"))?.split_whitespace().nth(1)?.parse().ok()
 }
 
+/// Minor page faults of a process so far (`/proc/PID/stat`, field 10).
+fn minor_faults(pid: u32) -> Option<u64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name (in parentheses, which may hold spaces).
+    stat.rsplit_once(')')?.1.split_whitespace().nth(7)?.parse().ok()
+}
+
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
@@ -189,6 +203,8 @@ fn main() {
     let node_pid = node.id();
     let mut children = vec![node];
     children.extend(relays.iter().enumerate().map(|(i, name)| copies.spawn(i, name)));
+    // Processes in the order of the paths (NODE, RELAY_ECHO, RELAY, CONTROL).
+    let pids: Vec<u32> = children.iter().map(Child::id).collect();
     let _children = Children(children);
 
     // The scan: a 50 x 30 mm lens traced by a miscalibrated tracer.
@@ -228,18 +244,28 @@ fn main() {
     let from_control = n.create_subscription::<Contour>(&control_contour_t, None).unwrap();
     let spinner = smol::spawn(n.spinner().unwrap().spin());
 
-    let rss_start = rss_kib(node_pid);
-    let lat = smol::block_on(async {
+    let mut rss_start = None;
+    let mut faults_start = vec![None; PATHS];
+    let (lat, measured_for) = smol::block_on(async {
         let mut contours = std::pin::pin!(from_node.async_stream());
         let mut relayed = std::pin::pin!(from_echo.async_stream());
         let mut relayed_contours = std::pin::pin!(from_relay_contour.async_stream());
         let mut controlled = std::pin::pin!(from_control.async_stream());
         let mut lat: [Vec<f64>; PATHS] = Default::default();
-        let warmup_rounds = 100;
         let mut lost = 0;
         let mut id = 0u32;
         let mut order: [usize; PATHS] = std::array::from_fn(|p| p);
-        for round in 0..(warmup_rounds + iterations) {
+        let start = Instant::now();
+        let mut measured = 0;
+        let mut measuring_since = None;
+        while measured < iterations {
+            let warm = start.elapsed() >= WARMUP;
+            if warm && measuring_since.is_none() {
+                measuring_since = Some(Instant::now());
+                rss_start = rss_kib(node_pid);
+                faults_start = pids.iter().map(|&p| minor_faults(p)).collect();
+            }
+            measured += usize::from(warm);
             // Every path once a round, in a fresh random order: no path always goes first.
             order.shuffle(&mut rng);
             for &path in &order {
@@ -268,7 +294,6 @@ fn main() {
                         }
                     }
                 };
-                let warm = round >= warmup_rounds;
                 let timeout = smol::Timer::after(Duration::from_secs(if warm { 1 } else { 5 }));
                 match futures::future::select(std::pin::pin!(got), timeout).await {
                     futures::future::Either::Left(_) if warm => lat[path].push(t0.elapsed().as_secs_f64() * 1e6),
@@ -281,9 +306,11 @@ fn main() {
         if lost > 0 {
             println!("{lost} round trips timed out (discovery warm-up included)");
         }
-        lat
+        (lat, measuring_since.map_or(Duration::ZERO, |t| t.elapsed()))
     });
     let rss_end = rss_kib(node_pid);
+    let faults: Vec<Option<u64>> =
+        pids.iter().zip(&faults_start).map(|(&p, &f0)| Some(minor_faults(p)? - f0?)).collect();
     drop(spinner);
 
     let report = |name: &str, v: &[f64]| {
@@ -320,10 +347,19 @@ fn main() {
         control_med - sized_med,
         100.0 * (control_med / sized_med - 1.0)
     );
+    let per_trip = |p: usize| faults[p].map_or("?".into(), |f| format!("{:.2}", f as f64 / lat[p].len().max(1) as f64));
     println!(
-        "node RSS: {} KiB at start, {} KiB after {} scans",
+        "minor page faults a round trip while measured: node {}, relay {}, control {}, echo {}",
+        per_trip(NODE),
+        per_trip(RELAY),
+        per_trip(CONTROL),
+        per_trip(RELAY_ECHO)
+    );
+    println!(
+        "node RSS: {} KiB when the measured part began, {} KiB {:.0} s and {} round trips later",
         rss_start.map_or("?".into(), |v| v.to_string()),
         rss_end.map_or("?".into(), |v| v.to_string()),
+        measured_for.as_secs_f64(),
         lat.iter().map(Vec::len).sum::<usize>()
     );
 }
