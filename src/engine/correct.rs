@@ -20,7 +20,7 @@ use nalgebra::Vector2;
 use std::f64::consts::TAU;
 
 use super::geometry::{Mounting, rotate, step_angle};
-use super::scan::Scan;
+use super::scan::{Scan, counts_to_samples};
 
 /// Corrects scans of one `steps_per_rev` with one mounting.
 #[derive(Debug, Clone)]
@@ -77,6 +77,24 @@ impl Corrector {
         Vector2::new(t * c - d * s, t * s + d * c)
     }
 
+    /// Correct encoder counts straight from the arrays, `rho = counts × meters_per_count`,
+    /// handing each point to `emit` in sample order: for a caller that wants the points
+    /// in a form of its own, without a [`Scan`] or an array of points in between. The
+    /// arrays must pass [`Scan::check_counts`] for this corrector's `steps_per_rev` (a
+    /// step outside the revolution panics).
+    #[inline]
+    pub fn correct_counts(
+        &self,
+        steps: &[u32],
+        counts: &[i32],
+        meters_per_count: f64,
+        mut emit: impl FnMut(Vector2<f64>),
+    ) {
+        for s in counts_to_samples(steps, counts, meters_per_count) {
+            emit(self.point(s.step, s.rho));
+        }
+    }
+
     /// Every sample of `scan` corrected, in sample order. The scan must have this
     /// corrector's `steps_per_rev`.
     pub fn correct(&self, scan: &Scan) -> Vec<Vector2<f64>> {
@@ -92,102 +110,171 @@ pub fn correct(scan: &Scan, mounting: &Mounting) -> Vec<Vector2<f64>> {
 
 /// The contour `points` resampled to `m` radii at angles `2π k/m` about the origin,
 /// or `None` if it does not go all the way round (an angular gap above `max_gap`),
-/// has fewer than 3 points, or `m` is 0.
+/// has fewer than 3 points, or `m` is 0. ([`PolarContour`] point by point, then
+/// [`PolarContour::resample`].)
 pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option<Vec<f64>> {
     if m == 0 {
         return None;
     }
-    // Polar angle in [0, 2π) and radius (room for the padding below: no regrowth).
-    let mut polar: Vec<(f64, f64)> = Vec::with_capacity(points.len() + 4);
-    let mut prev: Option<(Vector2<f64>, f64)> = None;
-    let mut steps_since_exact = 0;
+    let mut polar = PolarContour::with_capacity(points.len());
     for p in points {
+        polar.push(*p);
+    }
+    polar.resample(m, max_gap)
+}
+
+/// Knots of padding on each side of the points in [`PolarContour`]: the last two
+/// points one turn back before the first, the first two one turn on after the last.
+const PAD: usize = 2;
+
+/// A closed contour in polar form about the axis, `(θ_i, r_i)` with `θ` in `[0, 2π)`,
+/// built point by point (so that a caller producing the points, as the node does while
+/// correcting a scan, needs no array of them): the input of [`Self::resample`].
+#[derive(Debug, Clone)]
+pub struct PolarContour {
+    /// `PAD` free slots, then the points in the order pushed.
+    knots: Vec<(f64, f64)>,
+    /// The last point pushed and its angle, for [`next_angle`].
+    prev: Option<(Vector2<f64>, f64)>,
+    /// Angles carried on from a neighbour's since the last one computed afresh.
+    carried: u32,
+}
+
+impl PolarContour {
+    /// Room for `n` points (and the padding: no regrowth).
+    pub fn with_capacity(n: usize) -> Self {
+        let mut knots = Vec::with_capacity(n + 2 * PAD);
+        knots.extend([(0.0, 0.0); PAD]);
+        PolarContour { knots, prev: None, carried: 0 }
+    }
+
+    /// Add the next point. A point at the axis (or not finite) has no direction and is
+    /// left out.
+    #[inline]
+    pub fn push(&mut self, p: Vector2<f64>) {
         let r2 = p.x * p.x + p.y * p.y;
         if !(r2 > 0.0 && r2.is_finite()) {
-            continue;
+            return;
         }
-        let theta = match prev.and_then(|(q, tq)| next_angle(q, tq, p)) {
-            Some(t) if steps_since_exact < EXACT_ANGLE_EVERY => {
-                steps_since_exact += 1;
+        let theta = match self.prev.and_then(|(q, tq)| next_angle(q, tq, &p)) {
+            Some(t) if self.carried < EXACT_ANGLE_EVERY => {
+                self.carried += 1;
                 t
             }
             _ => {
-                steps_since_exact = 0;
+                self.carried = 0;
                 polar_angle(p.y, p.x)
             }
         };
-        prev = Some((*p, theta));
-        polar.push((theta, r2.sqrt()));
+        self.prev = Some((p, theta));
+        self.knots.push((theta, r2.sqrt()));
     }
-    if polar.len() < 3 {
-        return None;
+
+    /// How many points it has (those left out not counted).
+    pub fn len(&self) -> usize {
+        self.knots.len() - PAD
     }
-    sort_by_angle(&mut polar);
-    // Merge points at (numerically) the same angle: average their radii.
-    polar.dedup_by(|b, a| {
-        if (b.0 - a.0).abs() < 1e-12 {
-            a.1 = 0.5 * (a.1 + b.1);
-            true
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The radii at `θ_k = 2π k / m`, k = 0..m, or `None` if there are fewer than 3
+    /// points, `m` is 0, or the largest angular gap between neighbours exceeds `max_gap`.
+    ///
+    /// Points at the same angle (within 1e-12 rad) are merged, their radii averaged.
+    /// Between knots `i` and `i + 1` (widths `h_i = θ_{i+1} - θ_i`, secants
+    /// `d_i = (r_{i+1} - r_i) / h_i`) `r` is the cubic Hermite
+    /// `r(θ_i + s h_i) = r_i + s m_0 + s² (3Δ - 2m_0 - m_1) + s³ (m_0 + m_1 - 2Δ)`,
+    /// `Δ = r_{i+1} - r_i`, `m_0 = S_i h_i`, `m_1 = S_{i+1} h_i`, with the three-point
+    /// slopes `S_i = (h_i d_{i-1} + h_{i-1} d_i) / (h_{i-1} + h_i)`. The walk keeps the
+    /// secants of three segments as it goes: two divisions a knot.
+    pub fn resample(self, m: usize, max_gap: f64) -> Option<Vec<f64>> {
+        if m == 0 || self.len() < 3 {
+            return None;
+        }
+        let mut knots = self.knots;
+        let n = order_and_merge(&mut knots[PAD..]);
+        if n < 3 {
+            return None;
+        }
+        knots.truncate(PAD + n);
+        let (first, second, last, before_last) = (knots[PAD], knots[PAD + 1], knots[PAD + n - 1], knots[PAD + n - 2]);
+        knots[0] = (before_last.0 - TAU, before_last.1);
+        knots[1] = (last.0 - TAU, last.1);
+        knots.push((first.0 + TAU, first.1));
+        knots.push((second.0 + TAU, second.1));
+        // Every gap, the one across angle 0 included (knots 1..=n+2).
+        let widest = knots[1..PAD + n + 1].windows(2).map(|w| w[1].0 - w[0].0).fold(0.0, f64::max);
+        if widest > max_gap {
+            return None;
+        }
+
+        // Segment j runs from knot j to knot j + 1: its width, 1/width and secant.
+        let segment = |j: usize| {
+            let ((t0, r0), (t1, r1)) = (knots[j], knots[j + 1]);
+            let h = t1 - t0;
+            let inv = 1.0 / h;
+            (h, inv, (r1 - r0) * inv)
+        };
+        let slope = |(h0, _, d0): (f64, f64, f64), (h1, _, d1): (f64, f64, f64)| (h1 * d0 + h0 * d1) / (h0 + h1);
+        // Targets and segments are both sorted by angle: walk them together. Knot 1 (the
+        // last point one turn back) starts the segment that holds angle 0.
+        let mut seg = 1;
+        let (mut this, mut next) = (segment(1), segment(2));
+        let (mut s0, mut s1) = (slope(segment(0), this), slope(this, next));
+        let mut out = Vec::with_capacity(m);
+        let dphi = TAU / m as f64;
+        for k in 0..m {
+            let phi = k as f64 * dphi;
+            while knots[seg + 1].0 < phi {
+                seg += 1;
+                (this, next) = (next, segment(seg + 1));
+                (s0, s1) = (s1, slope(this, next));
+            }
+            let ((t0, r0), (_, r1)) = (knots[seg], knots[seg + 1]);
+            let (h, inv, _) = this;
+            let s = ((phi - t0) * inv).clamp(0.0, 1.0);
+            let (m0, m1, delta) = (s0 * h, s1 * h, r1 - r0);
+            let r = r0 + s * (m0 + s * ((3.0 * delta - 2.0 * m0 - m1) + s * (m0 + m1 - 2.0 * delta)));
+            // Between a point near the axis and a far one the cubic can dip below zero; a
+            // radius is a distance, and the contour there is at the axis.
+            out.push(if r < 0.0 { 0.0 } else { r });
+        }
+        Some(out)
+    }
+}
+
+/// Sort `(angle, radius)` pairs by angle and merge those at the same angle (within
+/// 1e-12 rad, across 2π too), averaging their radii, in place; returns how many are
+/// left (at the front).
+///
+/// A scan traced in step order is sorted already but for where it crosses angle 0: one
+/// pass finds that, a rotation mends it; anything else is sorted.
+fn order_and_merge(polar: &mut [(f64, f64)]) -> usize {
+    let mut descents = polar.windows(2).enumerate().filter(|(_, w)| w[1].0 < w[0].0).map(|(i, _)| i + 1);
+    match (descents.next(), descents.next()) {
+        (None, _) => {}
+        (Some(cut), None) if polar[polar.len() - 1].0 <= polar[0].0 => polar.rotate_left(cut),
+        _ => polar.sort_by(|a, b| a.0.total_cmp(&b.0)),
+    }
+    let mut kept = 0;
+    for i in 1..polar.len() {
+        if polar[i].0 - polar[kept].0 < 1e-12 {
+            polar[kept].1 = 0.5 * (polar[kept].1 + polar[i].1);
         } else {
-            false
+            kept += 1;
+            polar[kept] = polar[i];
         }
-    });
-    // And across the wrap: a tiny negative angle shifted by 2π is `TAU` itself, the
-    // same direction as angle 0 (else a zero-width segment: infinite slopes).
-    if let (Some(&first), Some(&last)) = (polar.first(), polar.last())
-        && polar.len() > 1
-        && first.0 + TAU - last.0 < 1e-12
-    {
-        polar[0].1 = 0.5 * (first.1 + last.1);
-        polar.pop();
     }
-    let n = polar.len();
-    if n < 3 {
-        return None;
+    let mut n = kept + 1;
+    // Across the wrap: a tiny negative angle shifted by 2π is `TAU` itself, the same
+    // direction as angle 0 (else a zero-width segment: infinite slopes).
+    if n > 1 && polar[0].0 + TAU - polar[n - 1].0 < 1e-12 {
+        polar[0].1 = 0.5 * (polar[0].1 + polar[n - 1].1);
+        n -= 1;
     }
-    // Two points of padding on each side (the last two one turn back, the first two
-    // one turn on), so that the neighbours of every point (and every segment) are at
-    // plain indices: knot i + 2 is point i.
-    let (head, tail) = ([polar[0], polar[1]], [polar[n - 2], polar[n - 1]]);
-    polar.extend(head.map(|(t, r)| (t + TAU, r)));
-    polar.splice(0..0, tail.map(|(t, r)| (t - TAU, r)));
-    let knots = polar;
-    let max_seen = knots[1..n + 2].windows(2).map(|w| w[1].0 - w[0].0).fold(0.0, f64::max);
-    if max_seen > max_gap {
-        return None;
-    }
-    // Three-point non-uniform slope at knot i (1 ≤ i ≤ n + 2): the secants either side
-    // weighted by the other side's width, (h1 d0 + h0 d1) / (h0 + h1). Computed as the
-    // walk below reaches each knot: no arrays to fill (and to bring back into cache).
-    let slope = |i: usize| {
-        let ((t0, r0), (t1, r1), (t2, r2)) = (knots[i - 1], knots[i], knots[i + 1]);
-        let (h0, h1) = (t1 - t0, t2 - t1);
-        (h1 * ((r1 - r0) / h0) + h0 * ((r2 - r1) / h1)) / (h0 + h1)
-    };
-    let mut out = Vec::with_capacity(m);
-    // Walk the targets and the segments together: both are sorted by angle. Segment
-    // [seg, seg+1] in knot indices; knot 1 is the last point one turn back.
-    let mut seg = 1;
-    let (mut slope0, mut slope1) = (slope(1), slope(2));
-    let dphi = TAU / m as f64;
-    for k in 0..m {
-        let phi = k as f64 * dphi;
-        while knots[seg + 1].0 < phi {
-            seg += 1;
-            (slope0, slope1) = (slope1, slope(seg + 1));
-        }
-        let ((t0, r0), (t1, r1)) = (knots[seg], knots[seg + 1]);
-        let h = t1 - t0;
-        let s = ((phi - t0) / h).clamp(0.0, 1.0);
-        let (m0, m1) = (slope0 * h, slope1 * h);
-        let (s2, s3) = (s * s, s * s * s);
-        let r =
-            (2.0 * s3 - 3.0 * s2 + 1.0) * r0 + (s3 - 2.0 * s2 + s) * m0 + (-2.0 * s3 + 3.0 * s2) * r1 + (s3 - s2) * m1;
-        // Between a point near the axis and a far one the cubic can dip below zero; a
-        // radius is a distance, and the contour there is at the axis.
-        out.push(if r < 0.0 { 0.0 } else { r });
-    }
-    Some(out)
+    n
 }
 
 /// How many polar angles in a row [`next_angle`] may carry on from its neighbour's
@@ -284,17 +371,6 @@ fn polar_angle(y: f64, x: f64) -> f64 {
         a = std::f64::consts::PI - a;
     }
     if y < 0.0 && a > 0.0 { wrap_angle(-a) } else { a }
-}
-
-/// Sort `(angle, radius)` pairs by angle. A scan traced in step order is already sorted
-/// but for where it crosses angle 0: then a rotation is enough (O(n), no comparisons
-/// sort).
-fn sort_by_angle(polar: &mut [(f64, f64)]) {
-    let cut = polar.windows(2).position(|w| w[1].0 < w[0].0).map_or(0, |i| i + 1);
-    polar.rotate_left(cut);
-    if !polar.is_sorted_by(|a, b| a.0 <= b.0) {
-        polar.sort_by(|a, b| a.0.total_cmp(&b.0));
-    }
 }
 
 /// The default largest angular gap for [`resample_radii`]: ten steps of the scan's
@@ -424,6 +500,99 @@ mod tests {
             let want = e.exit(Vector2::zeros(), u).unwrap().t;
             assert!((r - want).abs() < 2e-7, "k={k} {r} {want}");
         }
+    }
+
+    /// The resampler as a textbook states it: `atan2`, a sort, the merge, the padding,
+    /// and for every target the segment found afresh and the Hermite basis functions.
+    fn textbook_resample(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option<Vec<f64>> {
+        let mut polar: Vec<(f64, f64)> =
+            points.iter().filter(|p| p.norm() > 0.0).map(|p| (std_angle(p.y, p.x) % TAU, p.norm())).collect();
+        polar.sort_by(|a, b| a.0.total_cmp(&b.0));
+        polar.dedup_by(|b, a| {
+            let same = b.0 - a.0 < 1e-12;
+            if same {
+                a.1 = 0.5 * (a.1 + b.1);
+            }
+            same
+        });
+        if polar.len() > 1 && polar[0].0 + TAU - polar[polar.len() - 1].0 < 1e-12 {
+            let last = polar.pop().unwrap();
+            polar[0].1 = 0.5 * (polar[0].1 + last.1);
+        }
+        let n = polar.len();
+        if m == 0 || n < 3 {
+            return None;
+        }
+        let knot = |i: isize| {
+            let (t, r) = polar[i.rem_euclid(n as isize) as usize];
+            (t + TAU * i.div_euclid(n as isize) as f64, r)
+        };
+        if (0..n as isize).any(|i| knot(i + 1).0 - knot(i).0 > max_gap) {
+            return None;
+        }
+        let slope = |i: isize| {
+            let ((t0, r0), (t1, r1), (t2, r2)) = (knot(i - 1), knot(i), knot(i + 1));
+            let (h0, h1) = (t1 - t0, t2 - t1);
+            (h1 * (r1 - r0) / h0 + h0 * (r2 - r1) / h1) / (h0 + h1)
+        };
+        let radii = (0..m).map(|k| {
+            let phi = TAU * k as f64 / m as f64;
+            let i = (-1..n as isize).rev().find(|&i| knot(i).0 <= phi).unwrap();
+            let ((t0, r0), (t1, r1)) = (knot(i), knot(i + 1));
+            let h = t1 - t0;
+            let s = (phi - t0) / h;
+            let (m0, m1) = (slope(i) * h, slope(i + 1) * h);
+            let r = (2.0 * s.powi(3) - 3.0 * s * s + 1.0) * r0
+                + (s.powi(3) - 2.0 * s * s + s) * m0
+                + (-2.0 * s.powi(3) + 3.0 * s * s) * r1
+                + (s.powi(3) - s * s) * m1;
+            r.max(0.0)
+        });
+        Some(radii.collect())
+    }
+
+    #[test]
+    fn resampling_agrees_with_the_textbook() {
+        use rand::seq::SliceRandom;
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        let mut worst = 0.0f64;
+        for case in 0..300 {
+            let n = rng.random_range(3..600);
+            let start = rng.random_range(0.0..TAU);
+            let e = Ellipse {
+                center: Vector2::new(rng.random_range(-3e-3..3e-3), rng.random_range(-3e-3..3e-3)),
+                a: rng.random_range(0.01..0.03),
+                b: rng.random_range(0.005..0.01),
+                angle: rng.random_range(0.0..TAU),
+            };
+            let mut pts: Vec<Vector2<f64>> = (0..n)
+                .map(|i| {
+                    let a = start + TAU * i as f64 / n as f64 + rng.random_range(-0.2..0.2) / n as f64;
+                    let u = Vector2::new(a.cos(), a.sin());
+                    u * e.exit(Vector2::zeros(), u).unwrap().t
+                })
+                .collect();
+            match case % 4 {
+                // Traced the other way round, or in no order at all.
+                1 => pts.reverse(),
+                2 => pts.shuffle(&mut rng),
+                // A point twice, and one at the axis.
+                3 => {
+                    let i = rng.random_range(0..n);
+                    pts.insert(i, pts[i]);
+                    pts.insert(rng.random_range(0..n), Vector2::zeros());
+                }
+                _ => {}
+            }
+            let m = rng.random_range(1..500);
+            let (ours, book) = (resample_radii(&pts, m, 1.0), textbook_resample(&pts, m, 1.0));
+            assert_eq!(ours.is_some(), book.is_some(), "case {case}");
+            for (a, b) in ours.unwrap_or_default().iter().zip(book.unwrap_or_default()) {
+                worst = worst.max((a - b).abs());
+            }
+        }
+        assert!(worst < 1e-13, "largest difference: {worst:e} m");
     }
 
     #[test]

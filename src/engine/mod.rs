@@ -26,7 +26,7 @@ pub mod simulate;
 pub mod start;
 
 pub use calibrate::{Calibration, CalibrationError, Options, calibrate};
-pub use correct::{Corrector, correct, resample_radii};
+pub use correct::{Corrector, PolarContour, correct, resample_radii};
 pub use geometry::Mounting;
 pub use model::{ModelKind, PlateSpec};
 pub use scan::{Sample, Scan, ScanError};

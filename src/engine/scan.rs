@@ -55,6 +55,51 @@ impl fmt::Display for ScanError {
 
 impl std::error::Error for ScanError {}
 
+/// The samples of encoder counts: `rho = counts × meters_per_count`.
+pub(crate) fn counts_to_samples<'a>(
+    steps: &'a [u32],
+    counts: &'a [i32],
+    meters_per_count: f64,
+) -> impl Iterator<Item = Sample> + 'a {
+    steps.iter().zip(counts).map(move |(&step, &c)| Sample { step, rho: f64::from(c) * meters_per_count })
+}
+
+/// What makes `len` samples a scan: a revolution of at least one step, at least one
+/// sample, every step within the revolution and seen once, every length finite.
+fn check(steps_per_rev: u32, len: usize, samples: impl Iterator<Item = Sample>) -> Result<(), ScanError> {
+    if steps_per_rev == 0 {
+        return Err(ScanError::ZeroStepsPerRevolution);
+    }
+    if len == 0 {
+        return Err(ScanError::Empty);
+    }
+    // A bitset over the steps seen; sized by the samples' steps, never by an absurd
+    // steps_per_revolution.
+    let mut seen = vec![0u64; len.div_ceil(64)];
+    let mut seen_big = std::collections::HashSet::new();
+    for (index, s) in samples.enumerate() {
+        if s.step >= steps_per_rev {
+            return Err(ScanError::StepOutOfRange { index, step: s.step, steps_per_rev });
+        }
+        if !s.rho.is_finite() {
+            return Err(ScanError::NotFinite { index });
+        }
+        let k = s.step as usize;
+        let fresh = if k < seen.len() * 64 {
+            let (w, b) = (k / 64, 1u64 << (k % 64));
+            let fresh = seen[w] & b == 0;
+            seen[w] |= b;
+            fresh
+        } else {
+            seen_big.insert(s.step)
+        };
+        if !fresh {
+            return Err(ScanError::DuplicateStep { index, step: s.step });
+        }
+    }
+    Ok(())
+}
+
 impl Scan {
     /// Build a scan from parallel arrays of steps and encoder lengths (metres).
     pub fn new(steps_per_rev: u32, steps: &[u32], rho: &[f64]) -> Result<Self, ScanError> {
@@ -75,45 +120,29 @@ impl Scan {
         counts: &[i32],
         meters_per_count: f64,
     ) -> Result<Self, ScanError> {
+        Self::check_counts(steps_per_rev, steps, counts, meters_per_count)?;
+        let samples = counts_to_samples(steps, counts, meters_per_count).collect();
+        Ok(Scan { steps_per_rev, samples })
+    }
+
+    /// Check encoder counts as [`Self::from_counts`] does, without building the scan:
+    /// for a caller that corrects the samples straight from the arrays
+    /// ([`crate::engine::Corrector::correct_counts`]).
+    pub fn check_counts(
+        steps_per_rev: u32,
+        steps: &[u32],
+        counts: &[i32],
+        meters_per_count: f64,
+    ) -> Result<(), ScanError> {
         if steps.len() != counts.len() {
             return Err(ScanError::LengthMismatch { steps: steps.len(), lengths: counts.len() });
         }
-        let samples = steps.iter().zip(counts).map(|(&step, &c)| Sample { step, rho: f64::from(c) * meters_per_count });
-        Self::from_samples(steps_per_rev, samples.collect())
+        check(steps_per_rev, steps.len(), counts_to_samples(steps, counts, meters_per_count))
     }
 
     /// Build a scan from samples.
     pub fn from_samples(steps_per_rev: u32, samples: Vec<Sample>) -> Result<Self, ScanError> {
-        if steps_per_rev == 0 {
-            return Err(ScanError::ZeroStepsPerRevolution);
-        }
-        if samples.is_empty() {
-            return Err(ScanError::Empty);
-        }
-        // A bitset over the steps seen; sized by the samples' steps, never by an
-        // absurd steps_per_revolution.
-        let mut seen = vec![0u64; samples.len().div_ceil(64)];
-        let mut seen_big = std::collections::HashSet::new();
-        for (index, s) in samples.iter().enumerate() {
-            if s.step >= steps_per_rev {
-                return Err(ScanError::StepOutOfRange { index, step: s.step, steps_per_rev });
-            }
-            if !s.rho.is_finite() {
-                return Err(ScanError::NotFinite { index });
-            }
-            let k = s.step as usize;
-            let fresh = if k < seen.len() * 64 {
-                let (w, b) = (k / 64, 1u64 << (k % 64));
-                let fresh = seen[w] & b == 0;
-                seen[w] |= b;
-                fresh
-            } else {
-                seen_big.insert(s.step)
-            };
-            if !fresh {
-                return Err(ScanError::DuplicateStep { index, step: s.step });
-            }
-        }
+        check(steps_per_rev, samples.len(), samples.iter().copied())?;
         Ok(Scan { steps_per_rev, samples })
     }
 

@@ -14,7 +14,7 @@ use super::msgs::{
     Polygon, PolygonStamped, RawScan,
 };
 use crate::engine::calibrate::{Calibration, Options, calibrate};
-use crate::engine::correct::{Corrector, default_max_gap, resample_radii};
+use crate::engine::correct::{Corrector, PolarContour, default_max_gap};
 use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
 use crate::params::{Parameters, file as params_file};
@@ -85,8 +85,8 @@ impl NodeState {
         NodeState { fqn, params, stats: Stats::default(), corrector: None, plates: VecDeque::new(), calibrated_at }
     }
 
-    /// Check a raw scan and turn it into an engine scan; the error says what is wrong.
-    pub fn validate(&self, msg: &RawScan) -> Result<Scan, String> {
+    /// Check a raw scan; the error says what is wrong.
+    pub fn check(&self, msg: &RawScan) -> Result<(), String> {
         if msg.target > RawScan::TARGET_LENS {
             return Err(format!("target {} is not one of TARGET_UNKNOWN..TARGET_LENS (0..3)", msg.target));
         }
@@ -105,56 +105,72 @@ impl NodeState {
         if msg.step.len() < 3 {
             return Err(format!("the scan has {} samples, at least 3 are needed for a contour", msg.step.len()));
         }
+        Scan::check_counts(msg.steps_per_revolution, &msg.step, &msg.counts, self.params.meters_per_count)
+            .map_err(|e| e.to_string())
+    }
+
+    /// Check a raw scan and turn it into an engine scan; the error says what is wrong.
+    pub fn validate(&self, msg: &RawScan) -> Result<Scan, String> {
+        self.check(msg)?;
         Scan::from_counts(msg.steps_per_revolution, &msg.step, &msg.counts, self.params.meters_per_count)
             .map_err(|e| e.to_string())
     }
 
-    /// Handle one raw scan: validate, keep it if it is of the plate, correct it, and
+    /// Handle one raw scan: check it, keep it if it is of the plate, correct it, and
     /// build the `PolygonStamped` too if `with_polygon`. An error is a rejected scan
     /// (counted).
+    ///
+    /// A lens scan is corrected straight from the message's arrays: each point goes into
+    /// the `Contour` and into the polar form the radii are resampled from as it comes
+    /// (no engine `Scan`, no array of points: less memory to bring into cache for every
+    /// scan, which is most of what the node's latency is made of).
     pub fn on_raw_scan(&mut self, msg: &RawScan, with_polygon: bool) -> Result<Corrected, String> {
         self.stats.scans_received += 1;
-        let scan = match self.validate(msg) {
-            Ok(s) => s,
-            Err(e) => {
-                self.stats.scans_rejected += 1;
-                self.stats.last_rejection = format!("scan {}: {e}", msg.scan_id);
-                return Err(e);
-            }
-        };
+        if let Err(e) = self.check(msg) {
+            return Err(self.reject(msg, e));
+        }
         if msg.target == RawScan::TARGET_CALIBRATION_PLATE {
+            let scan = self.validate(msg).map_err(|e| self.reject(msg, e))?;
             self.plates.retain(|p| p.scan_id != msg.scan_id);
             if self.plates.len() == PLATE_SCANS_KEPT {
                 self.plates.pop_front();
             }
-            self.plates.push_back(PlateScan { scan_id: msg.scan_id, scan: scan.clone() });
+            self.plates.push_back(PlateScan { scan_id: msg.scan_id, scan });
         }
         let calibration = self.params.calibration_in_force();
         let mounting = calibration.unwrap_or(Mounting::IDEAL);
+        let steps_per_rev = msg.steps_per_revolution;
         let corrector = match &self.corrector {
-            Some(c) if *c.mounting() == mounting && c.steps_per_rev() == scan.steps_per_rev() => c,
-            _ => self.corrector.insert(Corrector::new(mounting, scan.steps_per_rev())),
+            Some(c) if *c.mounting() == mounting && c.steps_per_rev() == steps_per_rev => c,
+            _ => self.corrector.insert(Corrector::new(mounting, steps_per_rev)),
         };
-        let points = corrector.correct(&scan);
+        let n = msg.step.len();
+        let mut points = Vec::with_capacity(n);
+        let mut polar = (self.params.resample_points > 0).then(|| PolarContour::with_capacity(n));
         // Extreme but accepted parameters (encoder.meters_per_count, calibration.offset,
         // calibration.delta_l up to 1e308) can put points beyond what a float32 polygon or
         // a radius (sqrt(x² + y²)) can hold: refuse the scan rather than publish inf/NaN.
         // (A plate scan is kept above all the same: it is what a recalibration needs.)
-        if let Some(i) = points.iter().position(|p| !(p.x.abs() <= MAX_COORDINATE && p.y.abs() <= MAX_COORDINATE)) {
+        let mut out_of_range = None;
+        corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, |p| {
+            if out_of_range.is_none() && !(p.x.abs() <= MAX_COORDINATE && p.y.abs() <= MAX_COORDINATE) {
+                out_of_range = Some((points.len(), p));
+            }
+            points.push(Point { x: p.x, y: p.y, z: 0.0 });
+            if let Some(polar) = polar.as_mut() {
+                polar.push(p);
+            }
+        });
+        if let Some((i, p)) = out_of_range {
             let e = format!(
                 "sample {i}: the corrected point ({}, {}) m is out of range (check encoder.meters_per_count and the calibration)",
-                points[i].x, points[i].y
+                p.x, p.y
             );
-            self.stats.scans_rejected += 1;
-            self.stats.last_rejection = format!("scan {}: {e}", msg.scan_id);
-            return Err(e);
+            return Err(self.reject(msg, e));
         }
-        let radii = if self.params.resample_points > 0 {
-            resample_radii(&points, self.params.resample_points, default_max_gap(scan.steps_per_rev()))
-                .unwrap_or_default()
-        } else {
-            Vec::new()
-        };
+        let radii = polar
+            .and_then(|polar| polar.resample(self.params.resample_points, default_max_gap(steps_per_rev)))
+            .unwrap_or_default();
         let header = Header { stamp: msg.header.stamp, frame_id: self.params.output_frame_id.clone() };
         let polygon = with_polygon.then(|| PolygonStamped {
             header: header.clone(),
@@ -167,11 +183,18 @@ impl NodeState {
             scan_id: msg.scan_id,
             target: msg.target,
             calibrated: calibration.is_some(),
-            points: points.iter().map(|p| Point { x: p.x, y: p.y, z: 0.0 }).collect(),
+            points,
             radii,
         };
         self.stats.contours_published += 1;
         Ok(Corrected { contour, polygon })
+    }
+
+    /// Count a rejected scan; returns the error.
+    fn reject(&mut self, msg: &RawScan, e: String) -> String {
+        self.stats.scans_rejected += 1;
+        self.stats.last_rejection = format!("scan {}: {e}", msg.scan_id);
+        e
     }
 
     /// Handle a calibrate request: fit the requested plate scan; unless it is a dry
