@@ -124,6 +124,9 @@ fn bench(c: &mut Criterion) {
     c.bench_function("node/on_raw_scan_400 (validate, correct, resample, build messages)", |b| {
         b.iter(|| state.on_raw_scan(black_box(&raw), true).unwrap())
     });
+    c.bench_function("node/on_raw_scan_400 (no polygon subscriber: the latency bench's case)", |b| {
+        b.iter(|| state.on_raw_scan(black_box(&raw), false).unwrap())
+    });
     let out = state.on_raw_scan(&raw, true).unwrap();
     c.bench_function("node/encode Contour + PolygonStamped (CDR)", |b| {
         b.iter(|| (to_cdr(black_box(&out.contour)).unwrap(), to_cdr(black_box(out.polygon.as_ref().unwrap())).unwrap()))

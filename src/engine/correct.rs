@@ -155,6 +155,7 @@ impl PolarContour {
     /// the point from the two 8-byte stores the caller just made with one 16-byte load,
     /// which the CPU cannot forward from the stores (a stall for every point: the node's
     /// handling of a 400-sample scan took 16.5 µs instead of 13).
+    #[inline(always)]
     pub fn push(&mut self, p: Vector2<f64>) {
         let r2 = p.x * p.x + p.y * p.y;
         if !(r2 > 0.0 && r2.is_finite()) {
