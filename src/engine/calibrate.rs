@@ -7,7 +7,7 @@
 //!    default; never below 0.1 µm, the floor for noise-free data) are dropped and the
 //!    fit repeated from where it stands, until the set of samples stops changing. All
 //!    samples are re-tested in the first rounds, so a sample wrongly dropped early comes
-//!    back; after [`FREE_ROUNDS`] samples may only leave, so a sample on the threshold
+//!    back; after `FREE_ROUNDS` samples may only leave, so a sample on the threshold
 //!    cannot make the set oscillate, and the loop ends;
 //! 4. `alpha0` is reported in `(-π/4, π/4]`: a square plate gives the same lengths for
 //!    `(alpha0 + π/2, d, dL, R₉₀ c)` ([`super::geometry::wrap_quarter_turn`]);

@@ -6,15 +6,16 @@
 //! ([`super::geometry::probe_point`]). [`Corrector`] keeps the rotated table of rail
 //! directions for one `N`, so a scan costs four multiply-adds a sample.
 //!
-//! **Resampling** ([`resample_radii`]): the corrected points, sorted by polar angle
+//! **Resampling** ([`resample_radii`], or [`PolarContour`] fed point by point as the
+//! points are computed): the corrected points, sorted by polar angle
 //! `θ_i` about the axis, define a star-shaped closed contour `r(θ)`. `r` is
 //! interpolated by a periodic cubic Hermite spline whose slopes are the three-point
 //! (non-uniform) finite differences, `O(h³)` accurate for a smooth contour, and read at
 //! `θ_k = 2π k / M`. If the largest angular gap between neighbouring points exceeds
 //! `max_gap` the scan does not go all the way round and there are no radii. A point's
-//! polar angle comes from its neighbour's when that is within 3.6° ([`next_angle`]:
+//! polar angle comes from its neighbour's when that is within 3.6° (`next_angle`:
 //! the small angle between them, one division), else from a table and a short series
-//! ([`polar_angle`]); both agree with `atan2` to a few 1e-15 rad.
+//! (`polar_angle`); both agree with `atan2` to a few 1e-15 rad.
 
 use nalgebra::Vector2;
 use std::f64::consts::TAU;

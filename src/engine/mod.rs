@@ -10,8 +10,8 @@
 //!    sample) and [`model::paper`] (the seed paper's reduced model);
 //! 5. [`lm`] — the Levenberg-Marquardt solver, with covariance;
 //! 6. [`start`] — a start that converges from any mounting error in range;
-//! 7. [`calibrate`] — start, fit, outlier rejection, uncertainty: a [`Calibration`];
-//! 8. [`correct`] — every sample to its true point, and equal-angle resampling.
+//! 7. [`calibrate`](mod@calibrate) — start, fit, outlier rejection, uncertainty: a [`Calibration`];
+//! 8. [`correct`](mod@correct) — every sample to its true point, and equal-angle resampling.
 //!
 //! [`simulate`] makes scans of known shapes with known errors for tests and tools.
 

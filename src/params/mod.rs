@@ -2,7 +2,7 @@
 //!
 //! The names and defaults are the contract's (`CONTRACT.md`); every parameter is
 //! persisted. [`Parameters`] is the typed view the node and the offline tool share;
-//! [`file`] reads and writes ROS 2 parameter files; [`value`] is the untyped value.
+//! [`file`](mod@file) reads and writes ROS 2 parameter files; [`value`] is the untyped value.
 
 pub mod file;
 pub mod value;
