@@ -25,7 +25,8 @@
 //! difference is what the node itself adds: decoding, validation, correction,
 //! resampling, building the messages, the second (polygon) publication. Against the
 //! RawScan relay it also includes carrying a 13 kB answer instead of a 3 kB one. The
-//! node's resident memory is read from `/proc` at the start and the end.
+//! node's resident memory and every process's minor page faults are read from `/proc` when the
+//! timed part begins (after [`WARMUP`]) and at the end.
 
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
