@@ -22,11 +22,12 @@
 //! `main` for what sharing either did to the figures).
 //!
 //! All paths cross two processes and two DDS hops. Against the Contour relay, the
-//! difference is what the node itself adds: decoding, validation, correction,
-//! resampling, building the messages, the second (polygon) publication. Against the
-//! RawScan relay it also includes carrying a 13 kB answer instead of a 3 kB one. The
-//! node's resident memory and every process's minor page faults are read from `/proc` when the
-//! timed part begins (after [`WARMUP`]) and at the end.
+//! difference is what the node itself adds: checking, correcting and resampling the
+//! scan, building the message (the node builds and publishes the polygon only for a
+//! subscriber, and there is none here). Against the RawScan relay it also includes
+//! carrying a 13 kB answer instead of a 3 kB one. The node's resident memory and every
+//! process's minor page faults are read from `/proc` when the timed part begins (after
+//! [`WARMUP`]) and at the end.
 
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
