@@ -118,9 +118,9 @@ fn from_ros(v: &RosValue) -> Option<ParamValue> {
 /// Free heap below which the node gives nothing back to the OS (bytes). Memory given
 /// back costs a page fault per 4 kB page when it is used again. A steady stream of
 /// scans keeps a few MB in flight in rustdds' caches (about 10 MB at 100 scans a
-/// second); trimming that every 5 s, as the node did, had it fault in fresh pages for
-/// the scans after each trim (~100 faults a second, and +12..+14 % instead of
-/// +7..+8 % over the bare relay in `scripts/bench_latency.sh`).
+/// second); trimming that every 5 s, as the node did, had the scans after each trim
+/// fault the released pages in again (+12.6..+14.1 % instead of +7.3..+8.2 % over the
+/// bare relay in 3000-round runs of `scripts/bench_latency.sh`).
 const KEEP_FREE_HEAP: usize = 32 << 20;
 
 /// After a burst, give memory the allocator holds but no longer uses back to the OS.

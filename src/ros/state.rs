@@ -85,8 +85,8 @@ impl NodeState {
         NodeState { fqn, params, stats: Stats::default(), corrector: None, plates: VecDeque::new(), calibrated_at }
     }
 
-    /// Check a raw scan; the error says what is wrong.
-    pub fn check(&self, msg: &RawScan) -> Result<(), String> {
+    /// The checks of a raw scan that need no pass over its samples.
+    fn check_limits(msg: &RawScan) -> Result<(), String> {
         if msg.target > RawScan::TARGET_LENS {
             return Err(format!("target {} is not one of TARGET_UNKNOWN..TARGET_LENS (0..3)", msg.target));
         }
@@ -105,13 +105,19 @@ impl NodeState {
         if msg.step.len() < 3 {
             return Err(format!("the scan has {} samples, at least 3 are needed for a contour", msg.step.len()));
         }
+        Ok(())
+    }
+
+    /// Check a raw scan; the error says what is wrong.
+    pub fn check(&self, msg: &RawScan) -> Result<(), String> {
+        Self::check_limits(msg)?;
         Scan::check_counts(msg.steps_per_revolution, &msg.step, &msg.counts, self.params.meters_per_count)
             .map_err(|e| e.to_string())
     }
 
     /// Check a raw scan and turn it into an engine scan; the error says what is wrong.
     pub fn validate(&self, msg: &RawScan) -> Result<Scan, String> {
-        self.check(msg)?;
+        Self::check_limits(msg)?;
         Scan::from_counts(msg.steps_per_revolution, &msg.step, &msg.counts, self.params.meters_per_count)
             .map_err(|e| e.to_string())
     }
@@ -123,14 +129,17 @@ impl NodeState {
     /// A lens scan is corrected straight from the message's arrays: each point goes into
     /// the `Contour` and into the polar form the radii are resampled from as it comes
     /// (no engine `Scan`, no array of points: less memory to bring into cache for every
-    /// scan, which is most of what the node's latency is made of).
+    /// scan).
     pub fn on_raw_scan(&mut self, msg: &RawScan, with_polygon: bool) -> Result<Corrected, String> {
         self.stats.scans_received += 1;
-        if let Err(e) = self.check(msg) {
-            return Err(self.reject(msg, e));
-        }
-        if msg.target == RawScan::TARGET_CALIBRATION_PLATE {
-            let scan = self.validate(msg).map_err(|e| self.reject(msg, e))?;
+        // A plate scan is kept as an engine scan (for /calibrate); any other is only
+        // checked. Either way its samples are checked once.
+        let checked = if msg.target == RawScan::TARGET_CALIBRATION_PLATE {
+            self.validate(msg).map(Some)
+        } else {
+            self.check(msg).map(|()| None)
+        };
+        if let Some(scan) = checked.map_err(|e| self.reject(msg, e))? {
             self.plates.retain(|p| p.scan_id != msg.scan_id);
             if self.plates.len() == PLATE_SCANS_KEPT {
                 self.plates.pop_front();
