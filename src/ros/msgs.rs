@@ -139,6 +139,8 @@ pub mod type_names {
     pub const RAW_SCAN: InterfaceName = InterfaceName::msg(PACKAGE, "RawScan");
     /// `tracer_calib_msgs/msg/Contour`.
     pub const CONTOUR: InterfaceName = InterfaceName::msg(PACKAGE, "Contour");
+    /// `tracer_calib_msgs/msg/Calibration`.
+    pub const CALIBRATION: InterfaceName = InterfaceName::msg(PACKAGE, "Calibration");
     /// `geometry_msgs/msg/Point`.
     pub const POINT: InterfaceName = InterfaceName::msg("geometry_msgs", "Point");
     /// `geometry_msgs/msg/Point32`.
@@ -451,7 +453,8 @@ impl RosMsg for CalibrateRequest {
 /// The response of `tracer_calib_msgs/srv/Calibrate`.
 ///
 /// Its serde field names and order are also those of the offline tool's `--json` output.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+/// The default is a failure with no result (and `scale` 1.0, the scale of no fit).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CalibrateResponse {
     /// Whether the fit succeeded (and, unless `dry_run`, was applied).
     pub success: bool,
@@ -471,6 +474,29 @@ pub struct CalibrateResponse {
     pub iterations: u32,
     /// Samples that entered the fit.
     pub samples_used: u32,
+    /// Encoder scale k (true length = counts × meters_per_count × k); 1.0 unless the
+    /// model fits it.
+    pub scale: f64,
+    /// Standard uncertainty of `scale`; 0.0 unless the model fits it.
+    pub scale_stddev: f64,
+}
+
+impl Default for CalibrateResponse {
+    fn default() -> Self {
+        CalibrateResponse {
+            success: false,
+            message: String::new(),
+            alpha0: 0.0,
+            offset: 0.0,
+            delta_l: 0.0,
+            stddev: Vec::new(),
+            rms_residual: 0.0,
+            iterations: 0,
+            samples_used: 0,
+            scale: 1.0,
+            scale_stddev: 0.0,
+        }
+    }
 }
 
 impl Message for CalibrateResponse {}
@@ -485,6 +511,53 @@ impl RosMsg for CalibrateResponse {
         ("float64[]", "stddev"),
         ("float64", "rms_residual"),
         ("uint32", "iterations"),
+        ("uint32", "samples_used"),
+        ("float64", "scale"),
+        ("float64", "scale_stddev"),
+    ];
+}
+
+/// `tracer_calib_msgs/msg/Calibration`: the calibration in force, published latched on
+/// `calibration` so that every contour can be traced to the calibration that made it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Calibration {
+    /// Stamp: when this calibration was applied; frame_id: `output_frame_id`.
+    pub header: Header,
+    /// False: no calibration yet (parameters at their defaults).
+    pub valid: bool,
+    /// `full`, `paper` or `full_scale`.
+    pub model: String,
+    /// The plate scan it was fitted to; 0 if set by parameters.
+    pub scan_id: u32,
+    /// Radians.
+    pub alpha0: f64,
+    /// Metres (d).
+    pub offset: f64,
+    /// Metres (dL).
+    pub delta_l: f64,
+    /// Encoder scale k; 1.0 unless fitted.
+    pub scale: f64,
+    /// Standard uncertainty of `[alpha0, offset, delta_l(, scale)]`; empty if unknown.
+    pub stddev: Vec<f64>,
+    /// Metres; 0 if unknown.
+    pub rms_residual: f64,
+    pub samples_used: u32,
+}
+
+impl Message for Calibration {}
+impl RosMsg for Calibration {
+    const NAME: InterfaceName = type_names::CALIBRATION;
+    const FIELDS: &'static [FieldDef] = &[
+        ("std_msgs/Header", "header"),
+        ("bool", "valid"),
+        ("string", "model"),
+        ("uint32", "scan_id"),
+        ("float64", "alpha0"),
+        ("float64", "offset"),
+        ("float64", "delta_l"),
+        ("float64", "scale"),
+        ("float64[]", "stddev"),
+        ("float64", "rms_residual"),
         ("uint32", "samples_used"),
     ];
 }
@@ -661,6 +734,25 @@ mod tests {
                 rms_residual: 4.5e-6,
                 iterations: 12,
                 samples_used: 398,
+                scale: 1.0025,
+                scale_stddev: 2.1e-4,
+            }
+        }
+    }
+    impl Sample for Calibration {
+        fn sample() -> Self {
+            Calibration {
+                header: Header::sample(),
+                valid: true,
+                model: "full_scale".into(),
+                scan_id: 31,
+                alpha0: 0.0349,
+                offset: -1.25e-4,
+                delta_l: 3.5e-5,
+                scale: 0.9975,
+                stddev: vec![1e-5, 2e-6, 3e-6, 2e-4],
+                rms_residual: 4.5e-6,
+                samples_used: 398,
             }
         }
     }
@@ -708,6 +800,7 @@ mod tests {
         round_trip::<DiagnosticArray>();
         round_trip::<CalibrateRequest>();
         round_trip::<CalibrateResponse>();
+        round_trip::<Calibration>();
     }
 
     #[test]
@@ -867,6 +960,8 @@ mod tests {
             "rms_residual",
             "iterations",
             "samples_used",
+            "scale",
+            "scale_stddev",
         ];
         let mut at = 0;
         for key in keys {

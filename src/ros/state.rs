@@ -329,6 +329,7 @@ pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
         rms_residual: cal.rms_residual,
         iterations: cal.iterations as u32,
         samples_used: cal.samples_used as u32,
+        ..Default::default()
     }
 }
 

@@ -38,6 +38,9 @@ pub const RAW_SCAN_MSG: &str = include_str!("../../../msg/msg/RawScan.msg");
 /// `tracer_calib_msgs/msg/Contour`, the text of `msg/msg/Contour.msg`.
 pub const CONTOUR_MSG: &str = include_str!("../../../msg/msg/Contour.msg");
 
+/// `tracer_calib_msgs/msg/Calibration`, the text of `msg/msg/Calibration.msg`.
+pub const CALIBRATION_MSG: &str = include_str!("../../../msg/msg/Calibration.msg");
+
 /// `std_msgs/msg/Header` (ROS 2 Kilted).
 pub const HEADER_MSG: &str = "\
 # Standard metadata for higher-level stamped data types.
@@ -105,6 +108,7 @@ Polygon polygon
 const KNOWN: &[(&str, &str)] = &[
     ("tracer_calib_msgs/msg/RawScan", RAW_SCAN_MSG),
     ("tracer_calib_msgs/msg/Contour", CONTOUR_MSG),
+    ("tracer_calib_msgs/msg/Calibration", CALIBRATION_MSG),
     ("std_msgs/msg/Header", HEADER_MSG),
     ("builtin_interfaces/msg/Time", TIME_MSG),
     ("geometry_msgs/msg/Point", POINT_MSG),
@@ -199,7 +203,7 @@ fn dependencies(text: &str, package: &str) -> BTreeSet<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ros::msgs::{Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan, RosMsg, Time};
+    use crate::ros::msgs::{Calibration, Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan, RosMsg, Time};
 
     type Fields = Vec<(String, String)>;
     type Constants = Vec<(String, String, String)>;
@@ -245,6 +249,7 @@ mod tests {
     fn definitions_match_the_mirrors() {
         check::<RawScan>();
         check::<Contour>();
+        check::<Calibration>();
         check::<Header>();
         check::<Time>();
         check::<Point>();
