@@ -15,7 +15,7 @@ use tracer_calib::engine::simulate::{SimOptions, simulate};
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
 
 fn paper_truth() -> (Mounting, Vector2<f64>) {
-    (Mounting { alpha0: 2f64.to_radians(), offset: 0.005, delta_l: 0.002 }, Vector2::new(0.0008, -0.0005))
+    (Mounting::new(2f64.to_radians(), 0.005, 0.002), Vector2::new(0.0008, -0.0005))
 }
 
 fn plate_scan(m: &Mounting, c: Vector2<f64>, opt: &SimOptions, seed: u64) -> Scan {
@@ -55,11 +55,7 @@ fn converges_across_the_whole_region() {
     for (i, &alpha_deg) in alphas.iter().enumerate() {
         for (j, &d_mm) in [-20.0, -12.5, -5.0, 0.0, 2.5, 10.0, 17.5, 20.0].iter().enumerate() {
             cases += 1;
-            let m = Mounting {
-                alpha0: f64::to_radians(alpha_deg),
-                offset: d_mm * 1e-3,
-                delta_l: 1.5e-3 * (j as f64 - 3.0),
-            };
+            let m = Mounting::new(f64::to_radians(alpha_deg), d_mm * 1e-3, 1.5e-3 * (j as f64 - 3.0));
             let c = Vector2::new(0.002 * ((i % 5) as f64 - 2.0) / 2.0, -0.0015 * ((j % 3) as f64 - 1.0));
             let scan = plate_scan(&m, c, &opt, (i * 100 + j) as u64);
             match calibrate(&scan, &PLATE, &options(ModelKind::Full)) {

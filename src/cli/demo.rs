@@ -133,7 +133,7 @@ async fn within<T>(secs: u64, what: &str, fut: impl std::future::Future<Output =
 
 fn demo(args: &Args) -> Result<(), String> {
     let mut cell = Cell {
-        truth: Mounting { alpha0: 1.7f64.to_radians(), offset: 4.2e-3, delta_l: 1.3e-3 },
+        truth: Mounting::new(1.7f64.to_radians(), 4.2e-3, 1.3e-3),
         plate: PlateSpec::default(),
         plate_center: Vector2::new(0.6e-3, -0.4e-3),
         rng: StdRng::seed_from_u64(args.seed),
