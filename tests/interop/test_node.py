@@ -734,6 +734,9 @@ def test_bad_params_file_stops_the_node():
 def main():
     rclpy.init()
     peer = Peer()
+    sys.modules.setdefault("test_node", sys.modules[__name__])  # test_records uses these helpers
+    import test_records
+
     tests = [
         ("calibrate_and_correct", lambda: test_calibrate_and_correct(peer)),
         ("parameters", lambda: test_parameters(peer)),
@@ -745,6 +748,9 @@ def main():
         ("concurrent_calls_and_a_vanishing_peer", lambda: test_concurrent_calls_and_a_vanishing_peer(peer)),
         ("kill_during_writes", test_kill_during_writes),
         ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
+        ("history_and_latched_calibration", lambda: test_records.test_history_and_latched_calibration(peer)),
+        ("max_age_and_drift_on_diagnostics", lambda: test_records.test_max_age_and_drift_on_diagnostics(peer)),
+        ("read_only_history", lambda: test_records.test_read_only_history(peer)),
     ]
     only = [a.removeprefix("test_") for a in sys.argv[1:]]
     unknown = sorted(set(only) - {name for name, _ in tests})
