@@ -731,7 +731,7 @@ fn time_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<String>) {
     (ticks, labels)
 }
 
-/// Three panels stacked, alpha0 [°], d [mm] and dL [mm] against the time each calibration
+/// Three panels stacked, alpha0 (degrees), d and dL (mm) against the time each calibration
 /// was applied, with error bars of ±`coverage` standard uncertainties and a grey line
 /// from each calibration to the next: drift, and a tracer knocked out of true, show at a
 /// glance. Flagged calibrations are red.

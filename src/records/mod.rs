@@ -17,7 +17,7 @@
 //! replaced, or `null`.
 //!
 //! This module is pure (text in, records out; the drift arithmetic; UTC times);
-//! [`file`] reads and appends history files.
+//! [`file`](mod@file) reads and appends history files.
 
 pub mod file;
 
