@@ -751,6 +751,7 @@ def main():
         ("history_and_latched_calibration", lambda: test_records.test_history_and_latched_calibration(peer)),
         ("max_age_and_drift_on_diagnostics", lambda: test_records.test_max_age_and_drift_on_diagnostics(peer)),
         ("read_only_history", lambda: test_records.test_read_only_history(peer)),
+        ("full_disk_history", lambda: test_records.test_full_disk_history(peer)),
     ]
     only = [a.removeprefix("test_") for a in sys.argv[1:]]
     unknown = sorted(set(only) - {name for name, _ in tests})

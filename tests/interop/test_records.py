@@ -305,3 +305,52 @@ exec {os.environ['TRACER_CALIB_NODE']} --ros-args -r __node:=ro_tracer -p params
         assert f.read() == before, "the history file changed"
     assert not os.path.exists(persisted), "parameters persisted without their record"
     assert not [f for f in os.listdir(ro) if f != "h.jsonl"], os.listdir(ro)
+
+
+def test_full_disk_history(peer):
+    """A history file on a full file system, its last page all but full: the append gets
+    part of the record in before the disk is full. /calibrate fails naming the file and
+    why, and the part that went in is cut off again: the file is byte for byte as it was."""
+    mnt = os.path.join(WORK, "mnt_full_history")
+    os.makedirs(mnt, exist_ok=True)
+    record = '{"time":"2026-11-20T08:00:00.000Z","node":"/full_tracer","scan_id":1,"model":"full","alpha0":0.03,"offset":0.005,"delta_l":0.002,"scale":1.0,"stddev":[0.0002,6e-06,1e-06],"rms_residual":5e-06,"samples_used":400,"iterations":7,"previous":null}\n'
+    # 100 bytes short of a page: the next record starts in this page and needs another.
+    before = record + "\n" * (4096 - 100 - len(record))
+    seed = os.path.join(WORK, "full_history_seed.jsonl")
+    after = os.path.join(WORK, "full_history_after.jsonl")
+    with open(seed, "w") as f:
+        f.write(before)
+    persisted = os.path.join(WORK, "full.yaml")
+    script = f"""
+set -e
+mount -t tmpfs -o size=64k tmpfs {mnt}
+cp {seed} {mnt}/h.jsonl
+dd if=/dev/zero of={mnt}/filler bs=4k 2>/dev/null || true
+{os.environ['TRACER_CALIB_NODE']} --ros-args -r __node:=full_tracer -p params_file:={persisted} -p history_file:={mnt}/h.jsonl &
+pid=$!
+trap 'kill -TERM $pid' TERM
+wait $pid || true
+wait $pid || true
+cp {mnt}/h.jsonl {after}
+"""
+    log = open(os.path.join(WORK, "full_history.log"), "w")
+    proc = subprocess.Popen(["unshare", "--mount", "--propagation", "private", "sh", "-c", script], stdout=log, stderr=subprocess.STDOUT)
+    try:
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        peer.send_scan(pub, raw_scan(7, RawScan.TARGET_CALIBRATION_PLATE, *simulate("full_plate", "plate", seed=51)), contours)
+        calibrate = Calibrator(peer)
+        r = calibrate(7)
+        assert not r.success, r
+        assert r.message.startswith(f"calibration applied in memory but not persisted: cannot append to {mnt}/h.jsonl: No space left on device"), r.message
+        c = peer.send_scan(pub, raw_scan(8, RawScan.TARGET_LENS, *simulate("full_lens", "ellipse", seed=52)), contours)
+        assert c.calibrated, "the calibration is not in force"
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=10)
+        log.close()
+    with open(after) as f:
+        assert f.read() == before, "the history file changed"
+    assert not os.path.exists(persisted), "parameters persisted without their record"
+    out = history_cli("--input", after, "--json")
+    assert out.returncode == 0 and len(json.loads(out.stdout)) == 1 and not out.stderr, out
