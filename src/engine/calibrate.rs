@@ -382,18 +382,26 @@ pub fn scale_score(model: FullModel, x: &full::Params) -> Option<ScaleEstimate> 
 /// one step apart. Blind to smooth (systematic) residuals, which it is there to expose.
 fn neighbour_noise(scan: &Scan, residuals: &[f64], used: &[bool]) -> Option<f64> {
     let n = scan.steps_per_rev();
-    let mut at_step = std::collections::HashMap::with_capacity(scan.len());
-    for (i, s) in scan.samples().iter().enumerate() {
-        if used[i] {
-            at_step.insert(s.step, residuals[i]);
+    let mut at_step: Vec<(u32, f64)> =
+        scan.samples().iter().zip(residuals).zip(used).filter(|(_, u)| **u).map(|((s, r), _)| (s.step, *r)).collect();
+    at_step.sort_unstable_by_key(|&(step, _)| step);
+    let (mut ss, mut count) = (0.0, 0usize);
+    let mut pair = |(_, a): (u32, f64), (_, b): (u32, f64)| {
+        ss += (a - b) * (a - b);
+        count += 1;
+    };
+    for w in at_step.windows(2) {
+        if w[1].0 == w[0].0 + 1 {
+            pair(w[0], w[1]);
         }
     }
-    let (mut ss, mut count) = (0.0, 0usize);
-    for (&step, &r) in &at_step {
-        if let Some(&next) = at_step.get(&((step + 1) % n)) {
-            ss += (r - next) * (r - next);
-            count += 1;
-        }
+    // The last step and step 0 are neighbours too.
+    if let (Some(&first), Some(&last)) = (at_step.first(), at_step.last())
+        && at_step.len() > 2
+        && first.0 == 0
+        && last.0 == n - 1
+    {
+        pair(last, first);
     }
     (count >= 10).then(|| (ss / (2.0 * count as f64)).sqrt())
 }
