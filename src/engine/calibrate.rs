@@ -495,20 +495,34 @@ fn fit_rounds<const P: usize, M: Problem<P> + Subset>(
     unreachable!("the last round returns")
 }
 
+impl Fit {
+    /// A fit of every sample from its rejection rounds, the model's own parameters
+    /// already turned into the full model's `x` and the scale.
+    fn from_rounds<const P: usize>(
+        model: ModelKind,
+        x: full::Params,
+        scale: f64,
+        scale_stddev: f64,
+        r: Rounds<P>,
+    ) -> Fit {
+        Fit {
+            model,
+            x,
+            scale,
+            scale_stddev,
+            covariance: r.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
+            rejected: r.active.iter().filter(|&&a| !a).count(),
+            used: r.active,
+            residuals: r.residuals.as_slice().to_vec(),
+            iterations: r.iterations,
+            termination: r.termination,
+        }
+    }
+}
+
 fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
     let r = fit_rounds(all, x0, opt)?;
-    Ok(Fit {
-        model: ModelKind::Full,
-        x: r.x,
-        scale: 1.0,
-        scale_stddev: 0.0,
-        covariance: r.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
-        rejected: r.active.iter().filter(|&&a| !a).count(),
-        used: r.active,
-        residuals: r.residuals.as_slice().to_vec(),
-        iterations: r.iterations,
-        termination: r.termination,
-    })
+    Ok(Fit::from_rounds(ModelKind::Full, r.x, 1.0, 0.0, r))
 }
 
 /// The encoder-scale model from the full model's start at `k = 1` (a start that is
@@ -516,18 +530,8 @@ fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, Cal
 fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
     let r = fit_rounds(&FullScaleModel::new(all.clone()), full_scale::from_full(&x0, 1.0), opt)?;
     let (x, scale) = full_scale::to_full(&r.x);
-    Ok(Fit {
-        model: ModelKind::FullScale,
-        x,
-        scale,
-        scale_stddev: r.covariance[(full_scale::SCALE, full_scale::SCALE)].max(0.0).sqrt(),
-        covariance: r.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
-        rejected: r.active.iter().filter(|&&a| !a).count(),
-        used: r.active,
-        residuals: r.residuals.as_slice().to_vec(),
-        iterations: r.iterations,
-        termination: r.termination,
-    })
+    let scale_stddev = r.covariance[(full_scale::SCALE, full_scale::SCALE)].max(0.0).sqrt();
+    Ok(Fit::from_rounds(ModelKind::FullScale, x, scale, scale_stddev, r))
 }
 
 fn fit_paper(
