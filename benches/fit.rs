@@ -92,9 +92,9 @@ fn bench(c: &mut Criterion) {
         b.iter(|| LevenbergMarquardt::new().minimize(CrateAdapter { model: black_box(&model).clone(), x: start }))
     });
     c.bench_function("fit/normal_equations_pass_400", |b| b.iter(|| lm::normal_equations(black_box(&model), &start)));
-    for kind in [ModelKind::Full, ModelKind::Paper] {
+    for kind in ModelKind::ALL {
         let opts = Options { model: kind, ..Options::default() };
-        c.bench_function(&format!("calibrate/{kind}_400 (start + fit + outlier test)"), |b| {
+        c.bench_function(&format!("calibrate/{kind}_400 (start + fit + outlier test + checks)"), |b| {
             b.iter(|| calibrate(black_box(&scan), &plate, &opts).unwrap())
         });
     }

@@ -352,3 +352,62 @@ fn history_table_json_and_svg_with_a_torn_last_line() {
     assert_eq!(o.status.code(), Some(2));
     assert_eq!(stderr(&o), "tracer_calib history: /nonexistent/h.jsonl: no such file\n");
 }
+
+/// The offline `correct` (and its OMA export) applies the params file's
+/// `calibration.scale`, as the node does: a tracer reading 1 % long, calibrated with
+/// full_scale, gives the lens its true size.
+#[test]
+fn correct_applies_the_encoder_scale() {
+    let bag = temp("scaled_bag");
+    let _ = std::fs::remove_dir_all(&bag);
+    let b = bag.to_str().unwrap();
+    let k = 1.0 / 1.01;
+    let o = tool(&[
+        "simulate",
+        "--shape",
+        "plate",
+        "--shape",
+        "ellipse",
+        "--noise",
+        "2e-6",
+        "--scale",
+        &k.to_string(),
+        "--out",
+        b,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cal = tool(&["calibrate", "--input", b, "--model", "full_scale", "--json"]);
+    assert_eq!(cal.status.code(), Some(0), "{}", stderr(&cal));
+    let v = json(&cal);
+    let radius_at_0 = |scale: &serde_json::Value, name: &str| {
+        let params = temp(&format!("{name}.yaml"));
+        std::fs::write(
+            &params,
+            format!(
+                "tracer_calibrator:\n  ros__parameters:\n    calibration.alpha0: {}\n    calibration.offset: {}\n    calibration.delta_l: {}\n    calibration.scale: {scale}\n    calibration.valid: true\n",
+                v["alpha0"], v["offset"], v["delta_l"]
+            ),
+        )
+        .unwrap();
+        let (out, oma) = (temp(&format!("{name}.mcap")), temp(&format!("{name}.oma")));
+        let o = tool(&[
+            "correct",
+            "--input",
+            b,
+            "--params",
+            params.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--oma",
+            oma.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let t = json(&tool(&["oma", "--input", oma.to_str().unwrap(), "--json"]));
+        t["traces"][0]["radii"][0].as_f64().unwrap()
+    };
+    // The simulated ellipse's true radius at 0° is 25.8 mm (to 1/100 mm in OMA).
+    let fitted = radius_at_0(&v["scale"], "scaled_fitted");
+    assert!((fitted - 0.0258).abs() < 3e-5, "{fitted}");
+    let ignored = radius_at_0(&serde_json::json!(1.0), "scaled_ignored");
+    assert!((ignored - 0.0258).abs() > 1e-4, "{ignored}");
+}

@@ -382,18 +382,26 @@ pub fn scale_score(model: FullModel, x: &full::Params) -> Option<ScaleEstimate> 
 /// one step apart. Blind to smooth (systematic) residuals, which it is there to expose.
 fn neighbour_noise(scan: &Scan, residuals: &[f64], used: &[bool]) -> Option<f64> {
     let n = scan.steps_per_rev();
-    let mut at_step = std::collections::HashMap::with_capacity(scan.len());
-    for (i, s) in scan.samples().iter().enumerate() {
-        if used[i] {
-            at_step.insert(s.step, residuals[i]);
+    let mut at_step: Vec<(u32, f64)> =
+        scan.samples().iter().zip(residuals).zip(used).filter(|(_, u)| **u).map(|((s, r), _)| (s.step, *r)).collect();
+    at_step.sort_unstable_by_key(|&(step, _)| step);
+    let (mut ss, mut count) = (0.0, 0usize);
+    let mut pair = |(_, a): (u32, f64), (_, b): (u32, f64)| {
+        ss += (a - b) * (a - b);
+        count += 1;
+    };
+    for w in at_step.windows(2) {
+        if w[1].0 == w[0].0 + 1 {
+            pair(w[0], w[1]);
         }
     }
-    let (mut ss, mut count) = (0.0, 0usize);
-    for (&step, &r) in &at_step {
-        if let Some(&next) = at_step.get(&((step + 1) % n)) {
-            ss += (r - next) * (r - next);
-            count += 1;
-        }
+    // The last step and step 0 are neighbours too.
+    if let (Some(&first), Some(&last)) = (at_step.first(), at_step.last())
+        && at_step.len() > 2
+        && first.0 == 0
+        && last.0 == n - 1
+    {
+        pair(last, first);
     }
     (count >= 10).then(|| (ss / (2.0 * count as f64)).sqrt())
 }
@@ -487,20 +495,34 @@ fn fit_rounds<const P: usize, M: Problem<P> + Subset>(
     unreachable!("the last round returns")
 }
 
+impl Fit {
+    /// A fit of every sample from its rejection rounds, the model's own parameters
+    /// already turned into the full model's `x` and the scale.
+    fn from_rounds<const P: usize>(
+        model: ModelKind,
+        x: full::Params,
+        scale: f64,
+        scale_stddev: f64,
+        r: Rounds<P>,
+    ) -> Fit {
+        Fit {
+            model,
+            x,
+            scale,
+            scale_stddev,
+            covariance: r.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
+            rejected: r.active.iter().filter(|&&a| !a).count(),
+            used: r.active,
+            residuals: r.residuals.as_slice().to_vec(),
+            iterations: r.iterations,
+            termination: r.termination,
+        }
+    }
+}
+
 fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
     let r = fit_rounds(all, x0, opt)?;
-    Ok(Fit {
-        model: ModelKind::Full,
-        x: r.x,
-        scale: 1.0,
-        scale_stddev: 0.0,
-        covariance: r.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
-        rejected: r.active.iter().filter(|&&a| !a).count(),
-        used: r.active,
-        residuals: r.residuals.as_slice().to_vec(),
-        iterations: r.iterations,
-        termination: r.termination,
-    })
+    Ok(Fit::from_rounds(ModelKind::Full, r.x, 1.0, 0.0, r))
 }
 
 /// The encoder-scale model from the full model's start at `k = 1` (a start that is
@@ -508,18 +530,8 @@ fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, Cal
 fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
     let r = fit_rounds(&FullScaleModel::new(all.clone()), full_scale::from_full(&x0, 1.0), opt)?;
     let (x, scale) = full_scale::to_full(&r.x);
-    Ok(Fit {
-        model: ModelKind::FullScale,
-        x,
-        scale,
-        scale_stddev: r.covariance[(full_scale::SCALE, full_scale::SCALE)].max(0.0).sqrt(),
-        covariance: r.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
-        rejected: r.active.iter().filter(|&&a| !a).count(),
-        used: r.active,
-        residuals: r.residuals.as_slice().to_vec(),
-        iterations: r.iterations,
-        termination: r.termination,
-    })
+    let scale_stddev = r.covariance[(full_scale::SCALE, full_scale::SCALE)].max(0.0).sqrt();
+    Ok(Fit::from_rounds(ModelKind::FullScale, x, scale, scale_stddev, r))
 }
 
 fn fit_paper(

@@ -731,18 +731,17 @@ mod tests {
         // A lens traced by the same tracer comes out true to within the counts' rounding
         // (1 µm) and the calibration's noise (2 µm on the plate).
         let (lens, truth) = lens_msg(4, &m);
-        let c = st.on_raw_scan(&lens, false).unwrap().contour;
-        assert!(c.calibrated);
-        let rms = (c.points.iter().zip(&truth).map(|(p, q)| (p.x - q.x).powi(2) + (p.y - q.y).powi(2)).sum::<f64>()
-            / truth.len() as f64)
-            .sqrt();
+        let rms_off_truth = |st: &mut NodeState| {
+            let c = st.on_raw_scan(&lens, false).unwrap().contour;
+            assert!(c.calibrated);
+            let ss: f64 = c.points.iter().zip(&truth).map(|(p, q)| (p.x - q.x).powi(2) + (p.y - q.y).powi(2)).sum();
+            (ss / truth.len() as f64).sqrt()
+        };
+        let rms = rms_off_truth(&mut st);
         assert!(rms < 3e-6, "{rms:e}");
         // With the scale left out the same lens is tens of µm off.
         st.params.set("calibration.scale", &crate::params::ParamValue::Double(1.0)).unwrap();
-        let c = st.on_raw_scan(&lens, false).unwrap().contour;
-        let rms = (c.points.iter().zip(&truth).map(|(p, q)| (p.x - q.x).powi(2) + (p.y - q.y).powi(2)).sum::<f64>()
-            / truth.len() as f64)
-            .sqrt();
+        let rms = rms_off_truth(&mut st);
         assert!(rms > 30e-6, "{rms:e}");
     }
 

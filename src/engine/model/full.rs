@@ -116,6 +116,13 @@ impl FullModel {
         true
     }
 
+    /// The cost `½ Σ r²` at `x` (no Jacobian accumulated); `None` where the model cannot
+    /// be evaluated.
+    pub fn cost(&self, x: &Params) -> Option<f64> {
+        let mut ss = 0.0;
+        (self.for_each_prediction(x, |s, q, _| ss += (q - s.rho) * (q - s.rho)) && ss.is_finite()).then_some(0.5 * ss)
+    }
+
     /// The encoder lengths the model predicts at `x` (the forward model).
     pub fn predict(&self, x: &Params) -> Option<Vec<f64>> {
         let mut out = Vec::with_capacity(self.samples.len());
