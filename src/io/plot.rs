@@ -698,7 +698,13 @@ const HISTORY_PANEL_H: f64 = 290.0;
 /// Time ticks about `target` apart over `[lo, hi]` (seconds): a round step (minutes,
 /// hours, days, weeks, 30-day months, years), aligned to UTC midnight for a day or more.
 fn time_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<String>) {
-    const STEPS: [f64; 16] = [
+    const STEPS: [f64; 22] = [
+        1.0,
+        2.0,
+        5.0,
+        10.0,
+        15.0,
+        30.0,
         60.0,
         300.0,
         900.0,
@@ -725,7 +731,13 @@ fn time_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<String>) {
         .map(|&t| {
             let iso =
                 crate::records::format_utc(std::time::UNIX_EPOCH + std::time::Duration::from_secs_f64(t.max(0.0)));
-            if step >= 86_400.0 { iso[..10].to_string() } else { format!("{} {}", &iso[5..10], &iso[11..16]) }
+            if step >= 86_400.0 {
+                iso[..10].to_string()
+            } else if step >= 60.0 {
+                format!("{} {}", &iso[5..10], &iso[11..16])
+            } else {
+                iso[11..19].to_string()
+            }
         })
         .collect();
     (ticks, labels)
@@ -757,7 +769,7 @@ pub fn history_svg(plot: &HistoryPlot<'_>) -> String {
         shown.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.time), b.max(p.time)));
     let (tlo, thi) = if shown.is_empty() {
         (0.0, 86_400.0)
-    } else if tmax - tmin < 60.0 {
+    } else if tmax - tmin < 1.0 {
         (tmin - 43_200.0, tmax + 43_200.0)
     } else {
         let pad = 0.05 * (tmax - tmin);
@@ -1219,6 +1231,8 @@ mod tests {
         }
         let (ticks, labels) = time_ticks(t0, t0 + 3600.0);
         assert!(ticks.len() >= 3 && labels[0].len() == 11, "{labels:?}");
+        let (ticks, labels) = time_ticks(t0, t0 + 20.0);
+        assert!(ticks.len() >= 3 && labels[0].len() == 8, "{labels:?}");
     }
 
     /// Not a check: writes sample pictures for a person to look at
