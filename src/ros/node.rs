@@ -181,6 +181,12 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                     warn!("{skipped}");
                 }
                 initial.adopt_history(&history);
+                info!(
+                    "{}: {} calibration record(s); the calibration in force comes from the {}",
+                    params.history_file,
+                    history.records.len(),
+                    initial.in_force.source
+                );
             }
             Err(e) => {
                 warn!("{e}");
