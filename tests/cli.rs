@@ -152,7 +152,7 @@ fn bad_input_exits_2_naming_the_problem() {
 
 #[test]
 fn every_subcommand_has_help_with_an_example() {
-    for sub in ["calibrate", "simulate", "demo", "plot", "correct", "replay", "oma"] {
+    for sub in ["calibrate", "simulate", "demo", "plot", "correct", "replay", "oma", "history"] {
         let o = tool(&[sub, "--help"]);
         assert!(o.status.success());
         let text = String::from_utf8_lossy(&o.stdout);
@@ -169,6 +169,12 @@ fn demo_runs() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("lens, ellipse 50 x 30 mm"), "{text}");
     assert!(text.contains("contour calibrated = false"), "{text}");
+    // The calibration the demo applied is on record.
+    let line = text.lines().find(|l| l.contains("and recorded the calibration in ")).expect("the history line");
+    let path = line.split("recorded the calibration in ").nth(1).unwrap().split(" (").next().unwrap();
+    let history = tracer_calib::records::file::read(std::path::Path::new(path)).unwrap();
+    assert_eq!(history.records.len(), 1, "{path}");
+    assert_eq!(history.records[0].node, "/tracer_calibrator");
     let svg_text = std::fs::read_to_string(&svg).unwrap();
     assert!(svg_text.starts_with("<?xml") || svg_text.starts_with("<svg"), "{}", &svg_text[..100]);
 }
