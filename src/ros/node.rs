@@ -15,7 +15,6 @@
 //! contours are not latched (volatile): a late subscriber wants the next scan, not an
 //! old one.
 
-use std::net::{IpAddr, Ipv4Addr};
 use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -29,7 +28,6 @@ use ros2_client::{
     qos::{Durability, History, WhenFull},
     rosout,
 };
-use rustdds::DomainParticipantBuilder;
 
 use super::args::{NodeIdentity, RosArgs, RosEnv, ros2_name};
 use super::msgs::Contour;
@@ -88,16 +86,10 @@ fn reliable(depth: usize) -> QosProfile {
         .history(History::KeepLast { depth })
 }
 
-/// The DDS participant: `ROS_DOMAIN_ID`, and with
-/// `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST` only 127.0.0.1.
+/// The DDS participant: `ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE` and
+/// `ROS_STATIC_PEERS` as rmw_fastrtps reads them ([`super::discovery`]).
 fn context(env: &RosEnv) -> Result<Context, String> {
-    let domain =
-        u16::try_from(env.domain_id).map_err(|_| format!("ROS_DOMAIN_ID {} is out of range", env.domain_id))?;
-    let mut builder = DomainParticipantBuilder::new(domain);
-    if env.discovery_range.is_local_only() {
-        builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
-    }
-    let participant = builder.build().map_err(|e| format!("cannot create the DDS participant: {e:?}"))?;
+    let participant = super::discovery::participant_from_env(env)?;
     Context::from_domain_participant(participant).map_err(|e| format!("cannot create the ROS context: {e:?}"))
 }
 

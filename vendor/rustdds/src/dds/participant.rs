@@ -64,6 +64,50 @@ use crate::{
 #[cfg(not(feature = "security"))]
 use crate::no_security::SecurityPluginsHandle;
 
+// tracer_calib patch: begin
+/// Discovery beyond multicast and the same host: see
+/// [`DomainParticipantBuilder::static_discovery_peers`],
+/// [`DomainParticipantBuilder::multicast`] and
+/// [`DomainParticipantBuilder::discover_other_participants`].
+#[derive(Clone, Debug)]
+pub(crate) struct DiscoveryPeers {
+  pub static_peers: Vec<IpAddr>,
+  pub participant_range: u16,
+  pub multicast: bool,
+  pub discover_others: bool,
+}
+
+impl Default for DiscoveryPeers {
+  fn default() -> Self {
+    DiscoveryPeers {
+      static_peers: Vec::new(),
+      participant_range: 0,
+      multicast: true,
+      discover_others: true,
+    }
+  }
+}
+
+impl DiscoveryPeers {
+  /// Every static peer's well-known SPDP unicast port for participant ids
+  /// `0..participant_range`.
+  pub fn spdp_locators(&self, domain_id: u16) -> Vec<Locator> {
+    self
+      .static_peers
+      .iter()
+      .flat_map(|ip| {
+        (0..self.participant_range).map(move |pid| {
+          Locator::from(std::net::SocketAddr::new(
+            *ip,
+            crate::network::constant::spdp_well_known_unicast_port(domain_id, pid),
+          ))
+        })
+      })
+      .collect()
+  }
+}
+// tracer_calib patch: end
+
 /// Builder object to create a [`DomainParticipant`] with non-default
 /// configuration.
 ///
@@ -77,6 +121,9 @@ pub struct DomainParticipantBuilder {
                                        * and multicast setup */
 
   same_host_loopback: bool, // prefer loopback for same-host peers + localhost SPDP discovery peers
+
+  // tracer_calib patch: unicast discovery peers, multicast off, discovery off.
+  discovery_peers: DiscoveryPeers,
 
   socket_receive_buffer_size: usize,
   socket_send_buffer_size: usize,
@@ -93,6 +140,7 @@ impl DomainParticipantBuilder {
       domain_id,
       only_networks: None,
       same_host_loopback: true,
+      discovery_peers: DiscoveryPeers::default(), // tracer_calib patch
       socket_receive_buffer_size: Self::DEFAULT_SOCKET_RECEIVE_BUFFER_SIZE,
       socket_send_buffer_size: Self::DEFAULT_SOCKET_SEND_BUFFER_SIZE,
       #[cfg(feature = "security")]
@@ -128,6 +176,51 @@ impl DomainParticipantBuilder {
     self.same_host_loopback = enabled;
     self
   }
+
+  // tracer_calib patch: begin (static discovery peers, multicast, discovery off)
+
+  /// Static discovery peers ("initial peers"): hosts to announce this
+  /// participant to by unicast, for networks without multicast.
+  ///
+  /// The SPDP writer sends every announcement, besides its usual
+  /// destinations, to `addr:spdp_well_known_unicast_port(domain, pid)` for each
+  /// address and every `pid` in `0..participant_range` (the RTPS 2.5 9.6.1.1
+  /// port mapping; a peer participant listens on the port of its own
+  /// participant id). A peer that receives an announcement learns this
+  /// participant's locators and answers with its own, so listing a host on one
+  /// side is enough. This is what Fast DDS does with an initial peer given
+  /// without a port (its `maxInitialPeersRange`).
+  pub fn static_discovery_peers(
+    mut self,
+    addrs: impl IntoIterator<Item = impl Into<IpAddr>>,
+    participant_range: u16,
+  ) -> Self {
+    self.discovery_peers.static_peers = addrs.into_iter().map(Into::into).collect();
+    self.discovery_peers.participant_range = participant_range;
+    self
+  }
+
+  /// Enable/disable multicast (default: enabled). Disabled, the participant
+  /// opens no multicast listeners, so it advertises no multicast locators, and
+  /// sends nothing to multicast addresses: discovery is by unicast alone (the
+  /// localhost peers of [`Self::same_host_loopback`] and the
+  /// [`Self::static_discovery_peers`]).
+  pub fn multicast(mut self, enabled: bool) -> Self {
+    self.discovery_peers.multicast = enabled;
+    self
+  }
+
+  /// Enable/disable the discovery of other participants (default: enabled).
+  /// Disabled, announcements from other participants are ignored, so the
+  /// participant matches nobody but itself: discovery turned off, as
+  /// `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` asks. Combine with `multicast(false)`
+  /// and `same_host_loopback(false)` to send no announcements either.
+  pub fn discover_other_participants(mut self, enabled: bool) -> Self {
+    self.discovery_peers.discover_others = enabled;
+    self
+  }
+
+  // tracer_calib patch: end
 
   pub const DEFAULT_SOCKET_RECEIVE_BUFFER_SIZE: usize = 8 * 1024 * 1024;
   pub const DEFAULT_SOCKET_SEND_BUFFER_SIZE: usize = 8 * 1024 * 1024;
@@ -344,6 +437,7 @@ impl DomainParticipantBuilder {
       self.socket_send_buffer_size,
       self.only_networks,
       self.same_host_loopback,
+      self.discovery_peers, // tracer_calib patch
       dp_waker,
       discovery_sample_sender,
     )?;
@@ -977,6 +1071,7 @@ impl DomainParticipantDisc {
     socket_send_buffer_size: usize,
     only_networks: Option<Vec<IpAddr>>,
     same_host_loopback: bool,
+    discovery_peers: DiscoveryPeers, // tracer_calib patch
     dp_waker: LoopWaker,
     discovery_sample_sender: ReadySender<mio1::Token>,
   ) -> CreateResult<Self> {
@@ -994,6 +1089,7 @@ impl DomainParticipantDisc {
       socket_send_buffer_size,
       only_networks,
       same_host_loopback,
+      discovery_peers, // tracer_calib patch
       dp_waker,
       discovery_sample_sender,
     )?;
@@ -1236,6 +1332,7 @@ impl DomainParticipantInner {
     socket_send_buffer_size: usize,
     only_networks: Option<Vec<IpAddr>>,
     same_host_loopback: bool,
+    discovery_peers: DiscoveryPeers, // tracer_calib patch
     dp_waker: LoopWaker,
     discovery_sample_sender: ReadySender<mio1::Token>,
   ) -> CreateResult<Self> {
@@ -1246,16 +1343,23 @@ impl DomainParticipantInner {
 
     let mut listeners = HashMap::new();
 
-    match UDPListener::new_multicast_with_buf_size(
+    // tracer_calib patch: with multicast off, no multicast listeners (so no
+    // multicast locators are advertised, and none is sent to).
+    match if !discovery_peers.multicast {
+      Err(std::io::Error::other("multicast is off"))
+    } else {
+      UDPListener::new_multicast_with_buf_size(
       "0.0.0.0",
       spdp_well_known_multicast_port(domain_id),
       Ipv4Addr::new(239, 255, 0, 1),
       socket_receive_buffer_size,
       only_networks.as_deref(),
-    ) {
+    )
+    } {
       Ok(l) => {
         listeners.insert(DISCOVERY_MUL_LISTENER_TOKEN, l);
       }
+      Err(_) if !discovery_peers.multicast => (), // tracer_calib patch
       Err(e) => warn!("Cannot get multicast discovery listener: {e:?}"),
     }
 
@@ -1288,16 +1392,22 @@ impl DomainParticipantInner {
 
     // Now the user traffic listeners
 
-    match UDPListener::new_multicast_with_buf_size(
+    // tracer_calib patch: none with multicast off.
+    match if !discovery_peers.multicast {
+      Err(std::io::Error::other("multicast is off"))
+    } else {
+      UDPListener::new_multicast_with_buf_size(
       "0.0.0.0",
       user_traffic_multicast_port(domain_id),
       Ipv4Addr::new(239, 255, 0, 1),
       socket_receive_buffer_size,
       only_networks.as_deref(),
-    ) {
+    )
+    } {
       Ok(l) => {
         listeners.insert(USER_TRAFFIC_MUL_LISTENER_TOKEN, l);
       }
+      Err(_) if !discovery_peers.multicast => (), // tracer_calib patch
       Err(e) => warn!("Cannot get multicast user traffic listener: {e:?}"),
     }
 
@@ -1369,6 +1479,10 @@ impl DomainParticipantInner {
       discovery_db_event_sender,
       status_sender.clone(),
     )));
+    // tracer_calib patch: discovery of others off.
+    crate::discovery::discovery_db::discovery_db_write(&discovery_db).discover_others = discovery_peers.discover_others;
+    // tracer_calib patch: the static peers' SPDP ports, for the SPDP writer.
+    let static_peer_spdp_locators = discovery_peers.spdp_locators(domain_id);
 
     let (stop_poll_sender, stop_poll_receiver) = wake_channel_unbounded(&dp_waker);
 
@@ -1412,6 +1526,7 @@ impl DomainParticipantInner {
           only_networks_for_ev_loop,
           socket_send_buffer_size,
           same_host_loopback,
+          static_peer_spdp_locators, // tracer_calib patch
           reader_ready_rx,
           writer_ready_rx,
           dp_waker,

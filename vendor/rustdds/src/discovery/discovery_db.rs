@@ -79,6 +79,10 @@ pub(crate) struct DiscoveryDB {
   topic_updated_sender: std::sync::mpsc::SyncSender<()>,
 
   participant_status_sender: StatusChannelSender<DomainParticipantStatusEvent>,
+
+  // tracer_calib patch: false = announcements of other participants are ignored
+  // (DomainParticipantBuilder::discover_other_participants).
+  pub(crate) discover_others: bool,
 }
 
 // How did we discover this topic
@@ -140,6 +144,7 @@ impl DiscoveryDB {
       topics: BTreeMap::new(),
       topic_updated_sender,
       participant_status_sender,
+      discover_others: true, // tracer_calib patch
     }
   }
 
@@ -171,6 +176,11 @@ impl DiscoveryDB {
     //   debug!("DiscoveryDB discovered self. Skipping.");
     //   return
     // }
+
+    // tracer_calib patch: discovery of other participants turned off.
+    if !self.discover_others && guid.prefix != self.my_guid.prefix {
+      return false;
+    }
 
     let mut new_participant = false;
     if !self.participant_proxies.contains_key(&guid.prefix) {

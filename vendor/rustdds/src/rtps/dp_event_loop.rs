@@ -49,6 +49,7 @@ use crate::{
     dds_cache::DDSCache,
     entity::RTPSEntity,
     guid::{EntityId, GuidPrefix, TokenDecode, GUID},
+    locator::Locator, // tracer_calib patch
   },
   //QosPolicyBuilder,
   //QosPolicies,
@@ -140,6 +141,10 @@ pub struct DPEventLoop {
   // route same-host peers over loopback. See
   // `src/rtps/loopback_same_host_design.md`.
   same_host_loopback: bool,
+
+  // tracer_calib patch: the static discovery peers' SPDP ports, where the SPDP
+  // writer also announces (DomainParticipantBuilder::static_discovery_peers).
+  static_peer_spdp_locators: Vec<Locator>,
 }
 
 impl DPEventLoop {
@@ -164,6 +169,7 @@ impl DPEventLoop {
     only_networks: Option<Arc<[IpAddr]>>,
     socket_send_buffer_size: usize,
     same_host_loopback: bool,
+    static_peer_spdp_locators: Vec<Locator>, // tracer_calib patch
     reader_ready: ReadyReceiver<EntityId>,
     writer_ready: ReadyReceiver<EntityId>,
     waker: LoopWaker,
@@ -257,6 +263,7 @@ impl DPEventLoop {
       participant_status_sender,
       discovery_command_sender,
       same_host_loopback,
+      static_peer_spdp_locators, // tracer_calib patch
     })
   }
 
@@ -1113,14 +1120,20 @@ impl DPEventLoop {
     // - every writer may route a confirmed same-host peer over loopback.
     // See `src/rtps/loopback_same_host_design.md`.
     new_writer.set_prefer_loopback_same_host(self.same_host_loopback);
-    if self.same_host_loopback
-      && new_writer.guid().entity_id == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER
-    {
-      new_writer.set_extra_unicast_destinations(localhost_spdp_peer_locators(
-        self.domain_info.domain_id,
-        self.domain_info.participant_id,
-        SPDP_LOCALHOST_PEER_COUNT,
-      ));
+    // tracer_calib patch: the SPDP writer's extra destinations are the localhost
+    // peers (with same_host_loopback) and the static discovery peers.
+    if new_writer.guid().entity_id == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER {
+      let mut extra = if self.same_host_loopback {
+        localhost_spdp_peer_locators(
+          self.domain_info.domain_id,
+          self.domain_info.participant_id,
+          SPDP_LOCALHOST_PEER_COUNT,
+        )
+      } else {
+        Vec::new()
+      };
+      extra.extend(self.static_peer_spdp_locators.iter().copied());
+      new_writer.set_extra_unicast_destinations(extra);
     }
 
     // The doorbell is a shared ready-queue plus the poll waker, not a
