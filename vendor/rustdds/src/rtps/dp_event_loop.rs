@@ -415,6 +415,8 @@ impl DPEventLoop {
         }
         Ok(EventLoopCommand::Stop) => {
           info!("Stopping dp_event_loop");
+          // tracer_calib patch: send what the writers still have queued first.
+          self.flush_writers_before_stop();
           return true;
         }
         Err(TryRecvError::Empty) => break,
@@ -485,6 +487,23 @@ impl DPEventLoop {
     }
     false
   }
+
+  // tracer_calib patch: begin
+  /// Discovery writes the participant's dispose (SPDP) and its endpoints'
+  /// (SEDP) as it stops, just before the participant stops this loop. Without
+  /// this, the Stop command, handled first, ended the loop before the writers
+  /// sent them, and peers kept the participant until its lease ran out.
+  fn flush_writers_before_stop(&mut self) {
+    let mut removals = Vec::new();
+    self.handle_writer_action(&mut removals);
+    for eid in self.writer_ready.drain_unique() {
+      if let Some(writer) = self.writers.get_mut(&eid) {
+        writer.process_pending();
+      }
+    }
+    self.service_outbound();
+  }
+  // tracer_calib patch: end
 
   fn drain_timers(&mut self, preparing_to_stop: bool) {
     let expired: Vec<DpTimerEvent> = {

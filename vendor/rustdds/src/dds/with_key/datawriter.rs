@@ -823,9 +823,13 @@ where
       data: (),
     })?; // serialize key
 
-    let ddsdata = DDSData::new_disposed_by_key(
+    // tracer_calib patch: with the key hash, which Fast DDS needs to know which
+    // instance (e.g. which participant or endpoint, in discovery) was disposed;
+    // it does not read the serialized key of a DATA with the K flag.
+    let ddsdata = DDSData::new_disposed_by_key_with_hash(
       ChangeKind::NotAliveDisposed,
       SerializedPayload::new_from_bytes(SA::output_encoding(), send_buffer),
+      crate::dds::key::Key::hash_key(key, false),
     );
     let timeout = self.qos().reliable_max_blocking_time().map(|d| d.to_std());
     match self
