@@ -4,4 +4,5 @@ pub mod args;
 pub mod discovery;
 pub mod msgs;
 pub mod node;
+pub mod qos_overrides;
 pub mod state;

@@ -41,6 +41,10 @@ pub struct Stats {
     pub last_rejection: String,
     pub last_fit_rms: Option<f64>,
     pub last_fit_message: String,
+    /// Remote publishers and subscriptions discovered with a QoS incompatible with the
+    /// node's endpoint on their topic (no data flows), and the last one.
+    pub qos_incompatible: u64,
+    pub last_qos_incompatible: String,
 }
 
 /// A plate scan kept for calibration.
@@ -57,6 +61,8 @@ pub struct NodeState {
     pub fqn: String,
     pub params: Parameters,
     pub stats: Stats,
+    /// Parameters persisted beside [`Parameters`]: the QoS overrides in force.
+    pub extra_params: Vec<(String, crate::params::ParamValue)>,
     corrector: Option<Corrector>,
     plates: VecDeque<PlateScan>,
     calibrated_at: Option<Instant>,
@@ -82,7 +88,15 @@ pub struct CalibrateOutcome {
 impl NodeState {
     pub fn new(fqn: String, params: Parameters) -> Self {
         let calibrated_at = params.calibration_valid.then(Instant::now);
-        NodeState { fqn, params, stats: Stats::default(), corrector: None, plates: VecDeque::new(), calibrated_at }
+        NodeState {
+            fqn,
+            params,
+            stats: Stats::default(),
+            extra_params: Vec::new(),
+            corrector: None,
+            plates: VecDeque::new(),
+            calibrated_at,
+        }
     }
 
     /// The checks of a raw scan that need no pass over its samples.
@@ -261,9 +275,11 @@ impl NodeState {
             return Ok(());
         }
         let path = Path::new(&self.params.params_file);
+        let mut list = self.params.to_list();
+        list.extend(self.extra_params.iter().cloned());
         let text = params_file::render(
             &self.fqn,
-            &self.params.to_list(),
+            &list,
             "Parameters of tracer_calib_node, written by the node after each change.\nLoad with: --ros-args --params-file THIS_FILE",
         );
         params_file::write_atomic(path, &text).map_err(|e| format!("cannot write {}: {e}", path.display()))
@@ -278,6 +294,15 @@ impl NodeState {
             (DiagnosticStatus::WARN, format!("calibrated; the last calibrate failed: {}", self.stats.last_fit_message))
         } else {
             (DiagnosticStatus::OK, "calibrated".to_string())
+        };
+        let (level, message) = if self.stats.qos_incompatible > 0 {
+            let m = format!(
+                "{message}; {} endpoint(s) with incompatible QoS, last: {}",
+                self.stats.qos_incompatible, self.stats.last_qos_incompatible
+            );
+            (DiagnosticStatus::WARN.max(level), m)
+        } else {
+            (level, message)
         };
         let kv = |k: &str, v: String| KeyValue { key: k.to_string(), value: v };
         let age = self.calibrated_at.map(|t| t.elapsed()).unwrap_or(Duration::ZERO);
@@ -311,6 +336,8 @@ impl NodeState {
                     kv("calibrations_failed", s.calibrations_failed.to_string()),
                     kv("last_rejection", s.last_rejection.clone()),
                     kv("plate_scans_kept", self.plates.len().to_string()),
+                    kv("qos_incompatible", s.qos_incompatible.to_string()),
+                    kv("last_qos_incompatible", s.last_qos_incompatible.clone()),
                 ],
             }],
         }

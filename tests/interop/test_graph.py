@@ -105,11 +105,81 @@ def test_polygon_at_once(peer):
         node.stop()
 
 
+def test_qos_best_effort_driver(peer):
+    """A driver publishing RawScan with the sensor-data QoS (best effort): the node warns
+    once, naming topic, node and policy, and counts it on /diagnostics; its scans are not
+    corrected. With `qos_overrides./raw_scan.subscription.reliability: best_effort` in the
+    params file they are, and the override is read-only."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.parameter import Parameter
+    from rclpy.qos import qos_profile_sensor_data
+
+    lens = t.simulate("lens_qos", "ellipse", seed=3)
+    contours = peer.subscribe(Contour, "/contour")
+    diags = peer.subscribe(DiagnosticArray, "/diagnostics")
+    node = t.NodeProcess("qos_default", [])
+    driver = peer.node.create_publisher(RawScan, "/raw_scan", qos_profile_sensor_data)
+    try:
+        peer.spin_until(lambda: peer.node.count_subscribers("/raw_scan") > 0, 20, "the node's raw_scan subscription")
+
+        def diag_count():
+            for d in reversed(diags):
+                for s in d.status:
+                    values = {kv.key: kv.value for kv in s.values}
+                    if "qos_incompatible" in values:
+                        return int(values["qos_incompatible"]), s.message
+            return 0, ""
+
+        peer.spin_until(lambda: diag_count()[0] >= 1, 10, lambda: f"qos_incompatible on /diagnostics ({diag_count()})")
+        for k in range(3):
+            driver.publish(t.raw_scan(200 + k, RawScan.TARGET_LENS, *lens))
+            end = time.monotonic() + 0.5
+            while time.monotonic() < end:
+                peer.executor.spin_once(timeout_sec=0.05)
+        assert not any(c.scan_id >= 200 for c in contours), "a best-effort scan was corrected without the override"
+        count, message = diag_count()
+        assert count == 1 and "incompatible QoS" in message, (count, message)
+
+        def warns():
+            return [line for line in node.output().splitlines() if "WARN" in line and "incompatible QoS" in line]
+
+        peer.spin_until(lambda: warns(), 10, "the node's warning")
+    finally:
+        node.stop()
+    warns = warns()
+    assert len(warns) == 1, "expected one warning:\n" + node.output()
+    w = warns[0]
+    for part in ("'/raw_scan'", "/graph_peer", "publisher", "RELIABILITY"):
+        assert part in w, f"{part!r} not in {w!r}"
+    print(f"  {w.split('] ', 1)[-1]}", flush=True)
+
+    pf = t.params_file(
+        "qos_override.yaml",
+        "tracer_calibrator:\n  ros__parameters:\n    qos_overrides./raw_scan.subscription.reliability: best_effort\n",
+    )
+    node = t.NodeProcess("qos_override", ["--params-file", pf])
+    try:
+        c = peer.send_scan(driver, t.raw_scan(300, RawScan.TARGET_LENS, *lens), contours)
+        assert c.scan_id == 300 and len(c.points) == 400
+        client = peer.param_client("/tracer_calibrator")
+        name = "qos_overrides./raw_scan.subscription.reliability"
+        got = peer.param(lambda: client.get_parameters([name]))
+        assert got.values[0].string_value == "best_effort", got
+        r = peer.param(lambda: client.set_parameters([Parameter(name, value="reliable")]))
+        assert not r.results[0].successful and "read-only" in r.results[0].reason, r
+    finally:
+        node.stop()
+    assert not [line for line in node.output().splitlines() if "incompatible QoS" in line], node.output()
+    peer.node.destroy_publisher(driver)
+
+
 def main():
     rclpy.init()
     peer = t.Peer("graph_peer")
     tests = [
         ("clean_leave", lambda: test_clean_leave(peer)),
+        ("polygon_at_once", lambda: test_polygon_at_once(peer)),
+        ("qos_best_effort_driver", lambda: test_qos_best_effort_driver(peer)),
     ]
     only = [a.removeprefix("graph_") for a in sys.argv[1:] if a != "graph"]
     passed = failed = 0
