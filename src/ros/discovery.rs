@@ -28,6 +28,12 @@ use super::args::{DiscoveryRange, RosEnv};
 /// Each SPDP announcement (every 10 s) sends one datagram per id and peer.
 pub const STATIC_PEER_PARTICIPANT_RANGE: u16 = 32;
 
+/// How often the node announces itself: peers started later, and static peers, find it
+/// within this; its lease is five times this, 10 s: a node killed (SIGKILL, power loss)
+/// stays in peers' graphs that long. (rustdds' default: 10 s, a 50 s lease; Fast DDS':
+/// 3 s, a 20 s lease.) One SPDP datagram per localhost port and static peer port.
+pub const SPDP_PERIOD: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// How the participant discovers others, worked out from the environment.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DiscoveryPlan {
@@ -130,7 +136,8 @@ impl DiscoveryPlan {
             .multicast(self.multicast)
             .same_host_loopback(self.same_host)
             .discover_other_participants(self.discover_others)
-            .static_discovery_peers(self.static_peers.iter().copied(), STATIC_PEER_PARTICIPANT_RANGE);
+            .static_discovery_peers(self.static_peers.iter().copied(), STATIC_PEER_PARTICIPANT_RANGE)
+            .spdp_period(SPDP_PERIOD);
         if self.loopback_only {
             builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
         }

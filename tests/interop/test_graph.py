@@ -37,8 +37,8 @@ def graph_has_service(peer, service="/calibrate"):
 
 
 def test_clean_leave(peer):
-    """SIGINT and SIGTERM: gone from the peer's node and service lists within 1 s; a
-    restarted node is listed once."""
+    """SIGINT and SIGTERM: gone from the peer's node and service lists within 1 s;
+    SIGKILL: gone when its lease runs out (10 s); a restarted node is listed once."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         node = t.NodeProcess(f"leave_{sig.name}", [])
         try:
@@ -56,6 +56,19 @@ def test_clean_leave(peer):
         node.proc.wait(timeout=5)
         assert gone < 1.0, f"{sig.name}: still in the graph {gone:.2f} s after the signal"
         print(f"  {sig.name}: gone from the node and service lists in {gone:.3f} s", flush=True)
+    # Killed (SIGKILL): nothing is said; peers drop the node when its lease (10 s)
+    # runs out without an announcement.
+    node = t.NodeProcess("leave_SIGKILL", [])
+    peer.spin_until(lambda: graph_has_node(peer) == 1 and graph_has_service(peer), 20, "the node in the graph")
+    t.RUNNING.remove(node)
+    t0 = time.monotonic()
+    node.proc.kill()
+    node.proc.wait(timeout=5)
+    while (graph_has_node(peer) or graph_has_service(peer)) and time.monotonic() < t0 + 30:
+        peer.executor.spin_once(timeout_sec=0.05)
+    gone = time.monotonic() - t0
+    assert gone < 15, f"SIGKILL: still in the graph {gone:.1f} s after"
+    print(f"  SIGKILL: gone from the node and service lists in {gone:.1f} s (the lease)", flush=True)
     # Restarted: listed once, and stays so.
     node = t.NodeProcess("leave_restart", [])
     try:

@@ -75,6 +75,7 @@ pub(crate) struct DiscoveryPeers {
   pub participant_range: u16,
   pub multicast: bool,
   pub discover_others: bool,
+  pub spdp_period: Option<std::time::Duration>,
 }
 
 impl Default for DiscoveryPeers {
@@ -84,6 +85,7 @@ impl Default for DiscoveryPeers {
       participant_range: 0,
       multicast: true,
       discover_others: true,
+      spdp_period: None,
     }
   }
 }
@@ -217,6 +219,16 @@ impl DomainParticipantBuilder {
   /// and `same_host_loopback(false)` to send no announcements either.
   pub fn discover_other_participants(mut self, enabled: bool) -> Self {
     self.discovery_peers.discover_others = enabled;
+    self
+  }
+
+  /// How often the participant announces itself (SPDP; default 10 s). The
+  /// lease it announces is five times this: how long peers keep it after it
+  /// vanished without saying so (killed), 50 s by default. Shorter means a
+  /// killed participant leaves peers' graphs sooner, and static peers and
+  /// peers started later find it sooner, for one announcement per period.
+  pub fn spdp_period(mut self, period: std::time::Duration) -> Self {
+    self.discovery_peers.spdp_period = Some(period);
     self
   }
 
@@ -437,7 +449,7 @@ impl DomainParticipantBuilder {
       self.socket_send_buffer_size,
       self.only_networks,
       self.same_host_loopback,
-      self.discovery_peers, // tracer_calib patch
+      self.discovery_peers.clone(), // tracer_calib patch
       dp_waker,
       discovery_sample_sender,
     )?;
@@ -450,6 +462,7 @@ impl DomainParticipantBuilder {
     let (discovery_started_sender, discovery_started_receiver) = std::sync::mpsc::channel();
 
     // Construct and start background thread
+    let spdp_period = self.discovery_peers.spdp_period; // tracer_calib patch
     let dp_clone = dp.weak_clone();
     let disc_db_clone = dp.discovery_db();
     let discovery_handle = thread::Builder::new()
@@ -467,6 +480,10 @@ impl DomainParticipantBuilder {
           discovery_waker,
           discovery_sample_receiver,
         ) {
+          // tracer_calib patch: the announcement period asked for.
+          if let Some(period) = spdp_period {
+            discovery.spdp_publish_period = period;
+          }
           discovery.discovery_event_loop(); // run the event loop
         }
       })?;

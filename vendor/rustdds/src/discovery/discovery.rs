@@ -296,6 +296,10 @@ pub(crate) struct Discovery {
   // discovery phase. See `spdp_receive`.
   #[cfg(feature = "security")]
   spdp_quick_response_sent: std::collections::HashSet<GuidPrefix>,
+
+  // tracer_calib patch: how often the participant announces itself; the lease
+  // it announces is five times this (DomainParticipantBuilder::spdp_period).
+  pub(crate) spdp_publish_period: StdDuration,
 }
 
 impl Discovery {
@@ -693,6 +697,7 @@ impl Discovery {
       dcps_participant_volatile_message_secure,
       #[cfg(feature = "security")]
       spdp_quick_response_sent: std::collections::HashSet::new(),
+      spdp_publish_period: Self::SPDP_PUBLISH_PERIOD, // tracer_calib patch
     })
   }
 
@@ -862,7 +867,7 @@ impl Discovery {
                   // quick response does not.
                   if reschedule {
                     self.discovery_timer.borrow_mut().set_timeout(
-                      Self::SPDP_PUBLISH_PERIOD,
+                      self.spdp_publish_period, // tracer_calib patch
                       DiscoveryTimerEvent::SendParticipantInfo { reschedule: true },
                     );
                   }
@@ -1448,7 +1453,7 @@ impl Discovery {
     let data = SpdpDiscoveredParticipantData::from_local_participant(
       local_dp,
       &self.security_opt,
-      5.0 * Duration::from(Self::SPDP_PUBLISH_PERIOD),
+      5.0 * Duration::from(self.spdp_publish_period), // tracer_calib patch
     );
 
     #[cfg(feature = "security")]
