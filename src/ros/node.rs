@@ -10,7 +10,8 @@
 //!
 //! Why: every scan is a measurement an edger acts on, so delivery is reliable (as the
 //! ROS default a tracer driver publishes with; a best-effort "sensor data" publisher
-//! does not match a reliable subscription, and has to be configured reliable); the
+//! does not match a reliable subscription: the node warns, and
+//! `qos_overrides./raw_scan.subscription.reliability: best_effort` serves it); the
 //! subscription keeps 100 scans so a bag replayed at full speed is not thinned out;
 //! contours are not latched (volatile): a late subscriber wants the next scan, not an
 //! old one.
