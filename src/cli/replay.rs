@@ -1,12 +1,10 @@
 //! `tracer_calib replay`: a bag's scans published into a live ROS graph, like
 //! `ros2 bag play`.
 
-use std::net::{IpAddr, Ipv4Addr};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use ros2_client::{Context, NodeName, NodeOptions, QosProfile, qos::*};
-use rustdds::DomainParticipantBuilder;
 
 use super::exit;
 use crate::io::bag::Bag;
@@ -101,12 +99,8 @@ fn replay(args: &Args) -> Result<String, String> {
     timeline.sort_by_key(|(t, _, _)| *t);
 
     let env = RosEnv::from_env().map_err(|e| e.to_string())?;
-    let mut builder = DomainParticipantBuilder::new(env.domain_id as u16);
-    if env.discovery_range.is_local_only() {
-        builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
-    }
-    let ctx = Context::from_domain_participant(builder.build().map_err(|e| format!("{e:?}"))?)
-        .map_err(|e| format!("{e:?}"))?;
+    let participant = crate::ros::discovery::participant_from_env(&env)?;
+    let ctx = Context::from_domain_participant(participant).map_err(|e| format!("{e:?}"))?;
     let mut node = ctx
         .new_node(NodeName::new("/", "tracer_calib_replay").unwrap(), NodeOptions::new().enable_rosout(false))
         .map_err(|e| format!("{e:?}"))?;

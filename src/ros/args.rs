@@ -741,7 +741,7 @@ pub const ROS_DOMAIN_ID_MAX: u32 = 232;
 /// `ROS_AUTOMATIC_DISCOVERY_RANGE`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DiscoveryRange {
-    /// `OFF`: no automatic discovery (only static peers).
+    /// `OFF`: no discovery at all (static peers are ignored, as rmw_fastrtps does).
     Off,
     /// `LOCALHOST`: only participants on this host.
     Localhost,
@@ -752,8 +752,8 @@ pub enum DiscoveryRange {
 }
 
 impl DiscoveryRange {
-    /// Whether DDS traffic must stay on this host (`LOCALHOST`, and `OFF`, for which staying
-    /// local is the closest thing rustdds can do).
+    /// Whether automatic discovery stays on this host (`LOCALHOST`, and `OFF`, which
+    /// discovers nothing). What each range does: [`crate::ros::discovery`].
     pub fn is_local_only(self) -> bool {
         matches!(self, DiscoveryRange::Off | DiscoveryRange::Localhost)
     }

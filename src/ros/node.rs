@@ -11,13 +11,13 @@
 //!
 //! Why: every scan is a measurement an edger acts on, so delivery is reliable (as the
 //! ROS default a tracer driver publishes with; a best-effort "sensor data" publisher
-//! does not match a reliable subscription, and has to be configured reliable); the
+//! does not match a reliable subscription: the node warns, and
+//! `qos_overrides./raw_scan.subscription.reliability: best_effort` serves it); the
 //! subscription keeps 100 scans so a bag replayed at full speed is not thinned out;
 //! contours are not latched (volatile): a late subscriber wants the next scan, not an
 //! old one. The calibration in force is latched: whoever joins later must know which
 //! calibration the contours it receives were corrected with.
 
-use std::net::{IpAddr, Ipv4Addr};
 use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -26,18 +26,18 @@ use std::time::{Duration, Instant};
 use futures::{StreamExt, stream::FuturesUnordered};
 use log::{debug, error, info, warn};
 use ros2_client::{
-    Context, Name, NodeOptions, ParameterValue as RosValue, QosProfile, ServiceMapping,
+    Context, Name, NodeEvent, NodeOptions, ParameterValue as RosValue, QosProfile, ServiceMapping,
     builtin_interfaces::Time,
     qos::{Durability, History, WhenFull},
     rosout,
 };
-use rustdds::DomainParticipantBuilder;
 
 use super::args::{NodeIdentity, RosArgs, RosEnv, ros2_name};
 use super::msgs::Contour;
 use super::msgs::{
     Calibrate, Calibration as CalibrationMsg, DiagnosticArray, PolygonStamped, RawScan, RosMsg, RosService, type_names,
 };
+use super::qos_overrides::{self, QosOverrides, Side};
 use super::state::{NodeState, RateLimit};
 use crate::params::{ParamValue, Parameters, file as params_file, names};
 use crate::records;
@@ -53,6 +53,8 @@ pub struct Config {
     pub args: RosArgs,
     pub env: RosEnv,
     pub params: Parameters,
+    /// `qos_overrides.*` parameters (params files and `-p`).
+    pub qos: QosOverrides,
 }
 
 impl Config {
@@ -65,11 +67,15 @@ impl Config {
         let mut params = Parameters::default();
         // `history_file` defaults to beside `params_file`, unless set (even to "").
         let mut history_file_set = false;
+        let mut qos = QosOverrides::default();
         for path in args.params_files() {
             let file = params_file::read(path).map_err(|e| e.to_string())?;
             history_file_set |= file.entries_for(&fqn).any(|e| e.name == names::HISTORY_FILE);
+            for e in file.entries_for(&fqn).filter(|e| qos_overrides::is_override(&e.name)) {
+                qos.set(&e.name, &e.value).map_err(|m| format!("{}:{}: {m}", path.display(), e.line))?;
+            }
             let unknown = params.apply_file(&file, &fqn, &path.display().to_string()).map_err(|e| e.to_string())?;
-            for name in unknown {
+            for name in unknown.iter().filter(|n| !qos_overrides::is_override(n)) {
                 debug!("{}: ignoring parameter '{name}' (not a parameter of this node)", path.display());
             }
         }
@@ -77,13 +83,17 @@ impl Config {
             params.params_file = last.display().to_string();
         }
         for o in args.param_overrides_for(&identity) {
+            if qos_overrides::is_override(&o.name) {
+                qos.set(&o.name, &o.value).map_err(|e| format!("-p {}:={}: {e}", o.name, o.value))?;
+                continue;
+            }
             params.set(&o.name, &o.value).map_err(|e| format!("-p {}:={}: {e}", o.name, o.value))?;
             history_file_set |= o.name == names::HISTORY_FILE;
         }
         if !history_file_set {
             params.history_file = records::file::default_path(&params.params_file);
         }
-        Ok(Config { identity, args, env, params })
+        Ok(Config { identity, args, env, params, qos })
     }
 }
 
@@ -109,16 +119,10 @@ fn latched() -> QosProfile {
         .history(History::KeepLast { depth: 1 })
 }
 
-/// The DDS participant: `ROS_DOMAIN_ID`, and with
-/// `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST` only 127.0.0.1.
+/// The DDS participant: `ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE` and
+/// `ROS_STATIC_PEERS` as rmw_fastrtps reads them ([`super::discovery`]).
 fn context(env: &RosEnv) -> Result<Context, String> {
-    let domain =
-        u16::try_from(env.domain_id).map_err(|_| format!("ROS_DOMAIN_ID {} is out of range", env.domain_id))?;
-    let mut builder = DomainParticipantBuilder::new(domain);
-    if env.discovery_range.is_local_only() {
-        builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
-    }
-    let participant = builder.build().map_err(|e| format!("cannot create the DDS participant: {e:?}"))?;
+    let participant = super::discovery::participant_from_env(env)?;
     Context::from_domain_participant(participant).map_err(|e| format!("cannot create the ROS context: {e:?}"))
 }
 
@@ -162,7 +166,7 @@ fn release_freed_memory() {
 
 /// Run the node until `shutdown` resolves (SIGINT/SIGTERM in the binary).
 pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> Result<(), String> {
-    let Config { identity, args, env, params } = config;
+    let Config { identity, args, env, params, mut qos } = config;
     for w in &env.warnings {
         warn!("{w}");
     }
@@ -173,6 +177,31 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             info!("removed {removed} temporary file(s) a killed writer left beside {}", params.params_file);
         }
     }
+    // The topics QoS overrides apply to, by their fully qualified names.
+    let resolve = |name: &str| -> Result<Name, String> {
+        let resolved = args.resolve_topic(name, &identity).map_err(|e| e.to_string())?;
+        ros2_name(&resolved).map_err(|e| e.to_string())
+    };
+    let raw_name = resolve("raw_scan")?;
+    let contour_name = resolve("contour")?;
+    let polygon_name = resolve("contour_polygon")?;
+    let (raw_fq, contour_fq, polygon_fq) = (raw_name.to_string(), contour_name.to_string(), polygon_name.to_string());
+    let overridable = [
+        (raw_fq.as_str(), Side::Subscription),
+        (contour_fq.as_str(), Side::Publisher),
+        (polygon_fq.as_str(), Side::Publisher),
+    ];
+    for w in qos.unused(&overridable) {
+        warn!("{w}");
+    }
+    qos.retain_for(&overridable);
+    let raw_qos = qos.apply(&raw_fq, Side::Subscription, reliable(100));
+    let contour_qos = qos.apply(&contour_fq, Side::Publisher, reliable(10));
+    let polygon_qos = qos.apply(&polygon_fq, Side::Publisher, reliable(10));
+    if !qos.is_empty() {
+        info!("QoS overrides: {:?}", qos.to_list());
+    }
+
     let mut initial = NodeState::new(fqn.clone(), params.clone());
     if !params.history_file.is_empty() {
         match records::file::read(std::path::Path::new(&params.history_file)) {
@@ -194,6 +223,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             }
         }
     }
+    initial.extra_params = qos.to_list();
     let state = Arc::new(Mutex::new(initial));
     // The calibration in force changed (a parameter set, a /calibrate that applied):
     // the `calibration` loop publishes it.
@@ -203,14 +233,22 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     // to the state and persisted (only when the value really changes, so the start-up
     // round of set actions writes nothing). A failed write fails the set.
     let mut options = NodeOptions::new().enable_rosout(true);
-    for (name, value) in params.to_list() {
+    for (name, value) in params.to_list().into_iter().chain(qos.to_list()) {
         options = options.declare_parameter(&name, value.into());
     }
     let validator_state = state.clone();
+    let validator_qos = qos.clone();
     let action_state = state.clone();
     let action_changed = calibration_changed.clone();
     let options = options
         .parameter_validator(Box::new(move |name, value| {
+            if qos_overrides::is_override(name) {
+                // Read-only, as rclcpp declares them: only the value given at start passes.
+                return match (from_ros(value), validator_qos.get(name)) {
+                    (Some(v), Some(given)) if &v == given => Ok(()),
+                    _ => Err(format!("{name} is read-only: QoS overrides are read at start-up only")),
+                };
+            }
             if !Parameters::is_known(name) {
                 return Ok(());
             }
@@ -247,13 +285,6 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
     let mut node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node: {e:?}"))?;
 
-    let resolve = |name: &str| -> Result<Name, String> {
-        let resolved = args.resolve_topic(name, &identity).map_err(|e| e.to_string())?;
-        ros2_name(&resolved).map_err(|e| e.to_string())
-    };
-    let raw_name = resolve("raw_scan")?;
-    let contour_name = resolve("contour")?;
-    let polygon_name = resolve("contour_polygon")?;
     let diag_name = resolve("/diagnostics")?;
     let calibration_name = resolve("calibration")?;
     let service_name = {
@@ -261,11 +292,11 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         ros2_name(&resolved).map_err(|e| e.to_string())?
     };
     let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
-    let raw_topic = node.create_topic(&raw_name, RawScan::NAME.message_type_name(), &reliable(100)).map_err(mk)?;
+    let raw_topic = node.create_topic(&raw_name, RawScan::NAME.message_type_name(), &raw_qos).map_err(mk)?;
     let contour_topic =
-        node.create_topic(&contour_name, Contour::NAME.message_type_name(), &reliable(10)).map_err(mk)?;
+        node.create_topic(&contour_name, Contour::NAME.message_type_name(), &contour_qos).map_err(mk)?;
     let polygon_topic =
-        node.create_topic(&polygon_name, type_names::POLYGON_STAMPED.message_type_name(), &reliable(10)).map_err(mk)?;
+        node.create_topic(&polygon_name, type_names::POLYGON_STAMPED.message_type_name(), &polygon_qos).map_err(mk)?;
     let diag_topic =
         node.create_topic(&diag_name, type_names::DIAGNOSTIC_ARRAY.message_type_name(), &reliable(10)).map_err(mk)?;
     let calibration_topic =
@@ -290,12 +321,11 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         env.domain_id, env.discovery_range
     );
 
-    // Whether anyone subscribes to the polygons: asking costs ~70 µs (it walks the
-    // discovered graph), too much per scan, so the diagnostics tick asks once a second.
-    // By topic name over the discovered readers: `Publisher::get_subscription_count`
-    // logs an error every time it is asked before a first subscriber ever matched.
-    let polygon_topic_name = polygon_name.to_string();
-    let polygon_wanted = AtomicBool::new(true);
+    // Whether anyone subscribes to the polygons: kept by the graph loop below from the
+    // polygon writer's match events (the scan loop only reads a flag), so the first scan
+    // after a subscriber matched gets its polygon.
+    let polygon_wanted = AtomicBool::new(false);
+    let graph_events = node.status_receiver();
     let scans = async {
         let mut stream = std::pin::pin!(subscription.async_stream());
         let mut limit = RateLimit::new(Duration::from_secs(1));
@@ -399,10 +429,38 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         }
     };
 
+    // Graph events: the polygon writer's matches, and endpoints discovered with an
+    // incompatible QoS (each reported once: a WARN naming topic, node and policy, and
+    // on /diagnostics).
+    let qos_reports = Mutex::new(QosReports::new(state.clone()));
+    let graph = async {
+        let Some(events) = graph_events else {
+            error!("no graph events: polygons are published always");
+            polygon_wanted.store(true, Ordering::Relaxed);
+            return futures::future::pending().await;
+        };
+        // Matches before the receiver existed are in the map already.
+        polygon_wanted.store(polygon_pub.get_subscription_count(&node) > 0, Ordering::Relaxed);
+        while let Ok(event) = events.recv().await {
+            match event {
+                NodeEvent::Graph(_) => {
+                    polygon_wanted.store(polygon_pub.get_subscription_count(&node) > 0, Ordering::Relaxed);
+                }
+                NodeEvent::QosIncompatible { local, remote, local_is_writer, policy } => {
+                    let topic = ctx_topic_of(&ctx, remote, local_is_writer);
+                    let mut reports = qos_reports.lock().expect("qos reports lock");
+                    reports.add(local, remote, local_is_writer, policy, topic, Instant::now());
+                    reports.flush(&node, Instant::now(), false);
+                }
+                _ => {}
+            }
+        }
+    };
+
     let diagnostics = async {
         let mut tick = 0u64;
         loop {
-            polygon_wanted.store(node.subscription_count(&polygon_topic_name) > 0, Ordering::Relaxed);
+            qos_reports.lock().expect("qos reports lock").flush(&node, Instant::now(), false);
             let msg = state.lock().expect("state lock").diagnostics(Time::now());
             if let Err(e) = diag_pub.async_publish(msg).await {
                 debug!("cannot publish diagnostics: {e:?}");
@@ -421,6 +479,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     // had the node ~15 µs slower, +62..+68 µs over the relay against +46..+55 µs.)
     // The first loop to end ends the node.
     let mut loops: FuturesUnordered<Pin<Box<dyn Future<Output = ()> + '_>>> = FuturesUnordered::new();
+    loops.push(Box::pin(graph));
     loops.push(Box::pin(async {
         scans.await;
         error!("the raw scan stream ended")
@@ -440,6 +499,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     }));
     smol::block_on(loops.next());
     drop(loops);
+    qos_reports.lock().expect("qos reports lock").flush(&node, Instant::now(), true);
     // Tear down in order: dropping each endpoint makes discovery announce it gone; the
     // participant's event loop must still be running to send that, so it goes last,
     // after a moment. Without this, peers keep the node's topics and services in their
@@ -450,4 +510,117 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     smol::block_on(spinner.cancel());
     drop(ctx);
     Ok(())
+}
+
+/// The ROS name of the topic of a remote endpoint, from discovery (`rt/raw_scan` ->
+/// `/raw_scan`; a service's DDS topic as it is).
+fn ctx_topic_of(ctx: &Context, remote: rustdds::GUID, remote_is_reader: bool) -> String {
+    let dp = ctx.domain_participant();
+    let dds = if remote_is_reader {
+        dp.discovered_readers()
+            .into_iter()
+            .find(|r| r.reader_proxy.remote_reader_guid == remote)
+            .map(|r| r.subscription_topic_data.topic_name().clone())
+    } else {
+        dp.discovered_writers()
+            .into_iter()
+            .find(|w| w.writer_proxy.remote_writer_guid == remote)
+            .map(|w| w.publication_topic_data.topic_name.clone())
+    };
+    match dds {
+        Some(name) => match name.strip_prefix("rt/") {
+            Some(ros) => format!("/{ros}"),
+            None => name,
+        },
+        None => "an unknown topic".to_string(),
+    }
+}
+
+/// How long a report of incompatible QoS waits for the peer's node name
+/// (`ros_discovery_info` may come after the endpoint).
+const QOS_REPORT_WAIT: Duration = Duration::from_secs(3);
+
+/// Remote endpoints discovered with a QoS incompatible with the node's endpoint on their
+/// topic: each counted (on `/diagnostics`) and reported once, as stock nodes do: a WARN
+/// naming topic, peer node and policy, rate-limited to one a second.
+struct QosReports {
+    state: Arc<Mutex<NodeState>>,
+    seen: std::collections::HashSet<(rustdds::GUID, rustdds::GUID)>,
+    pending: Vec<PendingQos>,
+    limit: RateLimit,
+}
+
+struct PendingQos {
+    remote: rustdds::GUID,
+    local_is_writer: bool,
+    policy: Option<rustdds::qos::QosPolicyId>,
+    topic: String,
+    since: Instant,
+}
+
+impl QosReports {
+    fn new(state: Arc<Mutex<NodeState>>) -> Self {
+        QosReports {
+            state,
+            seen: Default::default(),
+            pending: Vec::new(),
+            limit: RateLimit::new(Duration::from_secs(1)),
+        }
+    }
+
+    fn add(
+        &mut self,
+        local: rustdds::GUID,
+        remote: rustdds::GUID,
+        local_is_writer: bool,
+        policy: Option<rustdds::qos::QosPolicyId>,
+        topic: String,
+        now: Instant,
+    ) {
+        if !self.seen.insert((local, remote)) {
+            return;
+        }
+        let mut st = self.state.lock().expect("state lock");
+        st.stats.qos_incompatible += 1;
+        st.stats.last_qos_incompatible = format!("{topic}: {}", policy_name(policy));
+        drop(st);
+        self.pending.push(PendingQos { remote, local_is_writer, policy, topic, since: now });
+    }
+
+    /// Report what is pending whose node is known, or has waited long enough.
+    fn flush(&mut self, node: &ros2_client::Node, now: Instant, force: bool) {
+        let (state, limit) = (&self.state, &mut self.limit);
+        self.pending.retain(|p| {
+            let name = node.remote_node_of_endpoint(p.remote);
+            if name.is_none() && !force && now.duration_since(p.since) < QOS_REPORT_WAIT {
+                return true;
+            }
+            let who = name.unwrap_or_else(|| format!("unknown (participant {:?})", p.remote.prefix));
+            let (kind, verb, flow) = if p.local_is_writer {
+                ("subscription", "requesting", "No messages will be sent to it")
+            } else {
+                ("publisher", "offering", "No messages will be received from it")
+            };
+            let policy = policy_name(p.policy);
+            state.lock().expect("state lock").stats.last_qos_incompatible =
+                format!("{kind} of node {who} on {}: {policy}", p.topic);
+            if let Some(held) = limit.allow(now) {
+                let more = if held > 0 { format!(" ({held} more not shown)") } else { String::new() };
+                warn!(
+                    "New {kind} discovered on topic '{}' (node {who}), {verb} incompatible QoS. {flow}. \
+                     Last incompatible policy: {policy}{more}",
+                    p.topic
+                );
+            }
+            false
+        });
+    }
+}
+
+/// A QoS policy's name as ROS prints it (`RELIABILITY`).
+fn policy_name(policy: Option<rustdds::qos::QosPolicyId>) -> String {
+    match policy {
+        Some(p) => format!("{p:?}").to_uppercase(),
+        None => "UNKNOWN".to_string(),
+    }
 }

@@ -42,6 +42,10 @@ pub struct Stats {
     pub last_rejection: String,
     pub last_fit_rms: Option<f64>,
     pub last_fit_message: String,
+    /// Remote publishers and subscriptions discovered with a QoS incompatible with the
+    /// node's endpoint on their topic (no data flows), and the last one.
+    pub qos_incompatible: u64,
+    pub last_qos_incompatible: String,
 }
 
 /// A plate scan kept for calibration.
@@ -114,6 +118,8 @@ pub struct NodeState {
     pub history_records: usize,
     /// What is wrong with the history file (skipped lines, unreadable), for /diagnostics.
     pub history_problem: String,
+    /// Parameters persisted beside [`Parameters`]: the QoS overrides in force.
+    pub extra_params: Vec<(String, crate::params::ParamValue)>,
     corrector: Option<Corrector>,
     plates: VecDeque<PlateScan>,
 }
@@ -147,6 +153,7 @@ impl NodeState {
             drift: None,
             history_records: 0,
             history_problem: String::new(),
+            extra_params: Vec::new(),
             corrector: None,
             plates: VecDeque::new(),
         }
@@ -425,9 +432,11 @@ impl NodeState {
             return Ok(());
         }
         let path = Path::new(&self.params.params_file);
+        let mut list = self.params.to_list();
+        list.extend(self.extra_params.iter().cloned());
         let text = params_file::render(
             &self.fqn,
-            &self.params.to_list(),
+            &list,
             "Parameters of tracer_calib_node, written by the node after each change.\nLoad with: --ros-args --params-file THIS_FILE",
         );
         params_file::write_atomic(path, &text).map_err(|e| format!("cannot write {}: {e}", path.display()))
@@ -470,6 +479,12 @@ impl NodeState {
                 records::DRIFT_NAMES[i],
                 p.drift_warn_sigma,
                 d.describe()
+            ));
+        }
+        if self.stats.qos_incompatible > 0 {
+            warnings.push(format!(
+                "{} endpoint(s) with incompatible QoS, last: {}",
+                self.stats.qos_incompatible, self.stats.last_qos_incompatible
             ));
         }
         let (level, message) = if warnings.is_empty() {
@@ -523,6 +538,8 @@ impl NodeState {
                     kv("calibrations_failed", s.calibrations_failed.to_string()),
                     kv("last_rejection", s.last_rejection.clone()),
                     kv("plate_scans_kept", self.plates.len().to_string()),
+                    kv("qos_incompatible", s.qos_incompatible.to_string()),
+                    kv("last_qos_incompatible", s.last_qos_incompatible.clone()),
                 ],
             }],
         }

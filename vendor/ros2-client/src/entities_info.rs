@@ -58,8 +58,9 @@ impl ParticipantEntitiesInfo {
 #[serde(try_from = "repr::NodeEntitiesInfo", into = "repr::NodeEntitiesInfo")]
 pub struct NodeEntitiesInfo {
   name: NodeName,
-  reader_gid_seq: Vec<Gid>,
-  writer_gid_seq: Vec<Gid>,
+  // PATCH (tracer_calib): pub(crate), for Node::remote_node_of_endpoint.
+  pub(crate) reader_gid_seq: Vec<Gid>,
+  pub(crate) writer_gid_seq: Vec<Gid>,
 }
 
 impl NodeEntitiesInfo {

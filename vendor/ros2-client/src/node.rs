@@ -37,6 +37,35 @@ use crate::{
 };
 
 // ----------------------------------------------------------------------------------------------------
+// PATCH (tracer_calib): RustDDS' incompatible-QoS participant events as NodeEvents.
+fn qos_incompatible_event(event: &DomainParticipantStatusEvent) -> Option<NodeEvent> {
+  match event {
+    DomainParticipantStatusEvent::RemoteReaderQosIncompatible {
+      local_writer,
+      remote_reader,
+      requested_qos,
+      offered_qos,
+    } => Some(NodeEvent::QosIncompatible {
+      local: *local_writer,
+      remote: *remote_reader,
+      local_is_writer: true,
+      policy: offered_qos.compliance_failure_wrt(requested_qos),
+    }),
+    DomainParticipantStatusEvent::RemoteWriterQosIncompatible {
+      local_reader,
+      remote_writer,
+      requested_qos,
+      offered_qos,
+    } => Some(NodeEvent::QosIncompatible {
+      local: *local_reader,
+      remote: *remote_writer,
+      local_is_writer: false,
+      policy: offered_qos.compliance_failure_wrt(requested_qos),
+    }),
+    _ => None,
+  }
+}
+
 // ----------------------------------------------------------------------------------------------------
 
 /// ROS 2 Discovery events.
@@ -53,6 +82,18 @@ pub enum NodeEvent {
   Graph(GraphEvent),
   /// A `ros_discovery_info` update from another Participant.
   ParticipantEntities(ParticipantEntitiesInfo),
+  /// PATCH (tracer_calib): a remote endpoint on the topic of one of this
+  /// participant's endpoints was discovered with a QoS that does not match it
+  /// (RustDDS `RemoteReaderQosIncompatible` / `RemoteWriterQosIncompatible`):
+  /// no data flows between the two. `local_is_writer`: the local endpoint is a
+  /// writer (the remote one a reader). `policy` is the first incompatible
+  /// policy found. What rclcpp reports as "incompatible QoS" events.
+  QosIncompatible {
+    local: GUID,
+    remote: GUID,
+    local_is_writer: bool,
+    policy: Option<rustdds::qos::QosPolicyId>,
+  },
 }
 
 /// Best-effort [`GraphEntity`] for a DDS-matched remote entity.
@@ -387,6 +428,10 @@ impl Spinner {
           // also notify any status listeneners
           if let Some(graph_event) = graph_event {
             self.send_status_event( &NodeEvent::Graph(graph_event) );
+          }
+          // PATCH (tracer_calib): incompatible QoS, passed on (was dropped).
+          if let Some(qos_event) = qos_incompatible_event(&dp_status_event) {
+            self.send_status_event( &qos_event );
           }
         }
       }
@@ -953,16 +998,28 @@ impl Node {
   }
 
   pub(crate) fn get_subscription_count(&self, publisher_guid: GUID) -> usize {
+    // PATCH (tracer_calib): a Publisher enters the map at its first match, so
+    // one that has not matched yet has no subscription (this logged an error
+    // each time it was asked).
     self
       .writers_to_remote_readers
       .lock()
       .unwrap()
       .get(&publisher_guid)
-      .map(BTreeSet::len)
-      .unwrap_or_else(|| {
-        error!("get_subscription_count: Publisher {publisher_guid:?} not known to node.");
-        0
-      })
+      .map_or(0, BTreeSet::len)
+  }
+
+  /// PATCH (tracer_calib): the fully qualified name of the ROS node that owns
+  /// the remote reader or writer `endpoint`, from the `ros_discovery_info`
+  /// received so far (None if not received yet).
+  pub fn remote_node_of_endpoint(&self, endpoint: GUID) -> Option<String> {
+    let gid = Gid::from(endpoint);
+    let nodes = self.external_nodes.lock().unwrap();
+    nodes
+      .values()
+      .flatten()
+      .find(|n| n.reader_gid_seq.contains(&gid) || n.writer_gid_seq.contains(&gid))
+      .map(NodeEntitiesInfo::fully_qualified_name)
   }
 
   /// Number of publishers currently discovered on `topic` (a fully-qualified
@@ -1065,6 +1122,7 @@ impl Node {
         match event {
           NodeEvent::Graph(g) => Some(g),
           NodeEvent::ParticipantEntities(_) => None,
+          NodeEvent::QosIncompatible { .. } => None, // PATCH (tracer_calib)
         }
       })
   }

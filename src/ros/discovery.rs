@@ -1,0 +1,233 @@
+//! The DDS participant from the ROS environment: `ROS_DOMAIN_ID`,
+//! `ROS_AUTOMATIC_DISCOVERY_RANGE` and `ROS_STATIC_PEERS` with the meaning rmw_fastrtps
+//! gives them (`rmw_fastrtps_shared_cpp::create_participant`):
+//!
+//! | range | multicast | same host | static peers | locators advertised |
+//! |---|---|---|---|---|
+//! | `OFF` | no | no | ignored (warning); nobody is discovered | 127.0.0.1 |
+//! | `LOCALHOST` | no | yes (unicast to 127.0.0.1) | yes | 127.0.0.1, or every interface when there are static peers |
+//! | `SUBNET` (default) | yes | yes | yes | every interface |
+//! | `SYSTEM_DEFAULT` | yes | yes | ignored (warning) | every interface |
+//!
+//! A static peer is an IPv4 address or a host name (its first IPv4 address, as Fast DDS
+//! takes it). The participant announces itself (SPDP) by unicast to the well-known
+//! discovery port of participant ids `0..`[`STATIC_PEER_PARTICIPANT_RANGE`] at every
+//! static peer, besides multicast: a ROS node on that host hears it and answers, so
+//! listing a host on one side is enough (patched rustdds, `vendor/rustdds/PATCHES.md`).
+//! A name that does not resolve, or an entry that is neither an address nor a host
+//! name, gives one warning naming it; the others are used.
+
+use std::net::{IpAddr, Ipv4Addr, ToSocketAddrs};
+
+use rustdds::{DomainParticipant, DomainParticipantBuilder};
+
+use super::args::{DiscoveryRange, RosEnv};
+
+/// Participant ids probed at each static peer: how many ROS processes (DDS participants)
+/// a peer host may run and still be found, the range rmw_fastrtps probes on localhost.
+/// Each SPDP announcement (every 10 s) sends one datagram per id and peer.
+pub const STATIC_PEER_PARTICIPANT_RANGE: u16 = 32;
+
+/// How often the node announces itself: peers started later, and static peers, find it
+/// within this; its lease is five times this, 10 s: a node killed (SIGKILL, power loss)
+/// stays in peers' graphs that long. (rustdds' default: 10 s, a 50 s lease; Fast DDS':
+/// 3 s, a 20 s lease.) One SPDP datagram per localhost port and static peer port.
+pub const SPDP_PERIOD: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// How the participant discovers others, worked out from the environment.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DiscoveryPlan {
+    /// Multicast discovery and multicast locators.
+    pub multicast: bool,
+    /// Announce to the other participants of this host (unicast to 127.0.0.1).
+    pub same_host: bool,
+    /// Whether other participants' announcements are heard at all (`OFF`: no).
+    pub discover_others: bool,
+    /// Advertise (and multicast on) 127.0.0.1 only.
+    pub loopback_only: bool,
+    /// The static peers' addresses, resolved.
+    pub static_peers: Vec<Ipv4Addr>,
+    /// One line per entry that could not be used, and per ignored setting.
+    pub warnings: Vec<String>,
+}
+
+/// A static peer entry to an IPv4 address: an address, or a host name resolved by `lookup`
+/// (its first IPv4 address).
+pub fn resolve_peer(entry: &str, lookup: &dyn Fn(&str) -> std::io::Result<Vec<IpAddr>>) -> Result<Ipv4Addr, String> {
+    if let Ok(ip) = entry.parse::<IpAddr>() {
+        return match ip {
+            IpAddr::V4(v4) => Ok(v4),
+            IpAddr::V6(_) => Err(format!("static peer '{entry}': IPv6 addresses are not supported, ignored")),
+        };
+    }
+    // Not an address: a host name (RFC 1123 labels), and not something that only looks
+    // like a malformed address ("10.0.0.300", "10.0.0.1:7400").
+    let is_host_name = !entry.is_empty()
+        && entry.len() <= 253
+        && entry.split('.').all(|label| {
+            !label.is_empty()
+                && label.len() <= 63
+                && !label.starts_with('-')
+                && !label.ends_with('-')
+                && label.chars().all(|c| c.is_ascii_alphanumeric() || c == '-')
+        })
+        && !entry.chars().all(|c| c.is_ascii_digit() || c == '.');
+    if !is_host_name {
+        return Err(format!("static peer '{entry}' is neither an IPv4 address nor a host name, ignored"));
+    }
+    match lookup(entry) {
+        Ok(addrs) => addrs
+            .into_iter()
+            .find_map(|a| match a {
+                IpAddr::V4(v4) => Some(v4),
+                IpAddr::V6(_) => None,
+            })
+            .ok_or_else(|| format!("static peer '{entry}' has no IPv4 address, ignored")),
+        Err(e) => Err(format!("static peer '{entry}' cannot be resolved ({e}), ignored")),
+    }
+}
+
+/// The system resolver (`getaddrinfo`).
+pub fn system_lookup(name: &str) -> std::io::Result<Vec<IpAddr>> {
+    Ok((name, 0u16).to_socket_addrs()?.map(|a| a.ip()).collect())
+}
+
+impl DiscoveryPlan {
+    /// The plan for `env`, resolving static peers with `lookup`.
+    pub fn new(env: &RosEnv, lookup: &dyn Fn(&str) -> std::io::Result<Vec<IpAddr>>) -> DiscoveryPlan {
+        let mut warnings = Vec::new();
+        let (multicast, same_host, discover_others, use_peers) = match env.discovery_range {
+            DiscoveryRange::Off => (false, false, false, false),
+            DiscoveryRange::Localhost => (false, true, true, true),
+            DiscoveryRange::Subnet => (true, true, true, true),
+            DiscoveryRange::SystemDefault => (true, true, true, false),
+        };
+        let mut static_peers = Vec::new();
+        if use_peers {
+            for entry in &env.static_peers {
+                match resolve_peer(entry, lookup) {
+                    Ok(ip) if !static_peers.contains(&ip) => static_peers.push(ip),
+                    Ok(_) => {}
+                    Err(w) => warnings.push(w),
+                }
+            }
+        } else if !env.static_peers.is_empty() {
+            let why = match env.discovery_range {
+                DiscoveryRange::Off => "discovery is turned off (ROS_AUTOMATIC_DISCOVERY_RANGE=OFF)",
+                _ => "discovery is left to the middleware's default (ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT)",
+            };
+            warnings.push(format!(
+                "{} static peer(s) were specified in ROS_STATIC_PEERS, but {why}, so they are ignored",
+                env.static_peers.len()
+            ));
+        }
+        let loopback_only = match env.discovery_range {
+            DiscoveryRange::Off => true,
+            DiscoveryRange::Localhost => static_peers.is_empty(),
+            _ => false,
+        };
+        DiscoveryPlan { multicast, same_host, discover_others, loopback_only, static_peers, warnings }
+    }
+
+    /// The DDS participant for `domain_id`, configured by this plan.
+    pub fn participant(&self, domain_id: u32) -> Result<DomainParticipant, String> {
+        let domain = u16::try_from(domain_id).map_err(|_| format!("ROS_DOMAIN_ID {domain_id} is out of range"))?;
+        let mut builder = DomainParticipantBuilder::new(domain)
+            .multicast(self.multicast)
+            .same_host_loopback(self.same_host)
+            .discover_other_participants(self.discover_others)
+            .static_discovery_peers(self.static_peers.iter().copied(), STATIC_PEER_PARTICIPANT_RANGE)
+            .spdp_period(SPDP_PERIOD);
+        if self.loopback_only {
+            builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
+        }
+        builder.build().map_err(|e| format!("cannot create the DDS participant: {e:?}"))
+    }
+}
+
+/// The participant for the process environment `env`, its warnings logged (each once).
+pub fn participant_from_env(env: &RosEnv) -> Result<DomainParticipant, String> {
+    let plan = DiscoveryPlan::new(env, &system_lookup);
+    for w in &plan.warnings {
+        log::warn!("{w}");
+    }
+    log::info!(
+        "discovery: {:?}, multicast {}, same host {}, static peers {:?}",
+        env.discovery_range,
+        plan.multicast,
+        plan.same_host,
+        plan.static_peers
+    );
+    plan.participant(env.domain_id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn env(range: DiscoveryRange, peers: &[&str]) -> RosEnv {
+        RosEnv {
+            domain_id: 0,
+            discovery_range: range,
+            static_peers: peers.iter().map(|s| s.to_string()).collect(),
+            warnings: vec![],
+        }
+    }
+
+    fn lookup(name: &str) -> std::io::Result<Vec<IpAddr>> {
+        match name {
+            "tracer-b" => Ok(vec!["fe80::1".parse().unwrap(), "10.213.0.2".parse().unwrap()]),
+            "v6only" => Ok(vec!["fe80::1".parse().unwrap()]),
+            _ => Err(std::io::Error::other("Name or service not known")),
+        }
+    }
+
+    #[test]
+    fn ranges_as_rmw_fastrtps() {
+        let p = DiscoveryPlan::new(&env(DiscoveryRange::Subnet, &["10.213.0.2"]), &lookup);
+        assert!(p.multicast && p.same_host && p.discover_others && !p.loopback_only);
+        assert_eq!(p.static_peers, vec![Ipv4Addr::new(10, 213, 0, 2)]);
+
+        let p = DiscoveryPlan::new(&env(DiscoveryRange::Localhost, &[]), &lookup);
+        assert!(!p.multicast && p.same_host && p.discover_others && p.loopback_only);
+        let p = DiscoveryPlan::new(&env(DiscoveryRange::Localhost, &["10.213.0.2"]), &lookup);
+        assert!(!p.multicast && !p.loopback_only, "a static peer must reach the advertised locators");
+        assert_eq!(p.static_peers.len(), 1);
+
+        let p = DiscoveryPlan::new(&env(DiscoveryRange::Off, &[]), &lookup);
+        assert!(!p.multicast && !p.same_host && !p.discover_others && p.loopback_only);
+        assert!(p.warnings.is_empty());
+        let p = DiscoveryPlan::new(&env(DiscoveryRange::Off, &["10.213.0.2"]), &lookup);
+        assert!(p.static_peers.is_empty());
+        assert_eq!(p.warnings.len(), 1);
+        assert!(p.warnings[0].contains("turned off"), "{:?}", p.warnings);
+
+        let p = DiscoveryPlan::new(&env(DiscoveryRange::SystemDefault, &["10.213.0.2"]), &lookup);
+        assert!(p.multicast && p.static_peers.is_empty());
+        assert!(p.warnings[0].contains("SYSTEM_DEFAULT"), "{:?}", p.warnings);
+    }
+
+    #[test]
+    fn bad_peers_warn_once_each_and_the_others_are_used() {
+        let peers =
+            ["10.213.0.2", "no-such-host.invalid", "10.0.0.300", "10.213.0.3:7400", "tracer-b", "v6only", "::1"];
+        let p = DiscoveryPlan::new(&env(DiscoveryRange::Subnet, &peers), &lookup);
+        assert_eq!(p.static_peers, vec![Ipv4Addr::new(10, 213, 0, 2)], "tracer-b is the same address");
+        assert_eq!(p.warnings.len(), 5, "{:?}", p.warnings);
+        for (w, name) in
+            p.warnings.iter().zip(["no-such-host.invalid", "10.0.0.300", "10.213.0.3:7400", "v6only", "::1"])
+        {
+            assert!(w.contains(&format!("'{name}'")), "{w}");
+        }
+        assert!(p.warnings[0].contains("cannot be resolved"));
+        assert!(p.warnings[1].contains("neither"));
+    }
+
+    #[test]
+    fn host_names_resolve_to_their_first_ipv4_address() {
+        assert_eq!(resolve_peer("tracer-b", &lookup), Ok(Ipv4Addr::new(10, 213, 0, 2)));
+        assert_eq!(resolve_peer("127.0.0.1", &lookup), Ok(Ipv4Addr::LOCALHOST));
+        assert!(resolve_peer("-bad-.x", &lookup).is_err());
+        assert!(resolve_peer("a b", &lookup).is_err());
+    }
+}

@@ -1,0 +1,210 @@
+#!/usr/bin/env python3
+"""tracer_calib_node and a stock rclpy node (Kilted, Fast DDS) on two "hosts" without
+multicast: two network namespaces joined by a veth pair with multicast off
+(tests/interop/two_hosts.sh makes them; nothing routes off the machine). The node runs in
+host A, the rclpy peer in host B, each with its own ROS_AUTOMATIC_DISCOVERY_RANGE and
+ROS_STATIC_PEERS. Each scenario starts a node and a fresh peer process (the environment
+is read when rclpy starts its participant), which runs `--peer MODE` of this file:
+
+- full: plate scan, /calibrate, a lens scan corrected, its polygon, a parameter read;
+- isolated: for 8 s, neither the node, its topics nor /calibrate show up.
+
+Run by tests/interop/run.sh (`two_hosts` or a scenario name selects it), as
+`two_hosts.sh python test_two_hosts.py [SCENARIO...]`. Prints one line per scenario.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import traceback
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+DOMAIN = "42"
+PEER_TIMEOUT = 120
+
+
+def peer_env(range_, peers):
+    env = dict(os.environ)
+    # The interop profile whitelists 127.0.0.1 only: a host on a network has none.
+    env.pop("FASTDDS_DEFAULT_PROFILES_FILE", None)
+    env.pop("ROS_STATIC_PEERS", None)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = range_
+    env["ROS_DOMAIN_ID"] = DOMAIN
+    if peers:
+        env["ROS_STATIC_PEERS"] = peers
+    return env
+
+
+# ---------------------------------------------------------------------------------------
+# Host B: the rclpy peer
+
+
+def peer_main(mode):
+    import rclpy
+
+    sys.path.insert(0, HERE)
+    import test_node as t
+    from geometry_msgs.msg import PolygonStamped
+    from tracer_calib_msgs.msg import Contour, RawScan
+    from tracer_calib_msgs.srv import Calibrate
+
+    rclpy.init()
+    peer = t.Peer("host_b_peer")
+    if mode == "isolated":
+        deadline = time.monotonic() + 8
+        while time.monotonic() < deadline:
+            peer.executor.spin_once(timeout_sec=0.1)
+            names = peer.node.get_node_names()
+            services = [n for n, _ in peer.node.get_service_names_and_types()]
+            assert "tracer_calibrator" not in names, f"the node is seen: {names}"
+            assert "/calibrate" not in services, f"/calibrate is seen: {services}"
+            assert peer.node.count_subscribers("/raw_scan") == 0, "a /raw_scan subscriber is seen"
+        print("peer: isolated for 8 s", flush=True)
+        os._exit(0)
+
+    t0 = time.monotonic()
+    pub = peer.publisher("/raw_scan")
+    contours = peer.subscribe(Contour, "/contour")
+    polygons = peer.subscribe(PolygonStamped, "/contour_polygon")
+    peer.wait_matched(pub, timeout=60)
+    found = time.monotonic() - t0
+    plate = t.simulate("plate_b", "plate", seed=2)
+    peer.send_scan(pub, t.raw_scan(10, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours, timeout=40)
+    r = peer.call("/calibrate", Calibrate.Request(), timeout=40)
+    assert r.success, r.message
+    lens = t.simulate("lens_b", "ellipse", seed=3)
+    c = peer.send_scan(pub, t.raw_scan(11, RawScan.TARGET_LENS, *lens), contours, timeout=40)
+    assert c.calibrated and len(c.points) == 400, c
+    worst = max(t.ellipse_distance(p.x, p.y) for p in c.points)
+    assert worst < 40e-6, f"corrected points up to {worst * 1e3:.4f} mm off the ellipse"
+    deadline = time.monotonic() + 20
+    while not any(p.header.stamp.sec == 1700000011 for p in polygons):
+        assert time.monotonic() < deadline, "no PolygonStamped for the lens scan"
+        pub.publish(t.raw_scan(11, RawScan.TARGET_LENS, *lens))
+        try:
+            peer.spin_until(lambda: any(p.header.stamp.sec == 1700000011 for p in polygons), 1.0, "a polygon")
+        except AssertionError:
+            pass
+    client = peer.param_client("/tracer_calibrator", timeout=40)
+    got = peer.param(lambda: client.get_parameters(["plate.side", "calibration.valid"]))
+    assert abs(got.values[0].double_value - 0.045) < 1e-15 and got.values[1].bool_value is True, got
+    assert "tracer_calibrator" in peer.node.get_node_names()
+    print(f"peer: node found in {found:.1f} s; calibrate, contour, polygon, parameters ok", flush=True)
+    os._exit(0)
+
+
+# ---------------------------------------------------------------------------------------
+# The driver
+
+
+class Host:
+    """A process in one of the two namespaces."""
+
+    def __init__(self, ns, argv, env, log_path):
+        self.log_path = log_path
+        self.log = open(log_path, "w")
+        self.proc = subprocess.Popen(
+            ["ip", "netns", "exec", ns] + argv, env=env, stdout=self.log, stderr=subprocess.STDOUT
+        )
+
+    def output(self):
+        self.log.flush()
+        with open(self.log_path) as f:
+            return f.read()
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+
+
+def scenario(work, name, node_range, node_peers, peer_range, peer_peers, mode, expect_warnings=()):
+    a, b = os.environ["TRACER_HOST_A"], os.environ["TRACER_HOST_B"]
+    node_env = peer_env(node_range, node_peers)
+    node = Host(
+        a,
+        [os.environ["TRACER_CALIB_NODE"], "--ros-args", "--log-level", "info"],
+        node_env,
+        os.path.join(work, name + ".node.log"),
+    )
+    try:
+        time.sleep(0.3)
+        peer = subprocess.run(
+            ["timeout", "-s", "KILL", str(PEER_TIMEOUT), "ip", "netns", "exec", b, sys.executable, __file__, "--peer", mode],
+            env=peer_env(peer_range, peer_peers),
+            capture_output=True,
+            text=True,
+        )
+        if node.proc.poll() is not None:
+            raise AssertionError(f"the node exited with {node.proc.returncode}:\n{node.output()}")
+        if peer.returncode != 0:
+            raise AssertionError(
+                f"peer ({mode}) failed with {peer.returncode}:\n{peer.stdout[-3000:]}{peer.stderr[-3000:]}\n"
+                f"--- node:\n{node.output()[-3000:]}"
+            )
+    finally:
+        node.stop()
+    out = node.output()
+    for w in expect_warnings:
+        lines = [line for line in out.splitlines() if "WARN" in line and w in line]
+        assert len(lines) == 1, f"expected one warning naming {w!r}, got {lines}:\n{out}"
+    last = [line for line in peer.stdout.splitlines() if line.startswith("peer:")]
+    return last[-1] if last else ""
+
+
+def main():
+    if len(sys.argv) >= 3 and sys.argv[1] == "--peer":
+        try:
+            peer_main(sys.argv[2])
+        except Exception:
+            traceback.print_exc()
+            sys.stdout.flush()
+            os._exit(1)
+    import tempfile
+
+    work = tempfile.mkdtemp(prefix="tracer_calib_two_hosts_")
+    os.environ["TMPDIR"] = work
+    A, B = os.environ["TRACER_ADDR_A"], os.environ["TRACER_ADDR_B"]
+    scenarios = [
+        # Static peers on the node only: the node announces itself to B by unicast.
+        # Bad entries beside the good one: one warning each, the node still starts.
+        ("two_hosts_peers_on_node", lambda: scenario(
+            work, "node", "SUBNET", f"no-such-host.invalid;10.0.0.300;{B}", "SUBNET", None, "full",
+            expect_warnings=("'no-such-host.invalid'", "'10.0.0.300'"))),
+        ("two_hosts_peers_on_peer", lambda: scenario(work, "peer", "SUBNET", None, "SUBNET", A, "full")),
+        ("two_hosts_peers_on_both", lambda: scenario(work, "both", "SUBNET", B, "SUBNET", A, "full")),
+        # LOCALHOST with a static peer: no multicast, but the peer host is reached.
+        ("two_hosts_localhost_with_peer", lambda: scenario(work, "localhost", "LOCALHOST", B, "SUBNET", None, "full")),
+        # Discovery OFF: not seen, not even by a peer that lists the node.
+        ("two_hosts_off", lambda: scenario(work, "off", "OFF", None, "SUBNET", A, "isolated")),
+        # No static peers on either side and no multicast on the link: not seen.
+        ("two_hosts_no_peers", lambda: scenario(work, "none", "SUBNET", None, "SUBNET", None, "isolated")),
+    ]
+    only = sys.argv[1:]
+    if only == ["two_hosts"]:
+        only = []
+    passed = failed = 0
+    for name, fn in scenarios:
+        if only and name not in only:
+            continue
+        t0 = time.monotonic()
+        try:
+            detail = fn()
+            passed += 1
+            print(f"test interop::{name} ... ok ({time.monotonic() - t0:.1f} s) {detail}", flush=True)
+        except Exception:
+            failed += 1
+            print(f"test interop::{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
+            traceback.print_exc()
+    print(f"two hosts: {passed} passed, {failed} failed", flush=True)
+    os._exit(0 if failed == 0 else 1)
+
+
+if __name__ == "__main__":
+    main()
