@@ -72,12 +72,8 @@ fn take_until(reader: &Reader, until: u32, deadline: Instant, max_cached: &mut u
 #[test]
 fn writer_and_reader_caches_stay_within_their_depths() {
     let (pw, pr) = (participant(), participant());
-    let tw = pw
-        .create_topic("history_bound".into(), "Blob".into(), &qos(WRITER_DEPTH), TopicKind::NoKey)
-        .unwrap();
-    let tr = pr
-        .create_topic("history_bound".into(), "Blob".into(), &qos(READER_DEPTH), TopicKind::NoKey)
-        .unwrap();
+    let tw = pw.create_topic("history_bound".into(), "Blob".into(), &qos(WRITER_DEPTH), TopicKind::NoKey).unwrap();
+    let tr = pr.create_topic("history_bound".into(), "Blob".into(), &qos(READER_DEPTH), TopicKind::NoKey).unwrap();
     let writer: DataWriter<Blob, CDRSerializerAdapter<Blob>> = pw
         .create_publisher(&qos(WRITER_DEPTH))
         .unwrap()
