@@ -10,7 +10,9 @@
 //! the node's own pace; every 2000 scans it calls `/calibrate` on the latest plate scan.
 //! At the end it compares what it sent with what came back and with the node's
 //! `/diagnostics` counters: every scan must be either corrected or counted as rejected.
-//! The node's RSS is read from `/proc` at the start, at each tenth, and at the end.
+//! The node's RSS is read from `/proc` at the start, at each tenth, and at the end, and
+//! its peak RSS (`VmHWM`, the kernel's high-water mark) at the end of the burst and of
+//! the run.
 
 use std::collections::HashSet;
 use std::process::{Child, Command, Stdio};
@@ -35,11 +37,21 @@ fn qos(depth: usize) -> QosProfile {
         .history(History::KeepLast { depth })
 }
 
-fn rss_kib(pid: u32) -> u64 {
+/// A field of `/proc/PID/status` in KiB (`VmRSS`, resident now; `VmHWM`, the peak).
+fn status_kib(pid: u32, field: &str) -> u64 {
     std::fs::read_to_string(format!("/proc/{pid}/status"))
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("VmRSS:"))?.split_whitespace().nth(1)?.parse().ok())
+        .and_then(|s| s.lines().find(|l| l.starts_with(field))?.split_whitespace().nth(1)?.parse().ok())
         .unwrap_or(0)
+}
+
+fn rss_kib(pid: u32) -> u64 {
+    status_kib(pid, "VmRSS:")
+}
+
+/// The node's peak resident set since it started (the kernel's high-water mark).
+fn peak_rss_kib(pid: u32) -> u64 {
+    status_kib(pid, "VmHWM:")
 }
 
 struct Node(Child);
@@ -227,11 +239,14 @@ fn main() {
         }
         println!("calibrate calls interleaved: {calls}, answered with success: {calls_ok}");
         println!("node RSS: {rss_start} KiB at start, {rss_end} KiB at the end of the burst");
-        // rustdds frees its caches every 4-6 s; the node then returns the memory.
+        println!("node peak RSS (VmHWM): {} KiB", peak_rss_kib(pid));
+        // What the node holds once the burst is over (its DDS caches hold at most their
+        // depths; before issue 11 they were freed only every 4-6 s).
         for wait in [5, 10, 15] {
             smol::Timer::after(Duration::from_secs(5)).await;
             println!("node RSS {wait} s after the last scan: {} KiB", rss_kib(pid));
         }
+        println!("node peak RSS (VmHWM) over the whole run: {} KiB", peak_rss_kib(pid));
     });
     drop(spinner);
     drop(node);

@@ -17,6 +17,11 @@
 //! contours are not latched (volatile): a late subscriber wants the next scan, not an
 //! old one. The calibration in force is latched: whoever joins later must know which
 //! calibration the contours it receives were corrected with.
+//!
+//! Memory is bounded by these depths at any scan rate: the patched rustdds
+//! (`vendor/rustdds/PATCHES.md`) releases a written contour once it is out of the
+//! depth and acknowledged by every reliable subscriber, and the `raw_scan` reader's
+//! cache keeps at most its depth (BENCHMARKS.md, "Throughput and memory").
 
 use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -141,18 +146,21 @@ fn from_ros(v: &RosValue) -> Option<ParamValue> {
 }
 
 /// Free heap below which the node gives nothing back to the OS (bytes). Memory given
-/// back costs a page fault per 4 kB page when it is used again. A steady stream of
-/// scans keeps a few MB in flight in rustdds' caches (about 10 MB at 100 scans a
-/// second); trimming that every 5 s, as the node did, had the scans after each trim
-/// fault the released pages in again (+12.6..+14.1 % instead of +7.3..+8.2 % over the
-/// bare relay in 3000-round runs of `scripts/bench_latency.sh`).
+/// back costs a page fault per 4 kB page when it is used again. Before rustdds was
+/// patched to release samples within its KEEP_LAST depths (issue 11), a steady stream
+/// of scans kept a few MB in flight in its caches (about 10 MB at 100 scans a second);
+/// trimming that every 5 s, as the node did, had the scans after each trim fault the
+/// released pages in again (+12.6..+14.1 % instead of +7.3..+8.2 % over the bare relay
+/// in 3000-round runs of `scripts/bench_latency.sh`). With the caches bounded by their
+/// depths the heap stays well under this at any scan rate; the trim is a backstop.
 const KEEP_FREE_HEAP: usize = 32 << 20;
 
 /// After a burst, give memory the allocator holds but no longer uses back to the OS.
-/// rustdds frees the samples its reader and writer caches no longer need every 4-6 s;
-/// after a bag replayed at full speed (thousands of scans a second) glibc would
-/// otherwise keep the peak resident for good. Up to [`KEEP_FREE_HEAP`] of free heap
-/// is kept: that memory is what the next scans will use.
+/// The DDS caches hold at most their QoS depths (and the samples a reliable reader has
+/// not acknowledged yet; `vendor/rustdds/PATCHES.md`), so a full-speed burst of normal
+/// scans leaves little free heap behind; a few huge messages (a 10^6-sample scan is
+/// 8 MB) can, and glibc would keep that resident for good. Up to [`KEEP_FREE_HEAP`] of
+/// free heap is kept: that memory is what the next scans will use.
 fn release_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallinfo2 only reads the allocator's statistics and malloc_trim only

@@ -556,6 +556,15 @@ impl InnerPublisher {
       backlog_limit,
       max_retain,
     );
+    // tracer_calib patch: a keyless topic has one instance, so its KEEP_LAST depth
+    // bounds the whole writer history: release samples as soon as that depth and
+    // the matched reliable readers' acknowledgements allow, not only at the
+    // periodic cache cleaning (seconds of samples at a high rate).
+    if let (Some(policy::History::KeepLast { depth }), EntityKind::WRITER_NO_KEY_USER_DEFINED) =
+      (writer_qos.history(), guid.entity_id.entity_kind)
+    {
+      send_buffer.set_keep_last_depth(depth.max(1) as usize);
+    }
     // Doorbell: enqueue this writer's entity id and wake the participant poll.
     let doorbell = Doorbell::new(guid.entity_id, self.writer_ready.clone());
 

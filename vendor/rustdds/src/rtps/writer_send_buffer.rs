@@ -70,6 +70,14 @@ struct Inner {
   // send window / unsent-backlog and must retain samples for repair.
   max_retain: usize,
 
+  // tracer_calib patch: the KEEP_LAST depth of a writer whose History applies to
+  // the whole buffer (a keyless topic: one instance), set by `set_keep_last_depth`.
+  // With it, a sample is released as soon as it is neither among the newest
+  // `depth` nor still unacknowledged by a matched reliable reader (or unsent, when
+  // no reliable reader is matched); see `release_history_locked`. `None` (keyed,
+  // KEEP_ALL and built-in writers): only the periodic cache cleaning evicts.
+  keep_last_depth: Option<usize>,
+
   // Wakers of async producers / ack-waiters parked because the window was full
   // or acknowledgements were still pending. Drained (woken) on any advance.
   wakers: Vec<Waker>,
@@ -130,6 +138,7 @@ impl WriterSendBuffer {
           backlog_limit: backlog_limit.max(1),
           sent_frontier: SequenceNumber::new(0),
           max_retain: max_retain.max(1),
+          keep_last_depth: None, // tracer_calib patch
           wakers: Vec::new(),
         }),
         progress: Condvar::new(),
@@ -179,6 +188,60 @@ impl WriterSendBuffer {
     // Number of unacknowledged samples in [acked_before, last_seq].
     let unacked = i64::from(inner.last_seq) - i64::from(inner.acked_before) + 1;
     unacked < inner.window_limit as i64
+  }
+
+  /// tracer_calib patch: make the writer's KEEP_LAST `depth` bound what it holds
+  /// between two periodic cache cleanings: from now on a sample is released as soon
+  /// as every matched reliable reader has acknowledged it (or, with no reliable
+  /// reader matched, as soon as it has been sent) and `depth` newer samples have
+  /// been written. Unacknowledged samples are still kept for repair (the send
+  /// window bounds them). Only for writers whose History covers the whole buffer:
+  /// a keyless topic, where KEEP_LAST's per-instance depth is a per-writer depth.
+  pub fn set_keep_last_depth(&self, depth: usize) {
+    let shared = &*self.shared;
+    if shared.is_builtin {
+      return;
+    }
+    let mut inner = shared.inner.lock().unwrap();
+    inner.keep_last_depth = Some(depth.max(1));
+    Self::release_history_locked(shared, &mut inner);
+  }
+
+  // tracer_calib patch: release what KEEP_LAST no longer asks to keep: every
+  // sample older than both the newest `keep_last_depth` ones and the oldest one a
+  // matched reliable reader has not acknowledged (with no reliable reader matched:
+  // the oldest one not yet sent). Samples go oldest first, so the retained ones
+  // stay a contiguous range from `first_seq`, which HEARTBEATs announce: a reader
+  // asking for an older one gets a GAP.
+  fn release_history_locked(shared: &Shared, inner: &mut Inner) {
+    let Some(depth) = inner.keep_last_depth else {
+      return;
+    };
+    if shared.is_builtin {
+      return;
+    }
+    let done_before = if shared.reliable_writer && inner.reliable_readers_present {
+      i64::from(inner.acked_before)
+    } else {
+      i64::from(inner.sent_frontier) + 1
+    };
+    let newest_kept = i64::from(inner.last_seq) + 1 - depth as i64;
+    let keep_from = SequenceNumber::new(done_before.min(newest_kept));
+    if keep_from <= inner.first_seq {
+      return;
+    }
+    while let Some(entry) = inner.changes.first_entry() {
+      if *entry.key() >= keep_from {
+        break;
+      }
+      entry.remove();
+    }
+    inner.first_seq = keep_from;
+  }
+
+  /// tracer_calib patch: the number of samples the buffer holds now.
+  pub fn retained_len_now(&self) -> usize {
+    self.shared.inner.lock().unwrap().changes.len()
   }
 
   // Wake every parked producer / ack-waiter. Called after any state change that
@@ -302,6 +365,7 @@ impl WriterSendBuffer {
         inner.first_seq = oldest.plus_1();
       }
     }
+    Self::release_history_locked(shared, inner); // tracer_calib patch
     seq
   }
 
@@ -335,6 +399,7 @@ impl WriterSendBuffer {
       }
     };
     if advanced {
+      Self::release_history_locked(shared, &mut inner); // tracer_calib patch
       Self::wake_all(&mut inner, &shared.progress);
     }
   }
@@ -347,6 +412,7 @@ impl WriterSendBuffer {
     let mut inner = shared.inner.lock().unwrap();
     if sent_frontier > inner.sent_frontier {
       inner.sent_frontier = sent_frontier;
+      Self::release_history_locked(shared, &mut inner); // tracer_calib patch
       Self::wake_all(&mut inner, &shared.progress);
     }
   }

@@ -572,6 +572,11 @@ impl TopicCache {
     self.topic_name.clone()
   }
 
+  /// tracer_calib patch: the number of samples held now.
+  pub fn sample_count(&self) -> usize {
+    self.changes.len()
+  }
+
   #[cfg(test)]
   pub(crate) fn max_keep_samples(&self) -> i32 {
     self.max_keep_samples

@@ -129,6 +129,12 @@ where
   pub fn wait_for_acknowledgments(&self, max_wait: Duration) -> WriteResult<bool, ()> {
     self.keyed_datawriter.wait_for_acknowledgments(max_wait)
   }
+
+  /// tracer_calib patch: how many samples this writer's history holds now; see
+  /// [`with_key::DataWriter::history_sample_count`](crate::with_key::DataWriter::history_sample_count).
+  pub fn history_sample_count(&self) -> usize {
+    self.keyed_datawriter.history_sample_count()
+  }
   /*
   // status queries
   /// Unimplemented. <b>Do not use</b>.

@@ -87,6 +87,13 @@ where
     self.keyed_simpledatareader.guid()
   }
 
+  /// tracer_calib patch: how many samples the topic's cache in this participant
+  /// holds now (taken or not; shared by the participant's readers of the topic).
+  /// For monitoring and tests.
+  pub fn topic_cache_sample_count(&self) -> usize {
+    self.keyed_simpledatareader.topic_cache_sample_count()
+  }
+
   pub fn as_async_stream(
     &self,
   ) -> impl FusedStream<Item = ReadResult<DeserializedCacheChange<D>>> + '_

@@ -755,6 +755,13 @@ where
     }
   }
 
+  /// tracer_calib patch: how many samples this writer's history holds now (the
+  /// samples kept for its KEEP_LAST depth, for repair to reliable readers that
+  /// have not acknowledged them yet, or not yet sent). For monitoring and tests.
+  pub fn history_sample_count(&self) -> usize {
+    self.send_buffer.retained_len_now()
+  }
+
   /// Placeholder only — not implemented. **Will panic if called.**
   ///
   /// # Panics

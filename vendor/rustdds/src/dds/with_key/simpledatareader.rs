@@ -405,6 +405,13 @@ where
     self.my_guid
   }
 
+  /// tracer_calib patch: how many samples the topic's cache in this participant
+  /// holds now (taken or not; shared by the participant's readers of the topic).
+  /// For monitoring and tests.
+  pub fn topic_cache_sample_count(&self) -> usize {
+    self.acquire_the_topic_cache_guard().sample_count()
+  }
+
   pub fn topic(&self) -> &Topic {
     &self.my_topic
   }
