@@ -1,21 +1,69 @@
 #!/usr/bin/env bash
-# The real-ROS-2-peer tests: sets up rclpy + tracer_calib_msgs (tests/interop/setup.sh,
-# quick when up to date), then runs tests/interop/test_node.py against the release
-# binaries inside a private network namespace (nothing leaves the machine).
-#   tests/interop/run.sh [TEST_NAME...]
+# The real-ROS-2-peer tests, once per ROS 2 distribution (Kilted, then Jazzy, the LTS):
+#   1. tests/interop/setup.sh DISTRO: rclpy + tracer_calib_msgs (quick when up to date);
+#   2. test_node.py against the release binaries (target/release), with the peer's
+#      environment target/ros/DISTRO/env.sh;
+#   3. tests/interop/workspace.sh DISTRO: the README's `colcon build` in a workspace over
+#      the distribution's wheels, and what it installs;
+#   4. test_launch.py against that workspace (install/setup.bash sourced): the launch files
+#      as `ros2 launch` would run them, `ros2 run`, with the installed interfaces.
+# Every DDS participant runs inside a private network namespace (nothing leaves the
+# machine). Prints each part's time.
+#   tests/interop/run.sh [TEST_NAME...]        (TEST_NAMEs: test_node.py's; then 3 and 4
+#                                               are skipped)
+#   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
-"$HERE/setup.sh" >/dev/null
+DISTROS=${TRACER_ROS_DISTROS:-kilted jazzy}
 trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
 export TRACER_CALIB_NODE="$ROOT/target/release/tracer_calib_node"
 export TRACER_CALIB="$ROOT/target/release/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
-# shellcheck disable=SC2016
-"$HERE/netns.sh" bash -c '
-    . "$1/target/ros/env.sh"
-    shift
-    exec timeout -s KILL 600 python "$0" "$@"
-' "$HERE/test_node.py" "$ROOT" "$@"
+now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
+took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
+failed=()
+for d in $DISTROS; do
+    t0=$(now_ms)
+    "$HERE/setup.sh" "$d" >/dev/null
+    echo "run.sh: $d: setup $(took "$t0")"
+    t0=$(now_ms)
+    echo "run.sh: $d: test_node.py (ROS 2 $d rclpy, release binaries)"
+    # shellcheck disable=SC2016
+    if ! "$HERE/netns.sh" bash -c '
+        . "$1/target/ros/$2/env.sh"
+        shift 2
+        exec timeout -s KILL 600 python "$0" "$@"
+    ' "$HERE/test_node.py" "$ROOT" "$d" "$@"; then
+        failed+=("$d:test_node")
+    fi
+    echo "run.sh: $d: test_node.py $(took "$t0")"
+    [ "$#" -eq 0 ] || continue
+    t0=$(now_ms)
+    if ! "$HERE/workspace.sh" "$d"; then
+        failed+=("$d:workspace")
+        continue
+    fi
+    echo "run.sh: $d: workspace $(took "$t0")"
+    t0=$(now_ms)
+    echo "run.sh: $d: test_launch.py (installed workspace, ROS 2 $d rclpy)"
+    # The environment of a shell that sourced ROS 2 and the workspace, plus the loopback-only
+    # DDS settings of the tests.
+    # shellcheck disable=SC2016
+    if ! "$HERE/netns.sh" env -i HOME="$HOME" PATH="$PATH" bash -c '
+        . "$1/target/ros/$2/ros_setup.sh"
+        . "$1/target/colcon_ws/$2/install/setup.bash"
+        export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+        export FASTDDS_DEFAULT_PROFILES_FILE="$1/target/ros/$2/fastdds_localhost.xml"
+        exec timeout -s KILL 300 python "$0"
+    ' "$HERE/test_launch.py" "$ROOT" "$d"; then
+        failed+=("$d:test_launch")
+    fi
+    echo "run.sh: $d: test_launch.py $(took "$t0")"
+done
+if [ "${#failed[@]}" -gt 0 ]; then
+    echo "run.sh: failed: ${failed[*]}" >&2
+    exit 1
+fi
