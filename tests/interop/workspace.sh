@@ -110,6 +110,10 @@ if ! in_ros_env "$WS" "nice -n 10 $LINE" >"$WS/build.log" 2>&1; then
     show_log "$WS/build.log"
     die "'$LINE' failed in $WS (log: $WS/build.log)"
 fi
+# colcon leaves its bookkeeping in each package's build directory: here the repository's
+# target/ (the symlink), where it has no business.
+rm -f "$ROOT/target/colcon_build.rc" "$ROOT/target/colcon_command_prefix_build.sh" \
+    "$ROOT/target/colcon_command_prefix_build.sh.env"
 step_done "colcon build" built "$t0"
 
 # 5. what it installed: as the README and CONTRACT say, and found through the ament index
