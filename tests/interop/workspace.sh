@@ -4,7 +4,10 @@
 #
 #   target/tools/colcon/              colcon + colcon-ros-cargo (+ the cargo-ament-build wheel)
 #                                     from PyPI, pinned by requirements-colcon.lock
-#   target/colcon_ws/DISTRO/src/tracer_calib -> the repository (a symlink)
+#   target/colcon_ws/DISTRO/src/tracer_calib  the repository: for jazzy a copy of its files
+#                                     (as an integrator's clone: cargo then sees the
+#                                     workspace's .cargo/config.toml that colcon-ros-cargo
+#                                     writes), for kilted a symlink
 #   target/colcon_ws/DISTRO/install/  what the README's `colcon build` line installs
 #
 # The underlay, in place of `source /opt/ros/DISTRO/setup.bash`, is the PyPI wheels' venv
@@ -15,8 +18,10 @@
 # The cargo build of tracer_calib reuses the repository's release build: the package's
 # colcon build directory (build/tracer_calib, which colcon-ros-cargo passes to cargo as
 # --target-dir) is a symlink to the repository's target/, so `cargo build --release`
-# finds everything built already (CI builds the crate once). TRACER_WS_FRESH_TARGET=1
-# builds into a directory of its own instead, as an integrator's workspace does.
+# finds the dependencies built already (CI builds them once; from a copy, cargo compiles
+# the repository's own crates, tracer_calib and vendor/, again, once per copy).
+# TRACER_WS_FRESH_TARGET=1 builds into a directory of its own instead, as an integrator's
+# workspace does.
 #
 # Also checks the bad input: the same build with no ROS sourced fails with one line that
 # says what to do.
@@ -65,8 +70,22 @@ else
 fi
 exec 8>&-
 
-# 2. the workspace: src/tracer_calib is this repository.
-ln -sfn "$ROOT" "$WS/src/tracer_calib"
+# 2. the workspace: src/tracer_calib is this repository (its files as they are now, less
+#    target/ and .git/; modification times kept, so an unchanged copy builds nothing).
+if [ "$DISTRO" = jazzy ]; then
+    tar -C "$ROOT" --exclude=./target --exclude=./.git --exclude=./fuzz/target -cf "$WS/src.tar" .
+    key=$(sha256sum <"$WS/src.tar" | cut -c1-64)
+    if [ -L "$WS/src/tracer_calib" ] || [ "$(cat "$WS/src.stamp" 2>/dev/null)" != "$key" ]; then
+        rm -rf "$WS/src/tracer_calib" "$WS/src.stamp"
+        mkdir -p "$WS/src/tracer_calib"
+        tar -C "$WS/src/tracer_calib" -xf "$WS/src.tar"
+        echo "$key" >"$WS/src.stamp"
+    fi
+    rm -f "$WS/src.tar"
+else
+    [ -L "$WS/src/tracer_calib" ] || rm -rf "$WS/src/tracer_calib"
+    ln -sfn "$ROOT" "$WS/src/tracer_calib"
+fi
 if [ "${TRACER_WS_FRESH_TARGET:-0}" = 1 ]; then
     [ -L "$WS/build/tracer_calib" ] && rm -f "$WS/build/tracer_calib"
 else
@@ -116,6 +135,20 @@ rm -f "$ROOT/target/colcon_build.rc" "$ROOT/target/colcon_command_prefix_build.s
     "$ROOT/target/colcon_command_prefix_build.sh.env"
 step_done "colcon build" built "$t0"
 
+# 4b. the same line again, in a shell where the workspace is sourced as well (what an
+#     integrator does after a change): builds nothing new, changes nothing in the sources.
+t0=$(now_ms)
+if ! in_ros_env "$WS" ". install/setup.bash; $LINE" >"$WS/rebuild.log" 2>&1; then
+    show_log "$WS/rebuild.log"
+    die "'$LINE' failed the second time, with install/setup.bash sourced (log: $WS/rebuild.log)"
+fi
+if [ ! -L "$WS/src/tracer_calib" ] && ! cmp -s "$ROOT/Cargo.lock" "$WS/src/tracer_calib/Cargo.lock"; then
+    die "the rebuild changed src/tracer_calib/Cargo.lock"
+fi
+rm -f "$ROOT/target/colcon_build.rc" "$ROOT/target/colcon_command_prefix_build.sh" \
+    "$ROOT/target/colcon_command_prefix_build.sh.env"
+step_done rebuild built "$t0"
+
 # 5. what it installed: as the README and CONTRACT say, and found through the ament index
 #    the way `ros2 run` / `ros2 launch` find them.
 t0=$(now_ms)
@@ -135,4 +168,12 @@ done
 out=$(in_ros_env "$WS" ". install/setup.bash; python '$HERE/ros2_run.py' --which tracer_calib tracer_calib_node" 2>&1) ||
     die "the ament index does not find tracer_calib_node: $out"
 [ "$out" = "$I/tracer_calib/lib/tracer_calib/tracer_calib_node" ] || die "the ament index finds tracer_calib_node at $out"
+# The crate's [patch.crates-io] path entries (vendor/...) were honoured: the node was built
+# from the workspace copy's vendor/ sources (cargo's dep-info lists every source file).
+if [ ! -L "$WS/src/tracer_calib" ]; then
+    while read -r dir; do
+        grep -q -F "$WS/src/tracer_calib/$dir/" "$WS/build/tracer_calib/release/tracer_calib_node.d" ||
+            die "the node was not built from src/tracer_calib/$dir ([patch.crates-io] not honoured)"
+    done < <(sed -n '/^\[patch\.crates-io\]/,/^\[/s/.*path *= *"\(vendor\/[^"]*\)".*/\1/p' "$ROOT/Cargo.toml")
+fi
 step_done installed checked "$t0"
