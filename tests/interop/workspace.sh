@@ -73,7 +73,8 @@ exec 8>&-
 # 2. the workspace: src/tracer_calib is this repository (its files as they are now, less
 #    target/ and .git/; modification times kept, so an unchanged copy builds nothing).
 if [ "$DISTRO" = jazzy ]; then
-    tar -C "$ROOT" --exclude=./target --exclude=./.git --exclude=./fuzz/target -cf "$WS/src.tar" .
+    tar -C "$ROOT" --exclude=./target --exclude=./.git --exclude=./fuzz/target --exclude=__pycache__ \
+        -cf "$WS/src.tar" .
     key=$(sha256sum <"$WS/src.tar" | cut -c1-64)
     if [ -L "$WS/src/tracer_calib" ] || [ "$(cat "$WS/src.stamp" 2>/dev/null)" != "$key" ]; then
         rm -rf "$WS/src/tracer_calib" "$WS/src.stamp"
