@@ -61,7 +61,7 @@ impl LeastSquaresProblem<f64, Dyn, U5> for CrateAdapter {
 
 fn plate_scan() -> (PlateSpec, Scan, full::Params) {
     let plate = PlateSpec { side: 0.045, corner_radius: 0.003 };
-    let m = Mounting { alpha0: 2f64.to_radians(), offset: 0.005, delta_l: 0.002 };
+    let m = Mounting::new(2f64.to_radians(), 0.005, 0.002);
     let c = Vector2::new(0.0008, -0.0005);
     let mut rng = StdRng::seed_from_u64(1);
     let sim = simulate(&plate.at(c), &m, &SimOptions { noise: 10e-6, ..SimOptions::default() }, &mut rng).unwrap();
@@ -92,14 +92,14 @@ fn bench(c: &mut Criterion) {
         b.iter(|| LevenbergMarquardt::new().minimize(CrateAdapter { model: black_box(&model).clone(), x: start }))
     });
     c.bench_function("fit/normal_equations_pass_400", |b| b.iter(|| lm::normal_equations(black_box(&model), &start)));
-    for kind in [ModelKind::Full, ModelKind::Paper] {
+    for kind in ModelKind::ALL {
         let opts = Options { model: kind, ..Options::default() };
-        c.bench_function(&format!("calibrate/{kind}_400 (start + fit + outlier test)"), |b| {
+        c.bench_function(&format!("calibrate/{kind}_400 (start + fit + outlier test + checks)"), |b| {
             b.iter(|| calibrate(black_box(&scan), &plate, &opts).unwrap())
         });
     }
 
-    let m = Mounting { alpha0: 2f64.to_radians(), offset: 0.005, delta_l: 0.002 };
+    let m = Mounting::new(2f64.to_radians(), 0.005, 0.002);
     let lens = Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 };
     let mut rng = StdRng::seed_from_u64(2);
     let lens_scan = simulate(&lens, &m, &SimOptions::default(), &mut rng).unwrap().scan;

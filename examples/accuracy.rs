@@ -5,125 +5,237 @@
 //! ```
 //!
 //! Truth as in `notes/model.md`: alpha0 = 2°, d = 5 mm, dL = 2 mm, plate 45 mm with
-//! 3 mm corners centred at (0.8, -0.5) mm, 400 steps. For encoder noise σ = 0.1, 0.01
-//! and 0.001 mm it prints the RMS error of alpha0, d, dL for the full and the paper
-//! model next to the Cramér-Rao bound `σ² (JᵀJ)⁻¹` of the full model at the truth (the
-//! same Jacobian the fit uses), the mean reported standard uncertainty, and the RMS
-//! error of a 50×30 mm ellipse corrected with each fit (noise-free ellipse scan, so
-//! the figure is the calibration's own error).
+//! 3 mm corners centred at (0.8, -0.5) mm, 400 steps. Three parts:
+//!
+//! 1. For encoder noise σ = 0.1, 0.01 and 0.001 mm, the RMS error of alpha0, d, dL (and
+//!    the encoder scale k) for the full, paper and full_scale models next to each
+//!    model's Cramér-Rao bound `σ² (JᵀJ)⁻¹` at the truth (the same Jacobian the fit
+//!    uses: five parameters for full and paper, six for full_scale), the mean reported
+//!    standard uncertainty, and the RMS error of a 50×30 mm ellipse corrected with each
+//!    fit (noise-free ellipse scan, so the figure is the calibration's own error).
+//! 2. A tracer whose encoder scale is off (k = 0.9975 .. 1.01): full_scale recovers
+//!    k, alpha0, d and dL at its bound; the ellipse comes out true.
+//! 3. The scale check of the models that do not fit k: how often a correct tracer fails
+//!    it (false alarms) and how often a wrong scale (0.05, 0.1, 0.25 %) is caught, for
+//!    σ from 1 to 100 µm (half the trials a cell).
 
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use tracer_calib::engine::calibrate::{Options, calibrate};
+use tracer_calib::engine::calibrate::{CalibrationError, Options, calibrate};
 use tracer_calib::engine::correct::correct;
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::lm::normal_equations;
 use tracer_calib::engine::model::full::{self, FullModel, TableSample};
+use tracer_calib::engine::model::full_scale::{self, FullScaleModel};
 use tracer_calib::engine::model::{ModelKind, PlateSpec};
 use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
 
 #[derive(Default)]
 struct Tally {
-    sq: [f64; 3],
-    reported: [f64; 3],
+    /// Squared errors of alpha0, d, dL, k.
+    sq: [f64; 4],
+    reported: [f64; 4],
     ellipse_sq: f64,
     n: usize,
     failures: usize,
+    /// Failures by the scale check.
+    scale_off: usize,
+}
+
+impl Tally {
+    fn rms(&self) -> [f64; 4] {
+        self.sq.map(|s| (s / self.n.max(1) as f64).sqrt())
+    }
+    fn mean_reported(&self) -> [f64; 4] {
+        self.reported.map(|s| s / self.n.max(1) as f64)
+    }
+    fn ellipse_rms(&self) -> f64 {
+        (self.ellipse_sq / self.n.max(1) as f64).sqrt()
+    }
+}
+
+/// The set-up every trial shares.
+struct Bench {
+    plate: PlateSpec,
+    truth: Mounting,
+    center: Vector2<f64>,
+    /// A noise-free scan of the 50×30 mm ellipse, per true encoder scale, and its truth.
+    lens: Ellipse,
+}
+
+impl Bench {
+    /// `trials` calibrations with model `kind` of plate scans with noise `sigma` by a
+    /// tracer with encoder scale `k`.
+    fn run(&self, kind: ModelKind, sigma: f64, k: f64, trials: usize, seed: u64) -> Tally {
+        let truth = self.truth.with_scale(k);
+        let opts = Options { model: kind, ..Options::default() };
+        let ellipse = simulate(&self.lens, &truth, &SimOptions::default(), &mut StdRng::seed_from_u64(1)).unwrap();
+        let mut t = Tally::default();
+        let mut rng = StdRng::seed_from_u64(seed);
+        for _ in 0..trials {
+            let sim = simulate(
+                &self.plate.at(self.center),
+                &truth,
+                &SimOptions { noise: sigma, ..SimOptions::default() },
+                &mut rng,
+            )
+            .unwrap();
+            match calibrate(&sim.scan, &self.plate, &opts) {
+                Ok(cal) => {
+                    let m = cal.mounting;
+                    let err =
+                        [m.alpha0 - truth.alpha0, m.offset - truth.offset, m.delta_l - truth.delta_l, m.scale - k];
+                    let reported = [cal.stddev[0], cal.stddev[1], cal.stddev[2], cal.scale_stddev];
+                    for i in 0..4 {
+                        t.sq[i] += err[i] * err[i];
+                        t.reported[i] += reported[i];
+                    }
+                    let pts = correct(&ellipse.scan, &m);
+                    t.ellipse_sq += pts.iter().zip(&ellipse.truth).map(|(p, q)| (p - q).norm_squared()).sum::<f64>()
+                        / pts.len() as f64;
+                    t.n += 1;
+                }
+                Err(e) => {
+                    t.failures += 1;
+                    if matches!(e, CalibrationError::ScaleOff { .. }) {
+                        t.scale_off += 1;
+                    }
+                }
+            }
+        }
+        t
+    }
+
+    /// Cramér-Rao bound per unit σ, sqrt(diag((JᵀJ)⁻¹)) at the truth, of alpha0, d, dL
+    /// (and k, for full_scale; 0 otherwise).
+    fn crlb_unit(&self, kind: ModelKind) -> [f64; 4] {
+        let table: Vec<TableSample> = (0..400).map(|k| TableSample::new(k, 400, 0.0)).collect();
+        let x_true = full::params(&self.truth, self.center);
+        let model = FullModel::new(&self.plate, table);
+        let rho = model.predict(&x_true).unwrap();
+        let model = FullModel::new(
+            &self.plate,
+            model.samples().iter().zip(rho).map(|(s, rho)| TableSample { rho, ..*s }).collect(),
+        );
+        if kind.fits_scale() {
+            let inv = normal_equations(&FullScaleModel::new(model), &full_scale::from_full(&x_true, 1.0))
+                .unwrap()
+                .jtj
+                .try_inverse()
+                .unwrap();
+            [0, 1, 2, full_scale::SCALE].map(|i| inv[(i, i)].sqrt())
+        } else {
+            let inv = normal_equations(&model, &x_true).unwrap().jtj.try_inverse().unwrap();
+            [inv[(0, 0)].sqrt(), inv[(1, 1)].sqrt(), inv[(2, 2)].sqrt(), 0.0]
+        }
+    }
 }
 
 fn main() {
     let trials: usize = std::env::args().nth(1).map_or(2000, |s| s.parse().expect("TRIALS must be a whole number"));
-    let plate = PlateSpec { side: 0.045, corner_radius: 0.003 };
-    let truth = Mounting { alpha0: 2f64.to_radians(), offset: 0.005, delta_l: 0.002 };
-    let center = Vector2::new(0.0008, -0.0005);
-    let lens = Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 };
-    let mut rng = StdRng::seed_from_u64(2026);
-    let ellipse = simulate(&lens, &truth, &SimOptions::default(), &mut rng).unwrap();
-
-    // Cramér-Rao bound per unit σ: sqrt(diag((JᵀJ)⁻¹)) at the truth.
-    let table: Vec<TableSample> = (0..400).map(|k| TableSample::new(k, 400, 0.0)).collect();
-    let x_true = full::params(&truth, center);
-    let model = FullModel::new(&plate, table);
-    let rho = model.predict(&x_true).unwrap();
-    let model =
-        FullModel::new(&plate, model.samples().iter().zip(rho).map(|(s, rho)| TableSample { rho, ..*s }).collect());
-    let jtj_inv = normal_equations(&model, &x_true).unwrap().jtj.try_inverse().unwrap();
-    let crlb_unit = [0, 1, 2].map(|i| jtj_inv[(i, i)].sqrt());
+    let bench = Bench {
+        plate: PlateSpec { side: 0.045, corner_radius: 0.003 },
+        truth: Mounting::new(2f64.to_radians(), 0.005, 0.002),
+        center: Vector2::new(0.0008, -0.0005),
+        lens: Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 },
+    };
 
     println!(
         "Monte-Carlo accuracy, {trials} trials per row; truth alpha0 = 2°, d = 5 mm, dL = 2 mm, c = (0.8, -0.5) mm"
     );
-    println!("errors are RMS over the trials: alpha0 in degrees, d, dL and the corrected 50x30 mm ellipse in mm");
-    println!();
     println!(
-        "{:>9}  {:<6} {:>10} {:>10} {:>10} {:>12} {:>8}   {:>22}",
-        "noise", "model", "alpha0", "d", "dL", "ellipse", "failed", "RMS / CRLB (a0, d, dL)"
+        "errors are RMS over the trials: alpha0 in degrees, d, dL and the corrected 50x30 mm ellipse in mm, k in ppm"
     );
+    println!();
+    println!("1. A tracer with a true encoder scale (k = 1)");
+    header();
     for sigma in [100e-6, 10e-6, 1e-6] {
-        let crlb = crlb_unit.map(|c| c * sigma);
-        for kind in [ModelKind::Full, ModelKind::Paper] {
-            let opts = Options { model: kind, ..Options::default() };
-            let mut t = Tally::default();
-            let mut rng = StdRng::seed_from_u64(7 + (sigma * 1e9) as u64);
-            for _ in 0..trials {
-                let sim = simulate(
-                    &plate.at(center),
-                    &truth,
-                    &SimOptions { noise: sigma, ..SimOptions::default() },
-                    &mut rng,
-                )
-                .unwrap();
-                match calibrate(&sim.scan, &plate, &opts) {
-                    Ok(cal) => {
-                        let m = cal.mounting;
-                        let err = [m.alpha0 - truth.alpha0, m.offset - truth.offset, m.delta_l - truth.delta_l];
-                        for (i, e) in err.iter().enumerate() {
-                            t.sq[i] += e * e;
-                            t.reported[i] += cal.stddev[i];
-                        }
-                        let pts = correct(&ellipse.scan, &m);
-                        t.ellipse_sq +=
-                            pts.iter().zip(&ellipse.truth).map(|(p, q)| (p - q).norm_squared()).sum::<f64>()
-                                / pts.len() as f64;
-                        t.n += 1;
-                    }
-                    Err(_) => t.failures += 1,
-                }
-            }
-            let n = t.n.max(1) as f64;
-            let rms = t.sq.map(|s| (s / n).sqrt());
+        for kind in ModelKind::ALL {
+            let t = bench.run(kind, sigma, 1.0, trials, 7 + (sigma * 1e9) as u64);
+            row(sigma, kind.as_str(), &t, &bench.crlb_unit(kind).map(|c| c * sigma));
+        }
+        for kind in [ModelKind::Full, ModelKind::FullScale] {
+            let c = bench.crlb_unit(kind).map(|c| c * sigma);
+            let name = if kind.fits_scale() { "CRLB6" } else { "CRLB" };
             println!(
-                "{:>6.3} mm  {:<6} {:>10.5} {:>10.5} {:>10.5} {:>12.5} {:>8}   {:>6.2} {:>6.2} {:>6.2}",
+                "{:>6.3} mm  {:<10} {:>10.5} {:>10.5} {:>10.5} {:>8.0}",
                 sigma * 1e3,
-                kind.as_str(),
-                rms[0].to_degrees(),
-                rms[1] * 1e3,
-                rms[2] * 1e3,
-                (t.ellipse_sq / n).sqrt() * 1e3,
-                t.failures,
-                rms[0] / crlb[0],
-                rms[1] / crlb[1],
-                rms[2] / crlb[2]
-            );
-            println!(
-                "{:>9}  {:<6} {:>10.5} {:>10.5} {:>10.5}   (mean reported standard uncertainty)",
-                "",
-                "",
-                (t.reported[0] / n).to_degrees(),
-                t.reported[1] / n * 1e3,
-                t.reported[2] / n * 1e3
+                name,
+                c[0].to_degrees(),
+                c[1] * 1e3,
+                c[2] * 1e3,
+                c[3] * 1e6
             );
         }
-        println!(
-            "{:>6.3} mm  {:<6} {:>10.5} {:>10.5} {:>10.5}",
-            sigma * 1e3,
-            "CRLB",
-            crlb[0].to_degrees(),
-            crlb[1] * 1e3,
-            crlb[2] * 1e3
-        );
         println!();
     }
+
+    println!("2. A tracer whose encoder scale is off, fitted with full_scale (sigma = 0.01 mm)");
+    header();
+    let sigma = 10e-6;
+    let crlb = bench.crlb_unit(ModelKind::FullScale).map(|c| c * sigma);
+    for k in [0.9975, 0.9995, 1.0005, 1.0025, 1.01, 0.99] {
+        let t = bench.run(ModelKind::FullScale, sigma, k, trials, 99);
+        row(sigma, &format!("k={k}"), &t, &crlb);
+    }
+    println!();
+
+    println!("3. The scale check of full and paper: share of calibrations refused for the encoder scale");
+    println!("   (k = 1: false alarms; otherwise detections), {} trials a cell", trials / 2);
+    let errors = [0.0, 0.0005, 0.001, 0.0025];
+    print!("{:>9}  {:<6}", "noise", "model");
+    for e in errors {
+        print!(" {:>12}", if e == 0.0 { "k=1".to_string() } else { format!("{:.2} % long", e * 100.0) });
+    }
+    println!();
+    for sigma in [1e-6, 3e-6, 10e-6, 30e-6, 100e-6] {
+        for kind in [ModelKind::Full, ModelKind::Paper] {
+            print!("{:>6.3} mm  {:<6}", sigma * 1e3, kind.as_str());
+            for (i, e) in errors.iter().enumerate() {
+                // An encoder reading e long: true length = rho / (1 + e).
+                let t = bench.run(kind, sigma, 1.0 / (1.0 + e), trials / 2, 500 + i as u64 + (sigma * 1e9) as u64);
+                print!(" {:>11.2}%", 100.0 * t.scale_off as f64 / (trials / 2).max(1) as f64);
+            }
+            println!();
+        }
+    }
+}
+
+fn header() {
+    println!(
+        "{:>9}  {:<10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>7}   {:>29}",
+        "noise", "model", "alpha0", "d", "dL", "k", "ellipse", "failed", "RMS / CRLB (a0, d, dL, k)"
+    );
+}
+
+fn row(sigma: f64, name: &str, t: &Tally, crlb: &[f64; 4]) {
+    let rms = t.rms();
+    let rep = t.mean_reported();
+    let ratio = |i: usize| if crlb[i] > 0.0 { format!("{:>6.2}", rms[i] / crlb[i]) } else { format!("{:>6}", "-") };
+    println!(
+        "{:>6.3} mm  {:<10} {:>10.5} {:>10.5} {:>10.5} {:>8.0} {:>10.5} {:>7}   {} {} {} {}",
+        sigma * 1e3,
+        name,
+        rms[0].to_degrees(),
+        rms[1] * 1e3,
+        rms[2] * 1e3,
+        rms[3] * 1e6,
+        t.ellipse_rms() * 1e3,
+        t.failures,
+        ratio(0),
+        ratio(1),
+        ratio(2),
+        ratio(3)
+    );
+    println!(
+        "{:>9}  {:<10} {:>10.5} {:>10.5} {:>10.5} {:>8.0}   (mean reported standard uncertainty)",
+        "",
+        "",
+        rep[0].to_degrees(),
+        rep[1] * 1e3,
+        rep[2] * 1e3,
+        rep[3] * 1e6
+    );
 }

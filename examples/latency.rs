@@ -210,7 +210,7 @@ fn main() {
     let _children = Children(children);
 
     // The scan: a 50 x 30 mm lens traced by a miscalibrated tracer.
-    let m = Mounting { alpha0: 0.03, offset: 0.004, delta_l: 0.0015 };
+    let m = Mounting::new(0.03, 0.004, 0.0015);
     let lens = Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 };
     let mut rng = rand::rngs::StdRng::seed_from_u64(1);
     let sim = simulate(&lens, &m, &SimOptions { noise: 2e-6, ..SimOptions::default() }, &mut rng).unwrap();

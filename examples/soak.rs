@@ -51,7 +51,7 @@ impl Drop for Node {
 }
 
 fn scan(shape: &impl Shape, target: u8, seed: u64) -> RawScan {
-    let m = Mounting { alpha0: 0.03, offset: 0.004, delta_l: 0.0015 };
+    let m = Mounting::new(0.03, 0.004, 0.0015);
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let sim = simulate(shape, &m, &SimOptions { noise: 3e-6, ..SimOptions::default() }, &mut rng).unwrap();
     RawScan {

@@ -364,11 +364,8 @@ fn reads_sqlite3_bag_written_by_rosbags() {
 fn rosbags_fixture_scans_match_their_geometry() {
     let truth = truth();
     let m = &truth["mounting"];
-    let true_mounting = Mounting {
-        alpha0: m["alpha0"].as_f64().unwrap(),
-        offset: m["offset"].as_f64().unwrap(),
-        delta_l: m["delta_l"].as_f64().unwrap(),
-    };
+    let true_mounting =
+        Mounting::new(m["alpha0"].as_f64().unwrap(), m["offset"].as_f64().unwrap(), m["delta_l"].as_f64().unwrap());
     let mpc = truth["meters_per_count"].as_f64().unwrap();
     let plate = PlateSpec {
         side: truth["plate"]["side"].as_f64().unwrap(),

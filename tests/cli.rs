@@ -257,3 +257,90 @@ fn simulate_correct_and_read_the_oma_back() {
     let y = (0.015f64.powi(2) * (1.0 - (0.0008f64 / 0.025).powi(2))).sqrt() - 0.0005;
     assert!((r[100].as_f64().unwrap() - y).abs() < 3e-5, "{} vs {y}", r[100]);
 }
+
+#[test]
+fn a_wrong_scale_fails_full_and_is_fitted_by_full_scale() {
+    let csv = temp("scaled_plate.csv");
+    let csv_s = csv.to_str().unwrap();
+    // An encoder reading 0.25 % long: true length = 0.997506 × reading.
+    let k = 1.0 / 1.0025;
+    let o = tool(&["simulate", "--shape", "plate", "--noise", "3e-6", "--scale", &k.to_string(), "--out", csv_s]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = tool(&["calibrate", "--input", csv_s, "--model", "full", "--json"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let v = json(&o);
+    assert_eq!(v["success"], false);
+    let message = v["message"].as_str().unwrap();
+    assert!(message.contains("encoder scale looks off") && message.contains("full_scale"), "{message}");
+    assert!(v.get("scale").is_none(), "full reports no scale: {v}");
+
+    let o = tool(&["calibrate", "--input", csv_s, "--model", "full_scale", "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v = json(&o);
+    let text = String::from_utf8_lossy(&o.stdout);
+    let at: Vec<usize> =
+        ["samples_used", "scale", "scale_stddev"].iter().map(|k| text.find(&format!("\"{k}\":")).expect(k)).collect();
+    assert!(at.windows(2).all(|w| w[0] < w[1]), "{text}");
+    let (scale, sd) = (v["scale"].as_f64().unwrap(), v["scale_stddev"].as_f64().unwrap());
+    assert!(sd > 0.0 && (scale - k).abs() < 5.0 * sd, "{v}");
+    assert!((v["offset"].as_f64().unwrap() - 0.005).abs() < 5.0 * v["stddev"][1].as_f64().unwrap(), "{v}");
+}
+
+/// The offline `correct` (and its OMA export) applies the params file's
+/// `calibration.scale`, as the node does: a tracer reading 1 % long, calibrated with
+/// full_scale, gives the lens its true size.
+#[test]
+fn correct_applies_the_encoder_scale() {
+    let bag = temp("scaled_bag");
+    let _ = std::fs::remove_dir_all(&bag);
+    let b = bag.to_str().unwrap();
+    let k = 1.0 / 1.01;
+    let o = tool(&[
+        "simulate",
+        "--shape",
+        "plate",
+        "--shape",
+        "ellipse",
+        "--noise",
+        "2e-6",
+        "--scale",
+        &k.to_string(),
+        "--out",
+        b,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cal = tool(&["calibrate", "--input", b, "--model", "full_scale", "--json"]);
+    assert_eq!(cal.status.code(), Some(0), "{}", stderr(&cal));
+    let v = json(&cal);
+    let radius_at_0 = |scale: &serde_json::Value, name: &str| {
+        let params = temp(&format!("{name}.yaml"));
+        std::fs::write(
+            &params,
+            format!(
+                "tracer_calibrator:\n  ros__parameters:\n    calibration.alpha0: {}\n    calibration.offset: {}\n    calibration.delta_l: {}\n    calibration.scale: {scale}\n    calibration.valid: true\n",
+                v["alpha0"], v["offset"], v["delta_l"]
+            ),
+        )
+        .unwrap();
+        let (out, oma) = (temp(&format!("{name}.mcap")), temp(&format!("{name}.oma")));
+        let o = tool(&[
+            "correct",
+            "--input",
+            b,
+            "--params",
+            params.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--oma",
+            oma.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let t = json(&tool(&["oma", "--input", oma.to_str().unwrap(), "--json"]));
+        t["traces"][0]["radii"][0].as_f64().unwrap()
+    };
+    // The simulated ellipse's true radius at 0° is 25.8 mm (to 1/100 mm in OMA).
+    let fitted = radius_at_0(&v["scale"], "scaled_fitted");
+    assert!((fitted - 0.0258).abs() < 3e-5, "{fitted}");
+    let ignored = radius_at_0(&serde_json::json!(1.0), "scaled_ignored");
+    assert!((ignored - 0.0258).abs() > 1e-4, "{ignored}");
+}

@@ -30,7 +30,7 @@ fn oma_absurd_point_count_is_an_error_not_an_allocation() {
 /// The calibrated node of `fuzz/fuzz_targets/raw_scan.rs`.
 fn calibrated_node() -> NodeState {
     let params = Parameters {
-        calibration: Mounting { alpha0: 0.03, offset: 0.004, delta_l: -0.001 },
+        calibration: Mounting::new(0.03, 0.004, -0.001),
         calibration_valid: true,
         resample_points: 360,
         ..Parameters::default()

@@ -32,7 +32,7 @@ proptest! {
     ) {
         let (steps, counts): (Vec<u32>, Vec<i32>) = samples.into_iter().unzip();
         if let Ok(scan) = Scan::from_counts(steps_per_rev, &steps, &counts, mpc) {
-            let pts = correct(&scan, &Mounting { alpha0: 0.01, offset: 0.002, delta_l: 0.001 });
+            let pts = correct(&scan, &Mounting::new(0.01, 0.002, 0.001));
             prop_assert!(pts.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
             if let Some(r) = resample_radii(&pts, 400, default_max_gap(steps_per_rev)) {
                 prop_assert!(r.iter().all(|v| v.is_finite()));
@@ -61,7 +61,7 @@ proptest! {
     ) {
         use rand::SeedableRng;
         let plate = PlateSpec::default();
-        let m = Mounting { alpha0: alpha_deg.to_radians(), offset: d_mm * 1e-3, delta_l: dl_mm * 1e-3 };
+        let m = Mounting::new(alpha_deg.to_radians(), d_mm * 1e-3, dl_mm * 1e-3);
         let opt = SimOptions { noise: noise_um * 1e-6, missing, spikes, start_step: start, ..SimOptions::default() };
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         if let Ok(sim) = simulate(&plate.at(Vector2::new(0.0005, -0.0003)), &m, &opt, &mut rng) {

@@ -44,7 +44,7 @@ fn scan_msg(shape: &impl Shape, m: &Mounting, opt: &SimOptions, seed: u64, scan_
 
 fn main() {
     let plate = PlateSpec::default().at(Vector2::new(0.0005, -0.0003));
-    let m = Mounting { alpha0: 0.035, offset: 0.004, delta_l: 0.0015 };
+    let m = Mounting::new(0.035, 0.004, 0.0015);
     let noisy = SimOptions { noise: 2e-6, ..SimOptions::default() };
 
     // raw_scan: CDR bytes of RawScans, as a DDS reader hands them over.
@@ -55,7 +55,7 @@ fn main() {
             "plate_gaps_spikes",
             scan_msg(
                 &plate,
-                &Mounting { alpha0: -0.6, offset: -0.003, delta_l: 0.0 },
+                &Mounting::new(-0.6, -0.003, 0.0),
                 &SimOptions {
                     steps_per_rev: 200,
                     noise: 1e-6,

@@ -33,7 +33,7 @@ fuzz_target!(|data: &[u8]| {
     let mut plain = NodeState::new("/tracer_calibrator".into(), Parameters::default());
     handle(&mut plain, &msg, true);
     let params = Parameters {
-        calibration: Mounting { alpha0: 0.03, offset: 0.004, delta_l: -0.001 },
+        calibration: Mounting::new(0.03, 0.004, -0.001),
         calibration_valid: true,
         resample_points: 360,
         ..Parameters::default()

@@ -36,8 +36,8 @@ pub struct Args {
     /// else /tracer_calibrator).
     #[arg(long, value_name = "FQN")]
     pub node: Option<String>,
-    /// Fitting model: 'full' (every sample, the default) or 'paper' (the seed paper's
-    /// reduced model).
+    /// Fitting model: 'full' (every sample, the default), 'paper' (the seed paper's
+    /// reduced model) or 'full_scale' (full, and the encoder scale).
     #[arg(long)]
     pub model: Option<ModelKind>,
     /// Steps per revolution of a CSV scan.
@@ -59,7 +59,7 @@ pub struct Args {
 
 impl clap::ValueEnum for ModelKind {
     fn value_variants<'a>() -> &'a [Self] {
-        &[ModelKind::Full, ModelKind::Paper]
+        &ModelKind::ALL
     }
     fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
         Some(clap::builder::PossibleValue::new(self.as_str()))
@@ -171,25 +171,37 @@ pub fn run(args: &Args) -> i32 {
     let outcome = settings(args).and_then(|p| load_scan(args, &p).map(|scan| (p, scan)));
     let (p, scan) = match outcome {
         Ok(v) => v,
-        Err(e) => return report(args, &failure(e), exit::BAD_INPUT),
+        Err(e) => return report(args, &failure(e), args.model.is_some_and(ModelKind::fits_scale), exit::BAD_INPUT),
     };
-    let opts = Options { model: p.model, ..Options::default() };
+    let opts = p.calibration_options();
+    let with_scale = p.model.fits_scale();
     match calibrate(&scan, &p.plate, &opts) {
-        Ok(cal) => report(args, &response_for(&cal, cal.summary()), exit::OK),
-        Err(e) => report(args, &failure(format!("calibration failed: {e}")), exit::FIT_FAILED),
+        Ok(cal) => report(args, &response_for(&cal, cal.summary()), with_scale, exit::OK),
+        Err(e) => report(args, &failure(format!("calibration failed: {e}")), with_scale, exit::FIT_FAILED),
     }
 }
 
-fn report(args: &Args, r: &Response, status: i32) -> i32 {
+/// The response as the `--json` object: the Calibrate response's fields in order,
+/// `scale` and `scale_stddev` only for a model that fits the scale (CONTRACT.md).
+fn json_of(r: &Response, with_scale: bool) -> String {
+    let mut v = serde_json::to_value(r).expect("a response serialises");
+    if !with_scale && let Some(o) = v.as_object_mut() {
+        o.remove("scale");
+        o.remove("scale_stddev");
+    }
+    v.to_string()
+}
+
+fn report(args: &Args, r: &Response, with_scale: bool, status: i32) -> i32 {
     if args.json {
-        println!("{}", serde_json::to_string(r).expect("a response serialises"));
+        println!("{}", json_of(r, with_scale));
     }
     if status == exit::OK {
         if !args.json {
             println!("{}", r.message);
             println!(
-                "alpha0 = {:.9} rad, offset = {:.9} m, delta_l = {:.9} m, stddev = [{:.3e}, {:.3e}, {:.3e}]",
-                r.alpha0, r.offset, r.delta_l, r.stddev[0], r.stddev[1], r.stddev[2]
+                "alpha0 = {:.9} rad, offset = {:.9} m, delta_l = {:.9} m, stddev = [{:.3e}, {:.3e}, {:.3e}], scale = {:.7} ± {:.1e}",
+                r.alpha0, r.offset, r.delta_l, r.stddev[0], r.stddev[1], r.stddev[2], r.scale, r.scale_stddev
             );
         }
     } else {

@@ -5,7 +5,7 @@
 //! domain) as an edging cell would: it publishes a lens scan (uncorrected), the plate
 //! scan, calls `/calibrate`, publishes lens and frame scans, and compares the contours
 //! that come back with where the probe really was. Then the same plate scan is fitted
-//! with both models offline, and a picture of the fit is written.
+//! with every model offline, and a picture of the fit is written.
 
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -133,7 +133,7 @@ async fn within<T>(secs: u64, what: &str, fut: impl std::future::Future<Output =
 
 fn demo(args: &Args) -> Result<(), String> {
     let mut cell = Cell {
-        truth: Mounting { alpha0: 1.7f64.to_radians(), offset: 4.2e-3, delta_l: 1.3e-3 },
+        truth: Mounting::new(1.7f64.to_radians(), 4.2e-3, 1.3e-3),
         plate: PlateSpec::default(),
         plate_center: Vector2::new(0.6e-3, -0.4e-3),
         rng: StdRng::seed_from_u64(args.seed),
@@ -302,11 +302,11 @@ fn demo(args: &Args) -> Result<(), String> {
     drop(node);
     println!("   and stopped on SIGTERM in {:.0} ms.", stop.elapsed().as_secs_f64() * 1e3);
 
-    // The same plate scan with both models, offline.
+    // The same plate scan with every model, offline.
     println!();
-    println!("The plate scan fitted offline with both models:");
+    println!("The plate scan fitted offline with every model:");
     let mut full_cal = None;
-    for model in [ModelKind::Full, ModelKind::Paper] {
+    for model in ModelKind::ALL {
         let cal = calibrate(&plate_scan.scan, &cell.plate, &Options { model, ..Options::default() })
             .map_err(|e| e.to_string())?;
         println!("   {}", cal.summary());

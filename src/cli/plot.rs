@@ -6,7 +6,7 @@ use nalgebra::Vector2;
 
 use super::calibrate::{Args as CalibrateArgs, load_scan, settings};
 use super::exit;
-use crate::engine::calibrate::{Calibration, Options, calibrate};
+use crate::engine::calibrate::{Calibration, calibrate};
 use crate::engine::correct::correct;
 use crate::engine::geometry::{Mounting, step_angle};
 use crate::engine::model::PlateSpec;
@@ -38,7 +38,7 @@ pub fn run(args: &Args) -> i32 {
             return exit::BAD_INPUT;
         }
     };
-    let cal = match calibrate(&scan, &p.plate, &Options { model: p.model, ..Options::default() }) {
+    let cal = match calibrate(&scan, &p.plate, &p.calibration_options()) {
         Ok(c) => c,
         Err(e) => {
             eprintln!("tracer_calib plot: calibration failed: {e}");

@@ -56,6 +56,10 @@ pub struct Args {
     /// Encoder zero offset dL, metres.
     #[arg(long, default_value_t = 0.002, allow_hyphen_values = true)]
     pub delta_l: f64,
+    /// Encoder scale k of the simulated tracer: it reads lengths 1/k of the true ones
+    /// (1.0025: a true 25 mm reads 24.94 mm).
+    #[arg(long, default_value_t = 1.0, value_parser = positive_scale)]
+    pub scale: f64,
     /// Shape centre x, metres.
     #[arg(long, default_value_t = 0.0008, allow_hyphen_values = true)]
     pub center_x: f64,
@@ -160,7 +164,7 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
 }
 
 fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, String> {
-    let m = Mounting { alpha0: a.alpha0_deg.to_radians(), offset: a.offset, delta_l: a.delta_l };
+    let m = Mounting::new(a.alpha0_deg.to_radians(), a.offset, a.delta_l).with_scale(a.scale);
     let center = Vector2::new(a.center_x, a.center_y);
     let opt = SimOptions {
         steps_per_rev: a.steps_per_rev,
@@ -188,4 +192,11 @@ fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, 
         ),
     };
     sim.map_err(|e| e.to_string())
+}
+
+fn positive_scale(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(k) if k.is_finite() && k > 0.0 => Ok(k),
+        _ => Err(format!("'{s}' is not a positive number")),
+    }
 }

@@ -11,17 +11,31 @@
 //!    cannot make the set oscillate, and the loop ends;
 //! 4. `alpha0` is reported in `(-π/4, π/4]`: a square plate gives the same lengths for
 //!    `(alpha0 + π/2, d, dL, R₉₀ c)` ([`super::geometry::wrap_quarter_turn`]);
-//! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`.
+//! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`;
+//! 6. **the encoder scale is checked** by the models that do not fit it (`full`,
+//!    `paper`): a score test of the scale in force, `k = k₀`. At the fitted parameters
+//!    `x̂` the encoder-scale model ([`super::model::full_scale`]) is linearised and one
+//!    Gauss-Newton step taken, `δ = -(JᵀJ)⁻¹ Jᵀr` (six parameters, one pass over the
+//!    samples); its scale component estimates `k/k₀ - 1`, with variance
+//!    `σ̂² [(JᵀJ)⁻¹]_kk`. At the full model's minimum the other five components of the
+//!    gradient vanish, so this is Rao's score (Lagrange multiplier) test of `k = k₀`. A
+//!    scale off by more than [`Options::max_scale_sigma`] standard uncertainties *and*
+//!    [`Options::scale_tolerance`] fails the calibration: the fitted `dL` would hide
+//!    the size error at the plate's own radius, and every lens larger or smaller than
+//!    the plate would come out the wrong size. Model `full_scale` fits `k` instead.
 //!
-//! A fit that does not converge, uses too few samples or leaves a residual larger than
-//! a plate scan can have is an error: the caller keeps the calibration it had.
+//! A fit that does not converge, uses too few samples, leaves a residual larger than a
+//! plate scan can have, or finds the encoder scale off is an error: the caller keeps the
+//! calibration it had.
 
-use nalgebra::{SMatrix, Vector2};
+use nalgebra::{DVector, SMatrix, SVector, Vector2};
+use std::borrow::Cow;
 use std::fmt;
 
 use super::geometry::{Mounting, rotate_quarter_turns, wrap_quarter_turn};
 use super::lm::{self, Problem, Termination};
 use super::model::full::{self, FullModel};
+use super::model::full_scale::{self, FullScaleModel};
 use super::model::paper::{self, PaperModel};
 use super::model::{ModelKind, PlateSpec};
 use super::scan::Scan;
@@ -46,6 +60,14 @@ pub struct Options {
     pub max_lack_of_fit: f64,
     /// Systematic residuals below this RMS (metres) are tolerated.
     pub systematic_floor: f64,
+    /// The encoder scale in force, `k₀`: the models that do not fit the scale take the
+    /// true length along the rail as `k₀ × rho`.
+    pub scale: f64,
+    /// The scale check (module docs) fails a fit whose scan shows an encoder scale more
+    /// than this many standard uncertainties from `k₀`...
+    pub max_scale_sigma: f64,
+    /// ... and off by more than this fraction (1e-4: 2.5 µm on a 25 mm radius).
+    pub scale_tolerance: f64,
 }
 
 impl Default for Options {
@@ -58,6 +80,9 @@ impl Default for Options {
             max_rms_residual: 0.5e-3,
             max_lack_of_fit: 4.0,
             systematic_floor: 20e-6,
+            scale: 1.0,
+            max_scale_sigma: 5.0,
+            scale_tolerance: 1e-4,
         }
     }
 }
@@ -69,10 +94,26 @@ const FREE_ROUNDS: usize = 3;
 /// Rejection rounds at most; the last round's fit stands.
 const MAX_ROUNDS: usize = 12;
 
+/// The encoder scale a plate scan shows, with its standard uncertainty.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScaleEstimate {
+    pub scale: f64,
+    pub stddev: f64,
+}
+
+impl ScaleEstimate {
+    /// How far from `k₀`, in standard uncertainties.
+    pub fn sigmas_from(&self, k0: f64) -> f64 {
+        (self.scale - k0).abs() / self.stddev
+    }
+}
+
 /// A fitted calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Calibration {
     pub model: ModelKind,
+    /// The mounting errors and the encoder scale (fitted by `full_scale`, else the scale
+    /// in force, [`Options::scale`]).
     pub mounting: Mounting,
     /// Fitted plate centre, metres (in the frame where `alpha0` is as reported).
     pub plate_center: Vector2<f64>,
@@ -80,6 +121,11 @@ pub struct Calibration {
     pub stddev: [f64; 3],
     /// Covariance of `[alpha0, offset, delta_l]`.
     pub covariance: SMatrix<f64, 3, 3>,
+    /// Standard uncertainty of the encoder scale; 0 when the model does not fit it.
+    pub scale_stddev: f64,
+    /// The encoder scale the scan shows, by the score test of the models that do not
+    /// fit it (module docs); `None` for `full_scale`.
+    pub scale_check: Option<ScaleEstimate>,
     /// RMS of the residuals of the samples used, metres.
     pub rms_residual: f64,
     /// LM iterations, all rounds together.
@@ -93,10 +139,23 @@ pub struct Calibration {
 }
 
 impl Calibration {
-    /// A one-line summary in the units people read: degrees and millimetres.
+    /// A one-line summary in the units people read: degrees, millimetres, ppm.
     pub fn summary(&self) -> String {
+        let scale = if self.model.fits_scale() {
+            format!(", scale = {:.6} ± {:.6}", self.mounting.scale, self.scale_stddev)
+        } else {
+            String::new()
+        };
+        let check = match self.scale_check {
+            Some(e) => format!(
+                ", scale check: {:+.0} ± {:.0} ppm",
+                (e.scale / self.mounting.scale - 1.0) * 1e6,
+                e.stddev / self.mounting.scale * 1e6
+            ),
+            None => String::new(),
+        };
         format!(
-            "{} model: alpha0 = {:.4}° ± {:.4}°, d = {:.4} ± {:.4} mm, dL = {:.4} ± {:.4} mm, rms residual {:.4} mm, {} samples used, {} rejected, {} iterations",
+            "{} model: alpha0 = {:.4}° ± {:.4}°, d = {:.4} ± {:.4} mm, dL = {:.4} ± {:.4} mm{scale}, rms residual {:.4} mm, {} samples used, {} rejected, {} iterations{check}",
             self.model,
             self.mounting.alpha0.to_degrees(),
             self.stddev[0].to_degrees(),
@@ -116,13 +175,31 @@ impl Calibration {
 #[derive(Debug, Clone, PartialEq)]
 pub enum CalibrationError {
     InvalidPlate(String),
-    TooFewSamples { got: usize, need: usize },
+    TooFewSamples {
+        got: usize,
+        need: usize,
+    },
     NoStart,
     Model(String),
-    NotConverged { termination: Termination, iterations: usize },
+    NotConverged {
+        termination: Termination,
+        iterations: usize,
+    },
     Singular,
-    ResidualTooLarge { rms: f64, limit: f64 },
-    SystematicResidual { rms: f64, noise: f64 },
+    ResidualTooLarge {
+        rms: f64,
+        limit: f64,
+    },
+    SystematicResidual {
+        rms: f64,
+        noise: f64,
+    },
+    /// The scan shows an encoder scale off from the one in force (`k0`).
+    ScaleOff {
+        estimate: ScaleEstimate,
+        k0: f64,
+    },
+    InvalidScale(f64),
 }
 
 impl fmt::Display for CalibrationError {
@@ -153,6 +230,21 @@ impl fmt::Display for CalibrationError {
                 rms * 1e3,
                 noise * 1e3
             ),
+            Self::ScaleOff { estimate, k0 } => {
+                let rel = estimate.scale / k0 - 1.0;
+                write!(
+                    f,
+                    "the encoder scale looks off: the scan shows scale {:.6} ± {:.6} where {k0} is in force ({:+.3} %, {:.0} σ): the tracer reads lengths {:.3} % too {} ({:.0} µm on a 25 mm radius), which dL would hide only at the plate's own radius; calibrate with model full_scale, or check encoder.meters_per_count and plate.side",
+                    estimate.scale,
+                    estimate.stddev,
+                    rel * 100.0,
+                    estimate.sigmas_from(*k0),
+                    rel.abs() * 100.0,
+                    if rel < 0.0 { "long" } else { "short" },
+                    (rel * 25e-3 * 1e6).abs(),
+                )
+            }
+            Self::InvalidScale(k) => write!(f, "the encoder scale in force must be a positive number, got {k}"),
         }
     }
 }
@@ -166,19 +258,35 @@ pub fn calibrate(scan: &Scan, plate: &PlateSpec, opt: &Options) -> Result<Calibr
     if scan.len() < need {
         return Err(CalibrationError::TooFewSamples { got: scan.len(), need });
     }
-    let all = FullModel::from_scan(plate, scan);
+    if !(opt.scale.is_finite() && opt.scale > 0.0) {
+        return Err(CalibrationError::InvalidScale(opt.scale));
+    }
+    // The models that do not fit the scale see true lengths, k₀ rho; full_scale sees
+    // the encoder's own.
+    let known_scale = if opt.model.fits_scale() { 1.0 } else { opt.scale };
+    let scan: Cow<Scan> = if known_scale == 1.0 {
+        Cow::Borrowed(scan)
+    } else {
+        Cow::Owned(scan.scaled(known_scale).map_err(|e| CalibrationError::Model(e.to_string()))?)
+    };
+    let all = FullModel::from_scan(plate, &scan);
     let start = initial_guess(&all, plate).ok_or(CalibrationError::NoStart)?;
     let fit = match opt.model {
         ModelKind::Full => fit_full(&all, start.x, opt)?,
-        ModelKind::Paper => fit_paper(scan, plate, &all, wrap(start.x), opt)?,
+        ModelKind::Paper => fit_paper(&scan, plate, &all, wrap(start.x), opt)?,
+        ModelKind::FullScale => fit_full_scale(&all, start.x, opt)?,
     };
-    finish(scan, fit, opt)
+    let fit = Fit { scale: fit.scale * known_scale, ..fit };
+    finish(&scan, &all, fit, opt)
 }
 
 /// What a model's fit hands to [`finish`].
 struct Fit {
     model: ModelKind,
     x: full::Params,
+    /// The encoder scale (fitted, or 1 relative to the lengths fitted).
+    scale: f64,
+    scale_stddev: f64,
     covariance: SMatrix<f64, 3, 3>,
     /// Samples the fit used.
     used: Vec<bool>,
@@ -189,7 +297,7 @@ struct Fit {
     termination: Termination,
 }
 
-fn finish(scan: &Scan, fit: Fit, opt: &Options) -> Result<Calibration, CalibrationError> {
+fn finish(scan: &Scan, all: &FullModel, fit: Fit, opt: &Options) -> Result<Calibration, CalibrationError> {
     let used = fit.used.iter().filter(|&&a| a).count();
     if used < opt.min_samples {
         return Err(CalibrationError::TooFewSamples { got: used, need: opt.min_samples });
@@ -205,18 +313,42 @@ fn finish(scan: &Scan, fit: Fit, opt: &Options) -> Result<Calibration, Calibrati
     {
         return Err(CalibrationError::SystematicResidual { rms, noise });
     }
+    let scale_check = if fit.model.fits_scale() {
+        None
+    } else {
+        // The scale shows in how the plate's radius varies round the turn, most near the
+        // corners: test every sample that is not an outlier, also those the paper's
+        // model leaves out (it uses flat samples only).
+        let tested = match fit.model {
+            ModelKind::Paper => inliers(&fit.residuals, opt.outlier_threshold),
+            _ => fit.used.clone(),
+        };
+        let relative = scale_score(all.retain(|i| tested[i]), &fit.x).ok_or(CalibrationError::Singular)?;
+        let estimate = ScaleEstimate { scale: relative.scale * opt.scale, stddev: relative.stddev * opt.scale };
+        let off = (relative.scale - 1.0).abs();
+        if off > opt.scale_tolerance && off > opt.max_scale_sigma * relative.stddev {
+            return Err(CalibrationError::ScaleOff { estimate, k0: opt.scale });
+        }
+        Some(estimate)
+    };
     let x = wrap(fit.x);
     let (mounting, plate_center) = full::unpack(&x);
     let stddev = [0, 1, 2].map(|i| fit.covariance[(i, i)].max(0.0).sqrt());
-    if !(stddev.iter().all(|s| s.is_finite()) && x.iter().all(|v| v.is_finite())) {
+    if !(stddev.iter().all(|s| s.is_finite())
+        && x.iter().all(|v| v.is_finite())
+        && fit.scale.is_finite()
+        && fit.scale_stddev.is_finite())
+    {
         return Err(CalibrationError::Singular);
     }
     Ok(Calibration {
         model: fit.model,
-        mounting,
+        mounting: mounting.with_scale(fit.scale),
         plate_center,
         stddev,
         covariance: fit.covariance,
+        scale_stddev: fit.scale_stddev,
+        scale_check,
         rms_residual: rms,
         iterations: fit.iterations,
         samples_used: used,
@@ -226,22 +358,50 @@ fn finish(scan: &Scan, fit: Fit, opt: &Options) -> Result<Calibration, Calibrati
     })
 }
 
+/// The score test of the encoder scale (module docs): one Gauss-Newton step of the
+/// encoder-scale model from the full model's parameters `x` at `k = 1`; its scale
+/// component and that component's standard uncertainty. `model` holds the lengths the
+/// fit saw (true lengths under the scale in force), so the result is relative to it.
+pub fn scale_score(model: FullModel, x: &full::Params) -> Option<ScaleEstimate> {
+    let ne = lm::normal_equations(&FullScaleModel::new(model), &full_scale::from_full(x, 1.0))?;
+    let n = ne.count;
+    if n <= 6 {
+        return None;
+    }
+    let inv = ne.jtj.cholesky()?.inverse();
+    let step = -(inv * ne.jtr);
+    // σ̂² from the residuals after the step: ‖r‖² - gᵀ(JᵀJ)⁻¹g, the linearised cost.
+    let ss = (2.0 * ne.cost - ne.jtr.dot(&(inv * ne.jtr))).max(0.0);
+    let sigma2 = ss / (n - 6) as f64;
+    let var = inv[(full_scale::SCALE, full_scale::SCALE)] * sigma2;
+    let est = ScaleEstimate { scale: 1.0 + step[full_scale::SCALE], stddev: var.max(0.0).sqrt() };
+    (est.scale.is_finite() && est.stddev.is_finite() && est.stddev > 0.0).then_some(est)
+}
+
 /// The noise seen between neighbouring samples: `RMS(r_i - r_j) / √2` over used samples
 /// one step apart. Blind to smooth (systematic) residuals, which it is there to expose.
 fn neighbour_noise(scan: &Scan, residuals: &[f64], used: &[bool]) -> Option<f64> {
     let n = scan.steps_per_rev();
-    let mut at_step = std::collections::HashMap::with_capacity(scan.len());
-    for (i, s) in scan.samples().iter().enumerate() {
-        if used[i] {
-            at_step.insert(s.step, residuals[i]);
+    let mut at_step: Vec<(u32, f64)> =
+        scan.samples().iter().zip(residuals).zip(used).filter(|(_, u)| **u).map(|((s, r), _)| (s.step, *r)).collect();
+    at_step.sort_unstable_by_key(|&(step, _)| step);
+    let (mut ss, mut count) = (0.0, 0usize);
+    let mut pair = |(_, a): (u32, f64), (_, b): (u32, f64)| {
+        ss += (a - b) * (a - b);
+        count += 1;
+    };
+    for w in at_step.windows(2) {
+        if w[1].0 == w[0].0 + 1 {
+            pair(w[0], w[1]);
         }
     }
-    let (mut ss, mut count) = (0.0, 0usize);
-    for (&step, &r) in &at_step {
-        if let Some(&next) = at_step.get(&((step + 1) % n)) {
-            ss += (r - next) * (r - next);
-            count += 1;
-        }
+    // The last step and step 0 are neighbours too.
+    if let (Some(&first), Some(&last)) = (at_step.first(), at_step.last())
+        && at_step.len() > 2
+        && first.0 == 0
+        && last.0 == n - 1
+    {
+        pair(last, first);
     }
     (count >= 10).then(|| (ss / (2.0 * count as f64)).sqrt())
 }
@@ -269,12 +429,48 @@ fn median(v: &mut [f64]) -> f64 {
     *m
 }
 
-fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
-    let mut active = vec![true; all.samples().len()];
+/// A model over a subset of the plate scan's samples, for the rejection rounds.
+trait Subset {
+    /// The model of the samples for which `keep(index)` is true.
+    fn subset(&self, keep: impl FnMut(usize) -> bool) -> Self;
+}
+
+impl Subset for FullModel {
+    fn subset(&self, keep: impl FnMut(usize) -> bool) -> Self {
+        self.retain(keep)
+    }
+}
+
+impl Subset for FullScaleModel {
+    fn subset(&self, keep: impl FnMut(usize) -> bool) -> Self {
+        FullScaleModel::new(self.full().retain(keep))
+    }
+}
+
+/// What the rejection rounds of a model fitted to every sample found.
+struct Rounds<const P: usize> {
+    x: SVector<f64, P>,
+    covariance: SMatrix<f64, P, P>,
+    /// Samples the fit used.
+    active: Vec<bool>,
+    /// Residual of every sample (used or not) at `x`.
+    residuals: DVector<f64>,
+    iterations: usize,
+    termination: Termination,
+}
+
+/// Fit, reject outliers, refit from where the fit stands, until the set of samples
+/// stops changing (module docs, step 3).
+fn fit_rounds<const P: usize, M: Problem<P> + Subset>(
+    all: &M,
+    x0: SVector<f64, P>,
+    opt: &Options,
+) -> Result<Rounds<P>, CalibrationError> {
+    let mut active = vec![true; all.residual_count()];
     let mut x = x0;
     let mut iterations = 0;
     for round in 0..MAX_ROUNDS {
-        let model = all.retain(|i| active[i]);
+        let model = all.subset(|i| active[i]);
         if model.residual_count() < opt.min_samples {
             return Err(CalibrationError::TooFewSamples { got: model.residual_count(), need: opt.min_samples });
         }
@@ -291,21 +487,51 @@ fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, Cal
         }
         if keep == active || round + 1 == MAX_ROUNDS {
             let ne = rep.normal.ok_or(CalibrationError::Singular)?;
-            let cov = lm::covariance(&ne).ok_or(CalibrationError::Singular)?;
-            return Ok(Fit {
-                model: ModelKind::Full,
-                x,
-                covariance: cov.fixed_view::<3, 3>(0, 0).into_owned(),
-                rejected: active.iter().filter(|&&a| !a).count(),
-                used: active,
-                residuals: residuals.as_slice().to_vec(),
-                iterations,
-                termination: rep.termination,
-            });
+            let covariance = lm::covariance(&ne).ok_or(CalibrationError::Singular)?;
+            return Ok(Rounds { x, covariance, active, residuals, iterations, termination: rep.termination });
         }
         active = keep;
     }
     unreachable!("the last round returns")
+}
+
+impl Fit {
+    /// A fit of every sample from its rejection rounds, the model's own parameters
+    /// already turned into the full model's `x` and the scale.
+    fn from_rounds<const P: usize>(
+        model: ModelKind,
+        x: full::Params,
+        scale: f64,
+        scale_stddev: f64,
+        r: Rounds<P>,
+    ) -> Fit {
+        Fit {
+            model,
+            x,
+            scale,
+            scale_stddev,
+            covariance: r.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
+            rejected: r.active.iter().filter(|&&a| !a).count(),
+            used: r.active,
+            residuals: r.residuals.as_slice().to_vec(),
+            iterations: r.iterations,
+            termination: r.termination,
+        }
+    }
+}
+
+fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
+    let r = fit_rounds(all, x0, opt)?;
+    Ok(Fit::from_rounds(ModelKind::Full, r.x, 1.0, 0.0, r))
+}
+
+/// The encoder-scale model from the full model's start at `k = 1` (a start that is
+/// good to the size error, which the start's `dL` mostly absorbs).
+fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
+    let r = fit_rounds(&FullScaleModel::new(all.clone()), full_scale::from_full(&x0, 1.0), opt)?;
+    let (x, scale) = full_scale::to_full(&r.x);
+    let scale_stddev = r.covariance[(full_scale::SCALE, full_scale::SCALE)].max(0.0).sqrt();
+    Ok(Fit::from_rounds(ModelKind::FullScale, x, scale, scale_stddev, r))
 }
 
 fn fit_paper(
@@ -336,7 +562,7 @@ fn fit_paper(
         let ad = rep.x;
         let dl = model.delta_l(&ad);
         let c = model.center(&ad);
-        x = full::params(&Mounting { alpha0: ad[0], offset: ad[1], delta_l: dl }, c);
+        x = full::params(&Mounting::new(ad[0], ad[1], dl), c);
         let residuals = lm::residuals(all, &x).ok_or(CalibrationError::Singular)?;
         let residuals = residuals.as_slice().to_vec();
         // Outliers are judged on the raw samples the model used.
@@ -362,6 +588,8 @@ fn fit_paper(
             return Ok(Fit {
                 model: ModelKind::Paper,
                 x,
+                scale: 1.0,
+                scale_stddev: 0.0,
                 covariance,
                 rejected: active.iter().filter(|&&a| !a).count(),
                 used,

@@ -2,7 +2,8 @@
 //! contour resampled at equal angles about the rotation axis.
 //!
 //! A sample at step `k` with encoder length `rho` touched
-//! `P = (rho - dL) u + d v` with `u, v` at rail angle `alpha0 + 2π k/N`
+//! `P = (k_s rho - dL) u + d v` (`k_s` the encoder scale) with `u, v` at rail angle
+//! `alpha0 + 2π k/N`
 //! ([`super::geometry::probe_point`]). [`Corrector`] keeps the rotated table of rail
 //! directions for one `N`, so a scan costs four multiply-adds a sample.
 //!
@@ -69,11 +70,11 @@ impl Corrector {
         }
     }
 
-    /// The touched point of one sample: `P = (rho - dL) u + d v`.
+    /// The touched point of one sample: `P = (k rho - dL) u + d v`.
     #[inline]
     pub fn point(&self, step: u32, rho: f64) -> Vector2<f64> {
         let (c, s) = self.rail(step);
-        let t = rho - self.mounting.delta_l;
+        let t = self.mounting.rail_length(rho);
         let d = self.mounting.offset;
         Vector2::new(t * c - d * s, t * s + d * c)
     }
@@ -469,7 +470,7 @@ mod tests {
 
     #[test]
     fn corrector_matches_the_geometry() {
-        let m = Mounting { alpha0: 0.3, offset: -0.004, delta_l: 0.0015 };
+        let m = Mounting::new(0.3, -0.004, 0.0015);
         let scan = Scan::new(400, &[7, 123, 399], &[0.02, 0.025, 0.03]).unwrap();
         let pts = correct(&scan, &m);
         for (p, s) in pts.iter().zip(scan.samples()) {

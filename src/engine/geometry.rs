@@ -10,22 +10,24 @@
 //!
 //! With `u = (cos a, sin a)` the rail direction and `v = (-sin a, cos a)` its left
 //! normal, a rail mounted `d` off the axis is the line `{ t u + d v }`. The encoder
-//! reads `rho = t + dL` (its zero is off by `dL` along the rail), so the probe touched
+//! reads `rho = counts × meters_per_count`; its scale may be off by a factor `k` (a wrong
+//! `meters_per_count`, a rail grown with heat) and its zero by `dL` along the rail, so
+//! `k rho = t + dL` and the probe touched
 //!
 //! ```text
-//! P = (rho - dL) u + d v                                           (probe point)
-//! |P| = sqrt(d² + (rho - dL)²),   angle(P) = a + atan2(d, rho - dL)
+//! P = (k rho - dL) u + d v                                         (probe point)
+//! |P| = sqrt(d² + (k rho - dL)²),   angle(P) = a + atan2(d, k rho - dL)
 //! ```
 //!
-//! The seed paper's eq. 1 writes the same with the opposite sign of `d`; its eq. 3 (the
-//! one the calibration rests on) matches this convention. With `alpha0 = d = dL = 0`
-//! this is the naive reading `(rho cos a, rho sin a)`.
+//! The seed paper's eq. 1 writes the same with the opposite sign of `d` and `k = 1`; its
+//! eq. 3 (the one the calibration rests on) matches this convention. With
+//! `alpha0 = d = dL = 0`, `k = 1` this is the naive reading `(rho cos a, rho sin a)`.
 
 use nalgebra::Vector2;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
 
-/// The three mounting errors of a tracer: what the calibration finds.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+/// The mounting errors of a tracer, and its encoder scale: what the calibration finds.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Mounting {
     /// Rail angle at step 0, radians.
     pub alpha0: f64,
@@ -34,11 +36,42 @@ pub struct Mounting {
     pub offset: f64,
     /// Encoder zero offset `dL` along the rail, metres.
     pub delta_l: f64,
+    /// Encoder scale `k`: the true length along the rail is `k × counts × meters_per_count`.
+    /// 1 unless fitted (model `full_scale`).
+    #[serde(default = "unit_scale")]
+    pub scale: f64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
+impl Default for Mounting {
+    fn default() -> Self {
+        Mounting::IDEAL
+    }
 }
 
 impl Mounting {
-    /// No mounting error: the naive reading.
-    pub const IDEAL: Mounting = Mounting { alpha0: 0.0, offset: 0.0, delta_l: 0.0 };
+    /// No mounting error and a true encoder scale: the naive reading.
+    pub const IDEAL: Mounting = Mounting { alpha0: 0.0, offset: 0.0, delta_l: 0.0, scale: 1.0 };
+
+    /// The three mounting errors, with a true encoder scale (`k = 1`).
+    pub const fn new(alpha0: f64, offset: f64, delta_l: f64) -> Self {
+        Mounting { alpha0, offset, delta_l, scale: 1.0 }
+    }
+
+    /// The same mounting with encoder scale `k`.
+    pub const fn with_scale(self, scale: f64) -> Self {
+        Mounting { scale, ..self }
+    }
+
+    /// The length along the rail from the foot of the axis' perpendicular to the probe,
+    /// `t = k rho - dL`, for an encoder length `rho`.
+    #[inline]
+    pub fn rail_length(&self, rho: f64) -> f64 {
+        self.scale * rho - self.delta_l
+    }
 }
 
 /// Angle of step `step` of `steps_per_rev`, without `alpha0`: `2π k / N`.
@@ -60,25 +93,25 @@ pub fn rail_frame(a: f64) -> (Vector2<f64>, Vector2<f64>) {
     (Vector2::new(c, s), Vector2::new(-s, c))
 }
 
-/// The point the probe touched: `P = (rho - dL) u + d v`.
+/// The point the probe touched: `P = (k rho - dL) u + d v`.
 #[inline]
 pub fn probe_point(rho: f64, a: f64, m: &Mounting) -> Vector2<f64> {
     let (u, v) = rail_frame(a);
     probe_point_in_frame(rho, u, v, m)
 }
 
-/// `P = (rho - dL) u + d v` with the rail frame already known.
+/// `P = (k rho - dL) u + d v` with the rail frame already known.
 #[inline]
 pub fn probe_point_in_frame(rho: f64, u: Vector2<f64>, v: Vector2<f64>, m: &Mounting) -> Vector2<f64> {
-    u * (rho - m.delta_l) + v * m.offset
+    u * m.rail_length(rho) + v * m.offset
 }
 
 /// The encoder length a probe at `P` would read: the inverse of [`probe_point`]
-/// along the rail, `rho = P·u + dL` (the component `P·v` must equal `d`).
+/// along the rail, `rho = (P·u + dL) / k` (the component `P·v` must equal `d`).
 #[inline]
 pub fn encoder_length(p: Vector2<f64>, a: f64, m: &Mounting) -> f64 {
     let (u, _) = rail_frame(a);
-    p.dot(&u) + m.delta_l
+    (p.dot(&u) + m.delta_l) / m.scale
 }
 
 /// `(cos, sin)` of `phi + alpha` from `(cos phi, sin phi)`: a rotation, four products,
@@ -135,11 +168,21 @@ mod tests {
 
     #[test]
     fn probe_point_polar_form() {
-        let m = Mounting { alpha0: 0.1, offset: 0.005, delta_l: 0.002 };
+        let m = Mounting::new(0.1, 0.005, 0.002);
         let (rho, a) = (0.03, 1.3);
         let p = probe_point(rho, a, &m);
         assert_relative_eq!(p.norm(), (0.005f64.powi(2) + 0.028f64.powi(2)).sqrt(), epsilon = 1e-15);
         assert_relative_eq!(p.y.atan2(p.x), a + 0.005f64.atan2(0.028), epsilon = 1e-12);
+        assert_relative_eq!(encoder_length(p, a, &m), rho, epsilon = 1e-15);
+    }
+
+    #[test]
+    fn encoder_scale_stretches_the_length_along_the_rail() {
+        let m = Mounting::new(0.1, 0.005, 0.002).with_scale(1.0025);
+        let (rho, a) = (0.03, 1.3);
+        let p = probe_point(rho, a, &m);
+        let t = 1.0025 * 0.03 - 0.002;
+        assert_relative_eq!(p.norm(), (0.005f64.powi(2) + t * t).sqrt(), epsilon = 1e-15);
         assert_relative_eq!(encoder_length(p, a, &m), rho, epsilon = 1e-15);
     }
 

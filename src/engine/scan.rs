@@ -112,6 +112,13 @@ impl Scan {
         Self::from_samples(steps_per_rev, steps.iter().zip(rho).map(|(&step, &rho)| Sample { step, rho }).collect())
     }
 
+    /// The same samples with every length multiplied by `k` (an encoder scale): what the
+    /// tracer measured in true lengths. An error if a length is then not finite.
+    pub fn scaled(&self, k: f64) -> Result<Self, ScanError> {
+        let samples = self.samples.iter().map(|s| Sample { step: s.step, rho: s.rho * k }).collect();
+        Self::from_samples(self.steps_per_rev, samples)
+    }
+
     /// Build a scan from encoder counts, `rho = counts × meters_per_count`, as the
     /// tracer reports them (`RawScan`, CSV files).
     pub fn from_counts(

@@ -3,7 +3,7 @@
 //! benchmarks all draw their scans from here.
 //!
 //! For each angle step the rail ray `d v + t u` leaves the shape at `t`
-//! ([`super::shape::Shape::exit`]); the encoder reads `rho = t + dL`, plus Gaussian
+//! ([`super::shape::Shape::exit`]); the encoder reads `rho = (t + dL) / k`, plus Gaussian
 //! noise, optionally quantised to the encoder's counts, with optional spikes (dust, a
 //! probe bounce) and missing samples. The true touched point `d v + t u` comes along,
 //! so a corrected scan can be compared with the truth.
@@ -102,7 +102,7 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
         let (u, v) = rail_frame(rail_angle(m.alpha0, step, n));
         let origin = v * m.offset;
         let hit = shape.exit(origin, u).ok_or(SimError::RayMissesShape { step })?;
-        let mut rho = hit.t + m.delta_l + noise.sample(rng);
+        let mut rho = (hit.t + m.delta_l) / m.scale + noise.sample(rng);
         if opt.quantum > 0.0 {
             rho = (rho / opt.quantum).round() * opt.quantum;
         }

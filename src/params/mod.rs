@@ -10,6 +10,7 @@ pub mod value;
 pub use file::{ParamsFile, ParamsFileError};
 pub use value::ParamValue;
 
+use crate::engine::calibrate::Options as CalibrationOptions;
 use crate::engine::{ModelKind, Mounting, PlateSpec};
 
 /// The contract's parameter names.
@@ -17,6 +18,7 @@ pub mod names {
     pub const ALPHA0: &str = "calibration.alpha0";
     pub const OFFSET: &str = "calibration.offset";
     pub const DELTA_L: &str = "calibration.delta_l";
+    pub const SCALE: &str = "calibration.scale";
     pub const VALID: &str = "calibration.valid";
     pub const PLATE_SIDE: &str = "plate.side";
     pub const CORNER_RADIUS: &str = "plate.corner_radius";
@@ -26,10 +28,11 @@ pub mod names {
     pub const RESAMPLE_POINTS: &str = "resample_points";
     pub const PARAMS_FILE: &str = "params_file";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 11] = [
+    pub const ALL: [&str; 12] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
+        SCALE,
         VALID,
         PLATE_SIDE,
         CORNER_RADIUS,
@@ -40,6 +43,10 @@ pub mod names {
         PARAMS_FILE,
     ];
 }
+
+/// The encoder scales accepted: a scale further from 1 is a wrong
+/// `encoder.meters_per_count`, not a calibration.
+pub const SCALE_RANGE: std::ops::RangeInclusive<f64> = 0.5..=2.0;
 
 /// Largest `resample_points` accepted.
 pub const MAX_RESAMPLE_POINTS: i64 = 100_000;
@@ -87,6 +94,7 @@ impl Parameters {
             names::ALPHA0 => Double(self.calibration.alpha0),
             names::OFFSET => Double(self.calibration.offset),
             names::DELTA_L => Double(self.calibration.delta_l),
+            names::SCALE => Double(self.calibration.scale),
             names::VALID => Bool(self.calibration_valid),
             names::PLATE_SIDE => Double(self.plate.side),
             names::CORNER_RADIUS => Double(self.plate.corner_radius),
@@ -124,6 +132,17 @@ impl Parameters {
             }
             names::OFFSET => next.calibration.offset = finite(value)?,
             names::DELTA_L => next.calibration.delta_l = finite(value)?,
+            names::SCALE => {
+                let k = finite(value)?;
+                if !SCALE_RANGE.contains(&k) {
+                    return Err(format!(
+                        "must be an encoder scale between {} and {} (true length = counts × encoder.meters_per_count × scale), got {k}",
+                        SCALE_RANGE.start(),
+                        SCALE_RANGE.end()
+                    ));
+                }
+                next.calibration.scale = k;
+            }
             names::VALID => match value {
                 ParamValue::Bool(b) => next.calibration_valid = *b,
                 v => return Err(format!("expected a bool, got {} '{}'", v.type_name(), v)),
@@ -139,7 +158,13 @@ impl Parameters {
             }
             names::MODEL => match value {
                 ParamValue::String(s) => next.model = s.parse()?,
-                v => return Err(format!("expected a string ('full' or 'paper'), got {} '{}'", v.type_name(), v)),
+                v => {
+                    return Err(format!(
+                        "expected a string ('full', 'paper' or 'full_scale'), got {} '{}'",
+                        v.type_name(),
+                        v
+                    ));
+                }
             },
             names::OUTPUT_FRAME_ID => match value {
                 ParamValue::String(s) => next.output_frame_id = s.clone(),
@@ -185,6 +210,12 @@ impl Parameters {
     pub fn calibration_in_force(&self) -> Option<Mounting> {
         self.calibration_valid.then_some(self.calibration)
     }
+
+    /// How a calibration is fitted with these parameters: the model, and the encoder
+    /// scale in force (for the models that do not fit it).
+    pub fn calibration_options(&self) -> CalibrationOptions {
+        CalibrationOptions { model: self.model, scale: self.calibration.scale, ..CalibrationOptions::default() }
+    }
 }
 
 #[cfg(test)]
@@ -195,7 +226,8 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 11);
+        assert_eq!(list.len(), 12);
+        assert_eq!(p.get("calibration.scale"), Some(ParamValue::Double(1.0)));
         assert_eq!(p.get("plate.side"), Some(ParamValue::Double(0.045)));
         assert_eq!(p.get("plate.corner_radius"), Some(ParamValue::Double(0.003)));
         assert_eq!(p.get("encoder.meters_per_count"), Some(ParamValue::Double(1e-6)));
@@ -214,11 +246,12 @@ mod tests {
         );
         assert_eq!(
             p.set("model", &ParamValue::String("magic".into())).unwrap_err(),
-            "unknown model 'magic': expected 'full' or 'paper'"
+            "unknown model 'magic': expected 'full', 'paper' or 'full_scale'"
         );
         assert!(p.set("resample_points", &ParamValue::Integer(-1)).unwrap_err().contains("between 0"));
         assert!(p.set("plate.corner_radius", &ParamValue::Double(0.03)).is_err());
         assert!(p.set("calibration.valid", &ParamValue::Integer(1)).unwrap_err().contains("expected a bool"));
+        assert!(p.set("calibration.scale", &ParamValue::Double(0.0)).unwrap_err().contains("between 0.5 and 2"));
         assert_eq!(p, Parameters::default(), "failed sets change nothing");
         p.set("plate.side", &ParamValue::Integer(1)).unwrap();
         assert_eq!(p.plate.side, 1.0);

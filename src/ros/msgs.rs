@@ -885,6 +885,8 @@ mod tests {
             rms_residual: 4.0,
             iterations: 3,
             samples_used: 400,
+            scale: 1.5,
+            scale_stddev: 0.125,
         };
         let mut expected = CDR_LE_HEADER.to_vec();
         expected.extend([0x01]); // [0] success
@@ -901,6 +903,8 @@ mod tests {
         expected.extend(4.0f64.to_le_bytes()); // [56] rms_residual
         expected.extend(3u32.to_le_bytes()); // [64] iterations
         expected.extend(400u32.to_le_bytes()); // [68] samples_used
+        expected.extend(1.5f64.to_le_bytes()); // [72] scale
+        expected.extend(0.125f64.to_le_bytes()); // [80] scale_stddev
         assert_eq!(to_cdr(&resp).unwrap(), expected);
         assert_eq!(from_cdr::<CalibrateResponse>(&expected).unwrap(), resp);
     }

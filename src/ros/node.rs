@@ -302,6 +302,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                     (names::ALPHA0, RosValue::Double(m.alpha0)),
                     (names::OFFSET, RosValue::Double(m.offset)),
                     (names::DELTA_L, RosValue::Double(m.delta_l)),
+                    (names::SCALE, RosValue::Double(m.scale)),
                     (names::VALID, RosValue::Boolean(true)),
                 ] {
                     if let Err(e) = node.set_parameter(name, value) {

@@ -13,7 +13,7 @@ use super::msgs::{
     CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, DiagnosticStatus, Header, KeyValue, Point, Point32,
     Polygon, PolygonStamped, RawScan,
 };
-use crate::engine::calibrate::{Calibration, Options, calibrate};
+use crate::engine::calibrate::{Calibration, calibrate};
 use crate::engine::correct::{Corrector, PolarContour, default_max_gap};
 use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
@@ -231,8 +231,7 @@ impl NodeState {
             return fail(self, message);
         };
         let scan_id = plate.scan_id;
-        let opts = Options { model: self.params.model, ..Options::default() };
-        let cal = match calibrate(&plate.scan, &self.params.plate, &opts) {
+        let cal = match calibrate(&plate.scan, &self.params.plate, &self.params.calibration_options()) {
             Ok(cal) => cal,
             Err(e) => return fail(self, format!("calibration failed on scan {scan_id}: {e}")),
         };
@@ -272,9 +271,18 @@ impl NodeState {
     /// The node's diagnostics at time `now`.
     pub fn diagnostics(&self, now: Time) -> DiagnosticArray {
         let p = &self.params;
-        let (level, message) = if !p.calibration_valid {
+        let last_failed = self.stats.calibrations_failed > 0 && self.stats.last_fit_message.contains("failed");
+        let (level, message) = if !p.calibration_valid && last_failed {
+            (
+                DiagnosticStatus::WARN,
+                format!(
+                    "not calibrated: contours are uncorrected; the last calibrate failed: {}",
+                    self.stats.last_fit_message
+                ),
+            )
+        } else if !p.calibration_valid {
             (DiagnosticStatus::WARN, "not calibrated: contours are uncorrected".to_string())
-        } else if self.stats.calibrations_failed > 0 && self.stats.last_fit_message.contains("failed") {
+        } else if last_failed {
             (DiagnosticStatus::WARN, format!("calibrated; the last calibrate failed: {}", self.stats.last_fit_message))
         } else {
             (DiagnosticStatus::OK, "calibrated".to_string())
@@ -298,6 +306,7 @@ impl NodeState {
                     kv("alpha0_deg", format!("{:.5}", p.calibration.alpha0.to_degrees())),
                     kv("offset_mm", format!("{:.5}", p.calibration.offset * 1e3)),
                     kv("delta_l_mm", format!("{:.5}", p.calibration.delta_l * 1e3)),
+                    kv("scale", format!("{:.7}", p.calibration.scale)),
                     kv("model", p.model.to_string()),
                     kv(
                         "last_fit_rms_residual_mm",
@@ -317,8 +326,12 @@ impl NodeState {
     }
 }
 
-/// The Calibrate response of a successful fit (the node's, and the offline tool's JSON).
+/// The Calibrate response of a successful fit (the node's, and the offline tool's JSON):
+/// `scale` and `scale_stddev` are the fitted ones, or 1 and 0 for a model that does not
+/// fit the scale.
 pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
+    let (scale, scale_stddev) =
+        if cal.model.fits_scale() { (cal.mounting.scale, cal.scale_stddev) } else { (1.0, 0.0) };
     CalibrateResponse {
         success: true,
         message,
@@ -329,7 +342,8 @@ pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
         rms_residual: cal.rms_residual,
         iterations: cal.iterations as u32,
         samples_used: cal.samples_used as u32,
-        ..Default::default()
+        scale,
+        scale_stddev,
     }
 }
 
@@ -390,7 +404,7 @@ mod tests {
 
     #[test]
     fn scans_are_corrected_once_calibrated() {
-        let m = Mounting { alpha0: 0.02, offset: 0.004, delta_l: 0.001 };
+        let m = Mounting::new(0.02, 0.004, 0.001);
         let mut st = NodeState::new("/tracer_calibrator".into(), Parameters::default());
         let before = st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
         assert!(!before.contour.calibrated);
@@ -437,7 +451,7 @@ mod tests {
         let out = st.on_calibrate(&CalibrateRequest::default());
         assert!(!out.response.success);
         assert!(out.response.message.starts_with("no calibration-plate scan received yet"), "{}", out.response.message);
-        let m = Mounting { alpha0: 0.01, offset: 0.003, delta_l: 0.001 };
+        let m = Mounting::new(0.01, 0.003, 0.001);
         st.on_raw_scan(&plate_msg(5, &m), true).unwrap();
         assert!(st.on_calibrate(&CalibrateRequest::default()).response.success);
         let in_force = st.params.calibration;
@@ -454,7 +468,7 @@ mod tests {
 
     #[test]
     fn dry_runs_change_nothing_and_persisting_failures_are_reported() {
-        let m = Mounting { alpha0: 0.01, offset: 0.003, delta_l: 0.001 };
+        let m = Mounting::new(0.01, 0.003, 0.001);
         let mut st = NodeState::new("/t".into(), Parameters::default());
         st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
         let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true });
@@ -469,6 +483,63 @@ mod tests {
             out.response.message
         );
         assert!(st.params.calibration_valid);
+    }
+
+    /// A lens scan (noise-free ellipse) by a tracer with mounting `m`, and where each
+    /// sample really touched.
+    fn lens_msg(scan_id: u32, m: &Mounting) -> (RawScan, Vec<Vector2<f64>>) {
+        use crate::engine::shape::Ellipse;
+        let lens = Ellipse { center: Vector2::new(0.001, -0.002), a: 0.03, b: 0.018, angle: 0.3 };
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        let sim = simulate(&lens, m, &SimOptions::default(), &mut rng).unwrap();
+        let msg = RawScan {
+            header: Header::default(),
+            scan_id,
+            target: RawScan::TARGET_LENS,
+            steps_per_revolution: 400,
+            step: sim.scan.samples().iter().map(|s| s.step).collect(),
+            counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+        };
+        (msg, sim.truth)
+    }
+
+    #[test]
+    fn an_encoder_scale_error_is_refused_by_full_and_corrected_with_full_scale() {
+        // The encoder reads 0.25 % long.
+        let m = Mounting::new(0.02, 0.004, 0.001).with_scale(1.0 / 1.0025);
+        let mut st = NodeState::new("/t".into(), Parameters::default());
+        st.on_raw_scan(&plate_msg(3, &m), true).unwrap();
+        let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+        assert!(!out.response.success);
+        assert!(out.response.message.contains("encoder scale looks off"), "{}", out.response.message);
+        assert!(!st.params.calibration_valid, "the failed fit applied nothing");
+        let diag = st.diagnostics(Time::ZERO);
+        assert_eq!(diag.status[0].level, DiagnosticStatus::WARN);
+        assert!(diag.status[0].message.contains("encoder scale looks off"), "{}", diag.status[0].message);
+
+        st.params.set("model", &crate::params::ParamValue::String("full_scale".into())).unwrap();
+        let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+        assert!(out.response.success, "{}", out.response.message);
+        let r = &out.response;
+        assert!((r.scale - m.scale).abs() < 5.0 * r.scale_stddev && r.scale_stddev > 0.0, "{r:?}");
+        assert_eq!(st.params.calibration.scale, r.scale);
+        assert_eq!(out.applied.unwrap().scale, r.scale);
+
+        // A lens traced by the same tracer comes out true to within the counts' rounding
+        // (1 µm) and the calibration's noise (2 µm on the plate).
+        let (lens, truth) = lens_msg(4, &m);
+        let rms_off_truth = |st: &mut NodeState| {
+            let c = st.on_raw_scan(&lens, false).unwrap().contour;
+            assert!(c.calibrated);
+            let ss: f64 = c.points.iter().zip(&truth).map(|(p, q)| (p.x - q.x).powi(2) + (p.y - q.y).powi(2)).sum();
+            (ss / truth.len() as f64).sqrt()
+        };
+        let rms = rms_off_truth(&mut st);
+        assert!(rms < 3e-6, "{rms:e}");
+        // With the scale left out the same lens is tens of µm off.
+        st.params.set("calibration.scale", &crate::params::ParamValue::Double(1.0)).unwrap();
+        let rms = rms_off_truth(&mut st);
+        assert!(rms > 30e-6, "{rms:e}");
     }
 
     #[test]

@@ -54,6 +54,7 @@ def simulate(name, shape, noise=5e-6, seed=1, **kw):
         alpha0_deg=kw.get("alpha0_deg", TRUTH["alpha0_deg"]),
         offset=kw.get("offset", TRUTH["offset"]),
         delta_l=kw.get("delta_l", TRUTH["delta_l"]),
+        scale=kw.get("scale", 1.0),
         noise=noise,
         seed=seed,
         out=path,
@@ -731,6 +732,46 @@ def test_bad_params_file_stops_the_node():
     assert open(path).read() == before
 
 
+def test_encoder_scale(peer):
+    """A tracer whose encoder reads 0.25 % long: `/calibrate` with the default model
+    refuses it and names the scale; after `ros2 param set model full_scale` it fits the
+    scale, reports it in the response, persists `calibration.scale`, and corrects a lens
+    true to size."""
+    k = 1 / 1.0025
+    persisted = os.path.join(WORK, "scale.yaml")
+    node = NodeProcess("scale", ["-p", f"params_file:={persisted}"])
+    try:
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        peer.wait_matched(pub)
+        plate = simulate("plate_k", "plate", noise=3e-6, seed=21, scale=k)
+        peer.send_scan(pub, raw_scan(30, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+
+        r = peer.call("/calibrate", Calibrate.Request())
+        assert not r.success and "encoder scale looks off" in r.message and "full_scale" in r.message, r.message
+        assert r.scale == 1.0 and r.scale_stddev == 0.0, r
+
+        pc = peer.param_client("/tracer_calibrator")
+        ok = peer.param(lambda: pc.set_parameters([Parameter("model", value="full_scale")])).results[0]
+        assert ok.successful, ok.reason
+        r = peer.call("/calibrate", Calibrate.Request())
+        assert r.success, r.message
+        assert 0 < r.scale_stddev < 2e-4 and abs(r.scale - k) < 5 * r.scale_stddev, r
+        assert abs(r.offset - TRUTH["offset"]) < 5 * r.stddev[1], r
+        got = peer.param(lambda: pc.get_parameters(["calibration.scale"])).values[0].double_value
+        assert got == r.scale, got
+
+        lens = simulate("lens_k", "ellipse", noise=0.0, seed=22, scale=k)
+        c = peer.send_scan(pub, raw_scan(31, RawScan.TARGET_LENS, *lens), contours)
+        worst = max(ellipse_distance(p.x, p.y) for p in c.points)
+        assert c.calibrated and worst < 10e-6, f"corrected points up to {worst * 1e6:.1f} µm off the ellipse"
+    finally:
+        took = node.stop()
+    assert took < 1.0, f"the node took {took:.2f} s to shut down"
+    back = read_back_with_rclpy(persisted, "tracer_calibrator", "/")
+    assert back["calibration.scale"] == r.scale and back["model"] == "full_scale", back
+
+
 def main():
     rclpy.init()
     peer = Peer()
@@ -745,6 +786,7 @@ def main():
         ("concurrent_calls_and_a_vanishing_peer", lambda: test_concurrent_calls_and_a_vanishing_peer(peer)),
         ("kill_during_writes", test_kill_during_writes),
         ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
+        ("encoder_scale", lambda: test_encoder_scale(peer)),
     ]
     only = [a.removeprefix("test_") for a in sys.argv[1:]]
     unknown = sorted(set(only) - {name for name, _ in tests})

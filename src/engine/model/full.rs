@@ -52,7 +52,7 @@ pub fn params(m: &Mounting, center: Vector2<f64>) -> Params {
 
 /// Unpack a parameter vector.
 pub fn unpack(x: &Params) -> (Mounting, Vector2<f64>) {
-    (Mounting { alpha0: x[ALPHA0], offset: x[OFFSET], delta_l: x[DELTA_L] }, Vector2::new(x[CX], x[CY]))
+    (Mounting::new(x[ALPHA0], x[OFFSET], x[DELTA_L]), Vector2::new(x[CX], x[CY]))
 }
 
 /// A precomputed sample: the step angle's cosine and sine, and the measured length.
@@ -116,6 +116,13 @@ impl FullModel {
         true
     }
 
+    /// The cost `½ Σ r²` at `x` (no Jacobian accumulated); `None` where the model cannot
+    /// be evaluated.
+    pub fn cost(&self, x: &Params) -> Option<f64> {
+        let mut ss = 0.0;
+        (self.for_each_prediction(x, |s, q, _| ss += (q - s.rho) * (q - s.rho)) && ss.is_finite()).then_some(0.5 * ss)
+    }
+
     /// The encoder lengths the model predicts at `x` (the forward model).
     pub fn predict(&self, x: &Params) -> Option<Vec<f64>> {
         let mut out = Vec::with_capacity(self.samples.len());
@@ -135,19 +142,21 @@ pub fn rho_gradient(hit: &Hit, u: Vector2<f64>, v: Vector2<f64>, d: f64) -> Opti
     Some(Params::from([-n.dot(&(v * hit.t - u * d)) * inv, -n.dot(&v) * inv, 1.0, n.x * inv, n.y * inv]))
 }
 
-impl Problem<5> for FullModel {
-    fn residual_count(&self) -> usize {
-        self.samples.len()
-    }
-
-    /// The residuals with their Jacobian rows. A flat hit, by far the most common, is
-    /// done inline with one division: leaving through the side `x = ±S/2` (normal
-    /// `N = (sx, 0)`, `N·u = |ux|`), `t = (S/2 - sx p_x)/|ux|` and the gradient of the
-    /// module docs with `N` substituted; which wall the ray reaches first is decided
-    /// by cross-multiplying the two distances. Corners go through
-    /// [`RoundedRect::exit_local`] and [`rho_gradient`].
+impl FullModel {
+    /// Calls `f(sample, q, ∂q/∂x)` for every sample at `x`, where `q = t + dL` is the
+    /// length along the rail the encoder should read (with a true scale): the forward
+    /// model and its gradient, shared by [`FullModel`] (`r = q - rho`) and the
+    /// encoder-scale model ([`super::full_scale`], `r = q/k - rho`). `false` (and an
+    /// early stop) if a rail ray misses the plate or grazes it.
+    ///
+    /// A flat hit, by far the most common, is done inline with one division: leaving
+    /// through the side `x = ±S/2` (normal `N = (sx, 0)`, `N·u = |ux|`),
+    /// `t = (S/2 - sx p_x)/|ux|` and the gradient of the module docs with `N`
+    /// substituted; which wall the ray reaches first is decided by cross-multiplying
+    /// the two distances. Corners go through [`RoundedRect::exit_local`] and
+    /// [`rho_gradient`].
     #[inline]
-    fn for_each_row(&self, x: &Params, mut row: impl FnMut(f64, &Params)) -> bool {
+    pub fn for_each_prediction(&self, x: &Params, mut f: impl FnMut(&TableSample, f64, &Params)) -> bool {
         let cs_alpha = (x[ALPHA0].cos(), x[ALPHA0].sin());
         let (d, dl) = (x[OFFSET], x[DELTA_L]);
         let c = Vector2::new(x[CX], x[CY]);
@@ -167,7 +176,7 @@ impl Problem<5> for FullModel {
                 let t = wx * inv;
                 if (p.y + t * sa).abs() <= inner_h && t > 0.0 {
                     let j = Params::from([-sx * (t * v.x - d * ca) * inv, -sx * v.x * inv, 1.0, sx * inv, 0.0]);
-                    row(t + dl - s.rho, &j);
+                    f(s, t + dl, &j);
                     continue;
                 }
             } else {
@@ -175,19 +184,31 @@ impl Problem<5> for FullModel {
                 let t = wy * inv;
                 if (p.x + t * ca).abs() <= inner_w && t > 0.0 {
                     let j = Params::from([-sy * (t * v.y - d * sa) * inv, -sy * v.y * inv, 1.0, 0.0, sy * inv]);
-                    row(t + dl - s.rho, &j);
+                    f(s, t + dl, &j);
                     continue;
                 }
             }
             match self.plate.exit_local(p, u) {
                 Some(hit) if hit.t > 0.0 => match rho_gradient(&hit, u, v, d) {
-                    Some(j) => row(hit.t + dl - s.rho, &j),
+                    Some(j) => f(s, hit.t + dl, &j),
                     None => return false,
                 },
                 _ => return false,
             }
         }
         true
+    }
+}
+
+impl Problem<5> for FullModel {
+    fn residual_count(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// `r_n = q_n - rho_n` with `q = t + dL` ([`FullModel::for_each_prediction`]).
+    #[inline]
+    fn for_each_row(&self, x: &Params, mut row: impl FnMut(f64, &Params)) -> bool {
+        self.for_each_prediction(x, |s, q, j| row(q - s.rho, j))
     }
 }
 
@@ -245,7 +266,7 @@ mod tests {
     #[test]
     fn flat_sample_matches_paper_eq3() {
         let plate = PlateSpec::default();
-        let m = Mounting { alpha0: 0.03, offset: 0.005, delta_l: 0.002 };
+        let m = Mounting::new(0.03, 0.005, 0.002);
         let c = Vector2::new(0.0008, -0.0005);
         let a = 0.03 + step_angle(10, 400);
         let rho = plate_rho(&plate, &m, c, 10, 400).unwrap();

@@ -1,15 +1,19 @@
-//! The two ways of fitting the mounting errors to a calibration-plate scan.
+//! The ways of fitting the mounting errors to a calibration-plate scan.
 //!
 //! - [`full`]: every raw sample, flats and corner arcs, five parameters
 //!   `[alpha0, d, dL, cx, cy]`. Reaches the Cramér-Rao bound; the default.
+//! - [`full_scale`]: the full model and the encoder scale `k`, six parameters
+//!   `[alpha0, d, dL, k, cx, cy]`: for a tracer whose encoder scale is not known to
+//!   better than the plate's size.
 //! - [`paper`]: the seed paper's reduced model (its eqs. 5-8): sums of opposite samples
 //!   differenced between neighbours remove `dL` and the plate centre, leaving
 //!   `[alpha0, d]`; `dL` then follows in closed form. Exact on noise-free flat samples,
 //!   but ill-conditioned: kept to reproduce the paper, not as the default.
 //!
-//! Both are [`crate::engine::lm::Problem`]s.
+//! Each is a [`crate::engine::lm::Problem`].
 
 pub mod full;
+pub mod full_scale;
 pub mod paper;
 
 use nalgebra::Vector2;
@@ -61,13 +65,25 @@ pub enum ModelKind {
     #[default]
     Full,
     Paper,
+    /// The full model and the encoder scale.
+    #[serde(rename = "full_scale")]
+    FullScale,
 }
 
 impl ModelKind {
+    /// Every model, in the order the documentation names them.
+    pub const ALL: [ModelKind; 3] = [ModelKind::Full, ModelKind::Paper, ModelKind::FullScale];
+
+    /// Does this model fit the encoder scale?
+    pub fn fits_scale(self) -> bool {
+        self == ModelKind::FullScale
+    }
+
     pub fn as_str(self) -> &'static str {
         match self {
             ModelKind::Full => "full",
             ModelKind::Paper => "paper",
+            ModelKind::FullScale => "full_scale",
         }
     }
 }
@@ -84,7 +100,8 @@ impl std::str::FromStr for ModelKind {
         match s {
             "full" => Ok(ModelKind::Full),
             "paper" => Ok(ModelKind::Paper),
-            _ => Err(format!("unknown model '{s}': expected 'full' or 'paper'")),
+            "full_scale" => Ok(ModelKind::FullScale),
+            _ => Err(format!("unknown model '{s}': expected 'full', 'paper' or 'full_scale'")),
         }
     }
 }

@@ -305,7 +305,7 @@ mod tests {
     #[test]
     fn exact_on_noise_free_flats_and_jacobian_checks() {
         let plate = PlateSpec::default();
-        let m = Mounting { alpha0: 0.0349, offset: 0.005, delta_l: 0.002 };
+        let m = Mounting::new(0.0349, 0.005, 0.002);
         let c = Vector2::new(0.0008, -0.0005);
         let steps: Vec<u32> = (0..400).collect();
         let rho: Vec<f64> = steps.iter().map(|&k| full::plate_rho(&plate, &m, c, k, 400).unwrap()).collect();

@@ -203,7 +203,9 @@ fn dependencies(text: &str, package: &str) -> BTreeSet<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ros::msgs::{Calibration, Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan, RosMsg, Time};
+    use crate::ros::msgs::{
+        Calibration, Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan, RosMsg, Time,
+    };
 
     type Fields = Vec<(String, String)>;
     type Constants = Vec<(String, String, String)>;
