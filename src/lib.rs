@@ -10,4 +10,5 @@ pub mod cli;
 pub mod engine;
 pub mod io;
 pub mod params;
+pub mod records;
 pub mod ros;

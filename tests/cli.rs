@@ -152,7 +152,7 @@ fn bad_input_exits_2_naming_the_problem() {
 
 #[test]
 fn every_subcommand_has_help_with_an_example() {
-    for sub in ["calibrate", "simulate", "demo", "plot", "correct", "replay", "oma"] {
+    for sub in ["calibrate", "simulate", "demo", "plot", "correct", "replay", "oma", "history"] {
         let o = tool(&[sub, "--help"]);
         assert!(o.status.success());
         let text = String::from_utf8_lossy(&o.stdout);
@@ -169,6 +169,12 @@ fn demo_runs() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("lens, ellipse 50 x 30 mm"), "{text}");
     assert!(text.contains("contour calibrated = false"), "{text}");
+    // The calibration the demo applied is on record.
+    let line = text.lines().find(|l| l.contains("and recorded the calibration in ")).expect("the history line");
+    let path = line.split("recorded the calibration in ").nth(1).unwrap().split(" (").next().unwrap();
+    let history = tracer_calib::records::file::read(std::path::Path::new(path)).unwrap();
+    assert_eq!(history.records.len(), 1, "{path}");
+    assert_eq!(history.records[0].node, "/tracer_calibrator");
     let svg_text = std::fs::read_to_string(&svg).unwrap();
     assert!(svg_text.starts_with("<?xml") || svg_text.starts_with("<svg"), "{}", &svg_text[..100]);
 }
@@ -284,6 +290,73 @@ fn a_wrong_scale_fails_full_and_is_fitted_by_full_scale() {
     let (scale, sd) = (v["scale"].as_f64().unwrap(), v["scale_stddev"].as_f64().unwrap());
     assert!(sd > 0.0 && (scale - k).abs() < 5.0 * sd, "{v}");
     assert!((v["offset"].as_f64().unwrap() - 0.005).abs() < 5.0 * v["stddev"][1].as_f64().unwrap(), "{v}");
+}
+
+#[test]
+fn history_table_json_and_svg_with_a_torn_last_line() {
+    use tracer_calib::records::{Previous, Record, file as history};
+    let path = temp("history.jsonl");
+    let _ = std::fs::remove_file(&path);
+    let mut previous = None;
+    for (i, offset) in [0.005, 0.005_001, 0.005_2].iter().enumerate() {
+        let r = Record {
+            time: format!("2026-11-{:02}T08:00:00.000Z", 20 + i),
+            node: "/cell1/tracer".into(),
+            scan_id: 10 + i as u32,
+            model: "full".into(),
+            alpha0: 0.0349,
+            offset: *offset,
+            delta_l: 0.002,
+            scale: 1.0,
+            stddev: vec![2e-4, 6e-6, 1e-6],
+            rms_residual: 5e-6,
+            samples_used: 400,
+            iterations: 7,
+            previous,
+        };
+        previous = Some(Previous::from(r.mounting()));
+        history::append(&path, &r).unwrap();
+    }
+    // A crash mid-write of a fourth.
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    text.push_str("{\"time\":\"2026-11-23T08:00:00.000Z\",\"node\":\"/ce");
+    std::fs::write(&path, &text).unwrap();
+    let p = path.to_str().unwrap();
+
+    let o = tool(&["history", "--input", p]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).contains("history.jsonl:4: skipped a torn last line"), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let rows: Vec<&str> = out.lines().filter(|l| l.starts_with("2026-")).collect();
+    assert_eq!(rows.len(), 3, "{out}");
+    assert!(rows[0].contains("    10  full") && rows[0].ends_with(" -"), "{}", rows[0]);
+    assert!(rows[0].contains("1.99962 ± 0.01146") && rows[0].contains("5.00000 ± 0.00600"), "{}", rows[0]);
+    assert!(rows[1].ends_with("0.1σ d"), "{}", rows[1]);
+    // d moved 0.2 mm against a combined 8.5 µm: flagged.
+    assert!(rows[2].ends_with("23.5σ d !"), "{}", rows[2]);
+
+    let svg = temp("history.svg");
+    let o = tool(&["history", "--input", p, "--json", "--svg", svg.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v = json(&o);
+    let a = v.as_array().unwrap();
+    assert_eq!(a.len(), 3);
+    assert_eq!(a[0]["previous"], serde_json::Value::Null);
+    assert_eq!(a[2]["previous"]["offset"], 0.005_001);
+    assert_eq!(a[1]["scan_id"], 11);
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.starts_with("<?xml") && text.matches("class=\"history-panel\"").count() == 3);
+    assert!(text.contains("Calibration history of /cell1/tracer"));
+
+    // Not a history file, no file: exit 2 naming it.
+    let bad = temp("not_history.jsonl");
+    std::fs::write(&bad, "step,counts\n0,1\n").unwrap();
+    let o = tool(&["history", "--input", bad.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("not a calibration history file"), "{}", stderr(&o));
+    let o = tool(&["history", "--input", "/nonexistent/h.jsonl"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(stderr(&o), "tracer_calib history: /nonexistent/h.jsonl: no such file\n");
 }
 
 /// The offline `correct` (and its OMA export) applies the params file's

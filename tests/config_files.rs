@@ -15,7 +15,11 @@ fn default_config_gives_the_contract_defaults() {
     let path = format!("{root}/config/tracer_calib.yaml");
     let c = load(&["tracer_calib_node", "--ros-args", "--params-file", &path]).unwrap();
     assert_eq!(c.identity.fully_qualified_name(), "/tracer_calibrator");
-    let want = tracer_calib::params::Parameters { params_file: path.clone(), ..Default::default() };
+    let want = tracer_calib::params::Parameters {
+        params_file: path.clone(),
+        history_file: format!("{root}/config/tracer_calib.history.jsonl"),
+        ..Default::default()
+    };
     assert_eq!(c.params, want);
 }
 
@@ -45,6 +49,20 @@ fn namespaced_example_applies_to_its_node_only() {
     ])
     .unwrap();
     assert_eq!(c.params.get("model"), Some(ParamValue::String("paper".into())));
+    let e = load(&["n", "--ros-args", "-p", "plate.side:=-2.0"]).unwrap_err();
+    assert!(e.starts_with("-p plate.side:=-2.0: plate side must be a positive length"), "{e}");
+}
+
+#[test]
+fn history_file_defaults_beside_the_params_file_unless_set() {
+    let c = load(&["n", "--ros-args"]).unwrap();
+    assert_eq!(c.params.history_file, "", "no params file, no history");
+    let c = load(&["n", "--ros-args", "-p", "params_file:=/var/lib/cell/tracer.yaml"]).unwrap();
+    assert_eq!(c.params.history_file, "/var/lib/cell/tracer.history.jsonl");
+    let c = load(&["n", "--ros-args", "-p", "params_file:=/x/p.yaml", "-p", "history_file:=/y/h.jsonl"]).unwrap();
+    assert_eq!(c.params.history_file, "/y/h.jsonl");
+    let c = load(&["n", "--ros-args", "-p", "params_file:=/x/p.yaml", "-p", "history_file:=''"]).unwrap();
+    assert_eq!(c.params.history_file, "", "set to empty: no history");
     let e = load(&["n", "--ros-args", "-p", "plate.side:=-2.0"]).unwrap_err();
     assert!(e.starts_with("-p plate.side:=-2.0: plate side must be a positive length"), "{e}");
 }

@@ -296,6 +296,10 @@ fn demo(args: &Args) -> Result<(), String> {
     }
     println!("   (corrected errors are the encoder noise; radii: the 400 equal-angle radii of Contour.radii)");
     println!("5. The node persisted its parameters to {}", params_path.display());
+    println!(
+        "   and recorded the calibration in {} (tracer_calib history --input FILE)",
+        crate::records::file::default_path(&params_path.display().to_string())
+    );
 
     drop(spinner);
     let stop = Instant::now();

@@ -3,6 +3,7 @@
 pub mod calibrate;
 pub mod correct;
 pub mod demo;
+pub mod history;
 pub mod oma;
 pub mod plot;
 pub mod replay;
@@ -27,6 +28,7 @@ pub enum Command {
     Correct(correct::Args),
     Replay(replay::Args),
     Oma(oma::Args),
+    History(history::Args),
 }
 
 /// Exit statuses of the tool (CONTRACT.md).
@@ -46,5 +48,6 @@ pub fn run(cli: Cli) -> i32 {
         Command::Correct(args) => correct::run(&args),
         Command::Replay(args) => replay::run(&args),
         Command::Oma(args) => oma::run(&args),
+        Command::History(args) => history::run(&args),
     }
 }

@@ -7,6 +7,8 @@
 //!   samples as blue dots, rejected ones (outliers) as red crosses, the zero line and ±3σ
 //!   (σ = the RMS of the used residuals). A good fit is a flat band of noise with no pattern.
 //! - [`calibration_report_svg`]: both side by side in one picture, with the fit summary.
+//! - [`history_svg`]: a tracer's calibrations over time, alpha0, d and dL with their
+//!   error bars, so drift (and a tracer knocked out of true) shows at a glance.
 //!
 //! Pure string generation: inputs are plain data in SI units (metres, radians); the
 //! pictures show millimetres, micrometres and degrees. Points with a non-finite coordinate
@@ -294,6 +296,8 @@ struct Axis<'a> {
     ticks: Vec<f64>,
     decimals: usize,
     label: &'a str,
+    /// Tick labels, one a tick; empty: the tick values with `decimals`.
+    labels: Vec<String>,
 }
 
 /// Title, grid, frame, tick labels and axis labels.
@@ -332,13 +336,13 @@ fn draw_axes(out: &mut String, f: &Frame, title: &str, x: &Axis<'_>, y: &Axis<'_
     }
     out.push_str("</g>\n");
     out.push_str("<g class=\"tick-labels\">\n");
-    for &t in &x.ticks {
+    for (k, &t) in x.ticks.iter().enumerate() {
         let _ = writeln!(
             out,
             r#"<text x="{:.2}" y="{:.2}" text-anchor="middle">{}</text>"#,
             f.px(t),
             f.y0 + f.h + 19.0,
-            tick_label(t, x.decimals)
+            x.labels.get(k).map_or_else(|| tick_label(t, x.decimals), |l| xml_escape(l))
         );
     }
     for &t in &y.ticks {
@@ -505,8 +509,8 @@ fn contour_panel(out: &mut String, x0: f64, y0: f64, w: f64, h: f64, plot: &Cont
         Frame { x0: x0 + M_LEFT, y0: y0 + M_TOP, w: pw, h: ph, xlo: cx - hx, xhi: cx + hx, ylo: cy - hy, yhi: cy + hy };
     let step = nice_step(2.0 * hx.max(hy), 8.0);
     let dec = decimals(step);
-    let x_axis = Axis { ticks: ticks(f.xlo, f.xhi, step), decimals: dec, label: "x [mm]" };
-    let y_axis = Axis { ticks: ticks(f.ylo, f.yhi, step), decimals: dec, label: "y [mm]" };
+    let x_axis = Axis { ticks: ticks(f.xlo, f.xhi, step), decimals: dec, label: "x [mm]", labels: Vec::new() };
+    let y_axis = Axis { ticks: ticks(f.ylo, f.yhi, step), decimals: dec, label: "y [mm]", labels: Vec::new() };
     let _ = writeln!(out, r#"<g class="contour-panel">"#);
     draw_axes(out, &f, plot.title, &x_axis, &y_axis);
 
@@ -585,8 +589,13 @@ fn residual_panel(out: &mut String, x0: f64, y0: f64, w: f64, h: f64, plot: &Res
     } else {
         format!("{} — RMS {:.2} µm ({} used, {} rejected)", plot.title, rms, used.len(), n_rejected)
     };
-    let x_axis = Axis { ticks: ticks(0.0, 360.0, 45.0), decimals: 0, label: "sample angle [°]" };
-    let y_axis = Axis { ticks: ticks(-limit, limit, step), decimals: decimals(step), label: "residual [µm]" };
+    let x_axis = Axis { ticks: ticks(0.0, 360.0, 45.0), decimals: 0, label: "sample angle [°]", labels: Vec::new() };
+    let y_axis = Axis {
+        ticks: ticks(-limit, limit, step),
+        decimals: decimals(step),
+        label: "residual [µm]",
+        labels: Vec::new(),
+    };
     let _ = writeln!(out, r#"<g class="residual-panel">"#);
     draw_axes(out, &f, &title, &x_axis, &y_axis);
 
@@ -650,6 +659,237 @@ fn residual_panel(out: &mut String, x0: f64, y0: f64, w: f64, h: f64, plot: &Res
     }
     draw_legend(out, &f, &legend);
     out.push_str("</g>\n");
+}
+
+/// One calibration of a history, for [`history_svg`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HistoryPoint {
+    /// When it was applied, seconds since 1970-01-01 UTC.
+    pub time: f64,
+    /// `[alpha0 (rad), offset (m), delta_l (m)]`.
+    pub values: [f64; 3],
+    /// Their standard uncertainties, if known.
+    pub stddev: Option<[f64; 3]>,
+    /// Drawn in red, parameter by parameter: it moved further from the one before than
+    /// the drift limit.
+    pub flagged: [bool; 3],
+}
+
+/// What [`history_svg`] draws.
+#[derive(Debug, Clone, Copy)]
+pub struct HistoryPlot<'a> {
+    /// Title above the three panels.
+    pub title: &'a str,
+    /// The calibrations, oldest first.
+    pub points: &'a [HistoryPoint],
+    /// Error bars are ±`coverage` standard uncertainties.
+    pub coverage: f64,
+    /// Legend text of a flagged point.
+    pub flagged_label: &'a str,
+    /// Printed under the panels (wrapped; `\n` starts a new line).
+    pub summary: &'a str,
+}
+
+const C_FLAGGED: &str = "#d62728";
+const C_TREND: &str = "#9a9a9a";
+const HISTORY_W: f64 = 960.0;
+const HISTORY_PANEL_H: f64 = 290.0;
+
+/// Time ticks about `target` apart over `[lo, hi]` (seconds): a round step (minutes,
+/// hours, days, weeks, 30-day months, years), aligned to UTC midnight for a day or more.
+fn time_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<String>) {
+    const STEPS: [f64; 22] = [
+        1.0,
+        2.0,
+        5.0,
+        10.0,
+        15.0,
+        30.0,
+        60.0,
+        300.0,
+        900.0,
+        1800.0,
+        3600.0,
+        7200.0,
+        21_600.0,
+        43_200.0,
+        86_400.0,
+        172_800.0,
+        604_800.0,
+        1_209_600.0,
+        2_592_000.0,
+        7_776_000.0,
+        15_552_000.0,
+        31_536_000.0,
+    ];
+    let span = (hi - lo).max(1.0);
+    let step =
+        STEPS.iter().copied().find(|s| span / s <= 7.0).unwrap_or(31_536_000.0 * (span / 31_536_000.0 / 7.0).ceil());
+    let ticks = ticks(lo, hi, step);
+    let labels = ticks
+        .iter()
+        .map(|&t| {
+            let iso =
+                crate::records::format_utc(std::time::UNIX_EPOCH + std::time::Duration::from_secs_f64(t.max(0.0)));
+            if step >= 86_400.0 {
+                iso[..10].to_string()
+            } else if step >= 60.0 {
+                format!("{} {}", &iso[5..10], &iso[11..16])
+            } else {
+                iso[11..19].to_string()
+            }
+        })
+        .collect();
+    (ticks, labels)
+}
+
+/// Three panels stacked, alpha0 (degrees), d and dL (mm) against the time each calibration
+/// was applied, with error bars of ±`coverage` standard uncertainties and a grey line
+/// from each calibration to the next: drift, and a tracer knocked out of true, show at a
+/// glance. Flagged calibrations are red.
+pub fn history_svg(plot: &HistoryPlot<'_>) -> String {
+    let header = 44.0;
+    let legend_h = 40.0;
+    let line_h = 17.0;
+    let lines = wrap(plot.summary, ((HISTORY_W - 40.0) / 7.3) as usize);
+    let text_h = if lines.is_empty() { 0.0 } else { 16.0 + line_h * lines.len() as f64 };
+    let height = header + 3.0 * HISTORY_PANEL_H + legend_h + text_h;
+    let mut out = String::new();
+    svg_open(&mut out, HISTORY_W, height);
+    let _ = writeln!(
+        out,
+        r#"<text class="title" x="{:.1}" y="28" text-anchor="middle" font-size="20" font-weight="bold">{}</text>"#,
+        HISTORY_W / 2.0,
+        xml_escape(plot.title)
+    );
+    let shown: Vec<&HistoryPoint> =
+        plot.points.iter().filter(|p| p.time.is_finite() && p.values.iter().all(|v| v.is_finite())).collect();
+    // One time axis for all three panels, with a margin; a single calibration gets a day.
+    let (tmin, tmax) =
+        shown.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.time), b.max(p.time)));
+    let (tlo, thi) = if shown.is_empty() {
+        (0.0, 86_400.0)
+    } else if tmax - tmin < 1.0 {
+        (tmin - 43_200.0, tmax + 43_200.0)
+    } else {
+        let pad = 0.05 * (tmax - tmin);
+        (tmin - pad, tmax + pad)
+    };
+    let (tt, tl) = time_ticks(tlo, thi);
+    let panels: [(&str, &str, f64); 3] = [
+        ("alpha0: rail angle at step 0", "alpha0 [°]", 180.0 / std::f64::consts::PI),
+        ("d: rail offset from the axis", "d [mm]", 1e3),
+        ("dL: encoder zero offset", "dL [mm]", 1e3),
+    ];
+    let mut any_flagged = false;
+    for (k, (title, unit, factor)) in panels.iter().enumerate() {
+        let y0 = header + HISTORY_PANEL_H * k as f64 - 16.0;
+        let bar = |p: &HistoryPoint| p.stddev.map_or(0.0, |s| plot.coverage * s[k] * factor);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for p in &shown {
+            let v = p.values[k] * factor;
+            let b = if bar(p).is_finite() { bar(p) } else { 0.0 };
+            lo = lo.min(v - b);
+            hi = hi.max(v + b);
+        }
+        if shown.is_empty() {
+            (lo, hi) = (-1.0, 1.0);
+        }
+        let span = (hi - lo).max(1e-9 * hi.abs().max(lo.abs())).max(1e-12);
+        let (lo, hi) = (lo - 0.08 * span, hi + 0.08 * span);
+        let step = nice_step(hi - lo, 5.0);
+        let f = Frame {
+            x0: M_LEFT + 20.0,
+            y0: y0 + M_TOP,
+            w: HISTORY_W - M_LEFT - 20.0 - M_RIGHT - 10.0,
+            h: HISTORY_PANEL_H - M_TOP - 52.0,
+            xlo: tlo,
+            xhi: thi,
+            ylo: lo,
+            yhi: hi,
+        };
+        let x_axis = Axis {
+            ticks: tt.clone(),
+            decimals: 0,
+            label: if k == 2 { "applied (UTC)" } else { "" },
+            labels: tl.clone(),
+        };
+        let y_axis = Axis { ticks: ticks(lo, hi, step), decimals: decimals(step), label: unit, labels: Vec::new() };
+        let _ = writeln!(out, r#"<g class="history-panel">"#);
+        draw_axes(&mut out, &f, title, &x_axis, &y_axis);
+        if shown.len() > 1 {
+            let pts: Vec<String> =
+                shown.iter().map(|p| format!("{:.2},{:.2}", f.px(p.time), f.py(p.values[k] * factor))).collect();
+            let _ = writeln!(
+                out,
+                r#"<polyline class="trend" points="{}" fill="none" stroke="{C_TREND}" stroke-width="1"/>"#,
+                pts.join(" ")
+            );
+        }
+        let _ = writeln!(out, r#"<g class="calibrations" stroke-width="1.3">"#);
+        for p in &shown {
+            let color = if p.flagged[k] { C_FLAGGED } else { C_CORRECTED };
+            any_flagged |= p.flagged[k];
+            let (x, v) = (f.px(p.time), p.values[k] * factor);
+            let b = bar(p);
+            if b.is_finite() && b > 0.0 {
+                let (y1, y2) = (f.py(v - b), f.py(v + b));
+                let _ = writeln!(
+                    out,
+                    r#"<path class="error-bar" d="M{x:.2} {y1:.2}L{x:.2} {y2:.2}M{:.2} {y1:.2}L{:.2} {y1:.2}M{:.2} {y2:.2}L{:.2} {y2:.2}" stroke="{color}" fill="none"/>"#,
+                    x - 4.0,
+                    x + 4.0,
+                    x - 4.0,
+                    x + 4.0
+                );
+            }
+            let _ = writeln!(out, r#"<circle cx="{x:.2}" cy="{:.2}" r="3.2" fill="{color}"/>"#, f.py(v));
+        }
+        out.push_str("</g>\n");
+        if shown.is_empty() {
+            no_data(&mut out, &f);
+        }
+        out.push_str("</g>\n");
+    }
+    // The legend, under the last panel.
+    let ly = header + 3.0 * HISTORY_PANEL_H + 6.0;
+    let mut items = vec![(Marker::Dot(C_CORRECTED), format!("calibration, error bar ±{}σ", plot.coverage))];
+    if any_flagged {
+        items.push((Marker::Dot(C_FLAGGED), plot.flagged_label.to_string()));
+    }
+    items.push((Marker::Line { color: C_TREND, dash: "none" }, "one calibration to the next".to_string()));
+    let _ = writeln!(out, r#"<g class="legend">"#);
+    let mut x = M_LEFT + 20.0;
+    for (marker, text) in &items {
+        draw_marker(&mut out, marker, x + 10.0, ly - 4.0);
+        let _ = writeln!(out, r#"<text x="{:.1}" y="{ly:.1}">{}</text>"#, x + 26.0, xml_escape(text));
+        x += 26.0 + 6.6 * text.chars().count() as f64 + 28.0;
+    }
+    out.push_str("</g>\n");
+    if !lines.is_empty() {
+        let top = header + 3.0 * HISTORY_PANEL_H + legend_h - 12.0;
+        let _ = writeln!(
+            out,
+            r##"<rect x="12" y="{top:.1}" width="{:.1}" height="{:.1}" fill="#f6f6f6" stroke="#cccccc"/>"##,
+            HISTORY_W - 24.0,
+            text_h - 4.0
+        );
+        let _ = writeln!(
+            out,
+            r#"<g class="summary" font-family="DejaVu Sans Mono, Menlo, Consolas, monospace" font-size="12">"#
+        );
+        for (k, line) in lines.iter().enumerate() {
+            let _ = writeln!(
+                out,
+                r#"<text x="20" y="{:.1}" xml:space="preserve">{}</text>"#,
+                top + 18.0 + line_h * k as f64,
+                xml_escape(line)
+            );
+        }
+        out.push_str("</g>\n");
+    }
+    out.push_str("</svg>\n");
+    out
 }
 
 #[cfg(test)]
@@ -954,6 +1194,45 @@ mod tests {
         assert_eq!(wrap("abcdefghijklmnop x", 10), vec!["abcdefghij", "klmnop x"]);
         assert_eq!(wrap("a\n\nb\n", 10), vec!["a", "", "b"]);
         assert!(wrap("", 10).is_empty());
+    }
+
+    #[test]
+    fn history_panels_error_bars_and_flags() {
+        let day = 86_400.0;
+        let t0 = 1_795_428_757.0;
+        let points: Vec<HistoryPoint> = (0..6)
+            .map(|i| HistoryPoint {
+                time: t0 + 7.0 * day * i as f64,
+                values: [0.0349 + 1e-5 * i as f64, 0.005 + if i == 4 { 1e-4 } else { 0.0 }, 0.002],
+                stddev: if i == 0 { None } else { Some([2e-4, 6e-6, 1e-6]) },
+                flagged: [false, i == 4, false],
+            })
+            .collect();
+        let svg = history_svg(&HistoryPlot {
+            title: "Calibration history of /tracer & co",
+            points: &points,
+            coverage: 2.0,
+            flagged_label: "moved > 10σ",
+            summary: "6 calibrations",
+        });
+        check_well_formed(&svg);
+        assert_eq!(svg.matches("<g class=\"history-panel\">").count(), 3);
+        assert_eq!(svg.matches("r=\"3.2\"").count(), 18);
+        assert_eq!(svg.matches("class=\"error-bar\"").count(), 15, "none for the one without uncertainties");
+        assert_eq!(svg.matches(&format!("fill=\"{C_FLAGGED}\"")).count(), 1 + 1, "the point of d and the legend");
+        assert!(svg.contains(">2026-1") && svg.contains("&amp; co"), "dates on the time axis");
+        assert!(svg.contains("error bar ±2σ"));
+        // Degenerate inputs draw empty or single-point panels, never NaN.
+        for pts in [&points[..0], &points[..1]] {
+            let svg =
+                history_svg(&HistoryPlot { title: "", points: pts, coverage: 2.0, flagged_label: "", summary: "" });
+            check_well_formed(&svg);
+            assert!(!svg.contains("NaN") && !svg.contains("inf"), "{svg}");
+        }
+        let (ticks, labels) = time_ticks(t0, t0 + 3600.0);
+        assert!(ticks.len() >= 3 && labels[0].len() == 11, "{labels:?}");
+        let (ticks, labels) = time_ticks(t0, t0 + 20.0);
+        assert!(ticks.len() >= 3 && labels[0].len() == 8, "{labels:?}");
     }
 
     /// Not a check: writes sample pictures for a person to look at

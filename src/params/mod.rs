@@ -27,8 +27,11 @@ pub mod names {
     pub const OUTPUT_FRAME_ID: &str = "output_frame_id";
     pub const RESAMPLE_POINTS: &str = "resample_points";
     pub const PARAMS_FILE: &str = "params_file";
+    pub const HISTORY_FILE: &str = "history_file";
+    pub const MAX_AGE_DAYS: &str = "calibration.max_age_days";
+    pub const DRIFT_WARN_SIGMA: &str = "calibration.drift_warn_sigma";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 12] = [
+    pub const ALL: [&str; 15] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -41,7 +44,13 @@ pub mod names {
         OUTPUT_FRAME_ID,
         RESAMPLE_POINTS,
         PARAMS_FILE,
+        HISTORY_FILE,
+        MAX_AGE_DAYS,
+        DRIFT_WARN_SIGMA,
     ];
+
+    /// The parameters that make up the calibration in force: setting one changes it.
+    pub const CALIBRATION_IN_FORCE: [&str; 5] = [ALPHA0, OFFSET, DELTA_L, SCALE, VALID];
 }
 
 /// The encoder scales accepted: a scale further from 1 is a wrong
@@ -64,6 +73,14 @@ pub struct Parameters {
     pub resample_points: usize,
     /// Where parameters are persisted; empty = not persisted.
     pub params_file: String,
+    /// Where applied calibrations are appended; empty = nowhere. The node's default is
+    /// beside `params_file` ([`crate::records::file::default_path`]).
+    pub history_file: String,
+    /// /diagnostics warns when the calibration in force is older; 0 = no limit.
+    pub max_age_days: f64,
+    /// /diagnostics warns when a calibration moved a parameter by more than this many
+    /// combined standard uncertainties from the one before; 0 = never.
+    pub drift_warn_sigma: f64,
 }
 
 impl Default for Parameters {
@@ -77,6 +94,9 @@ impl Default for Parameters {
             output_frame_id: "tracer_axis".into(),
             resample_points: 400,
             params_file: String::new(),
+            history_file: String::new(),
+            max_age_days: 0.0,
+            drift_warn_sigma: 10.0,
         }
     }
 }
@@ -103,6 +123,9 @@ impl Parameters {
             names::OUTPUT_FRAME_ID => String(self.output_frame_id.clone()),
             names::RESAMPLE_POINTS => Integer(self.resample_points as i64),
             names::PARAMS_FILE => String(self.params_file.clone()),
+            names::HISTORY_FILE => String(self.history_file.clone()),
+            names::MAX_AGE_DAYS => Double(self.max_age_days),
+            names::DRIFT_WARN_SIGMA => Double(self.drift_warn_sigma),
             _ => return None,
         })
     }
@@ -179,6 +202,21 @@ impl Parameters {
                 ParamValue::String(s) => next.params_file = s.clone(),
                 v => return Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
             },
+            names::HISTORY_FILE => match value {
+                ParamValue::String(s) => next.history_file = s.clone(),
+                v => return Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
+            },
+            names::MAX_AGE_DAYS | names::DRIFT_WARN_SIGMA => {
+                let x = finite(value)?;
+                if x < 0.0 {
+                    return Err(format!("must be 0 (no limit) or positive, got {x}"));
+                }
+                if name == names::MAX_AGE_DAYS {
+                    next.max_age_days = x;
+                } else {
+                    next.drift_warn_sigma = x;
+                }
+            }
             _ => return Err(format!("'{name}' is not a parameter of this node")),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
@@ -226,7 +264,10 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 12);
+        assert_eq!(list.len(), 15);
+        assert_eq!(p.get("history_file"), Some(ParamValue::String(String::new())));
+        assert_eq!(p.get("calibration.max_age_days"), Some(ParamValue::Double(0.0)));
+        assert_eq!(p.get("calibration.drift_warn_sigma"), Some(ParamValue::Double(10.0)));
         assert_eq!(p.get("calibration.scale"), Some(ParamValue::Double(1.0)));
         assert_eq!(p.get("plate.side"), Some(ParamValue::Double(0.045)));
         assert_eq!(p.get("plate.corner_radius"), Some(ParamValue::Double(0.003)));
@@ -252,6 +293,9 @@ mod tests {
         assert!(p.set("plate.corner_radius", &ParamValue::Double(0.03)).is_err());
         assert!(p.set("calibration.valid", &ParamValue::Integer(1)).unwrap_err().contains("expected a bool"));
         assert!(p.set("calibration.scale", &ParamValue::Double(0.0)).unwrap_err().contains("between 0.5 and 2"));
+        assert!(p.set("calibration.max_age_days", &ParamValue::Double(-1.0)).unwrap_err().contains("0 (no limit)"));
+        assert!(p.set("calibration.drift_warn_sigma", &ParamValue::Double(f64::NAN)).unwrap_err().contains("finite"));
+        assert!(p.set("history_file", &ParamValue::Integer(3)).unwrap_err().contains("expected a string"));
         assert_eq!(p, Parameters::default(), "failed sets change nothing");
         p.set("plate.side", &ParamValue::Integer(1)).unwrap();
         assert_eq!(p.plate.side, 1.0);

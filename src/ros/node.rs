@@ -7,13 +7,15 @@
 //! | publisher | `contour`, `contour_polygon` | reliable, keep last 10, volatile |
 //! | service | `calibrate` (Fast DDS "Enhanced" mapping) | reliable, keep last 1000 |
 //! | publisher | `/diagnostics`, 1 Hz | reliable, keep last 10 |
+//! | publisher | `calibration` (the calibration in force) | reliable, transient local, keep last 1 |
 //!
 //! Why: every scan is a measurement an edger acts on, so delivery is reliable (as the
 //! ROS default a tracer driver publishes with; a best-effort "sensor data" publisher
 //! does not match a reliable subscription, and has to be configured reliable); the
 //! subscription keeps 100 scans so a bag replayed at full speed is not thinned out;
 //! contours are not latched (volatile): a late subscriber wants the next scan, not an
-//! old one.
+//! old one. The calibration in force is latched: whoever joins later must know which
+//! calibration the contours it receives were corrected with.
 
 use std::net::{IpAddr, Ipv4Addr};
 use std::pin::Pin;
@@ -33,9 +35,12 @@ use rustdds::DomainParticipantBuilder;
 
 use super::args::{NodeIdentity, RosArgs, RosEnv, ros2_name};
 use super::msgs::Contour;
-use super::msgs::{Calibrate, DiagnosticArray, PolygonStamped, RawScan, RosMsg, RosService, type_names};
+use super::msgs::{
+    Calibrate, Calibration as CalibrationMsg, DiagnosticArray, PolygonStamped, RawScan, RosMsg, RosService, type_names,
+};
 use super::state::{NodeState, RateLimit};
 use crate::params::{ParamValue, Parameters, file as params_file, names};
+use crate::records;
 
 /// The node's default name (CONTRACT.md).
 pub const DEFAULT_NODE_NAME: &str = "tracer_calibrator";
@@ -58,8 +63,11 @@ impl Config {
         let identity = args.node_identity(DEFAULT_NODE_NAME, "/").map_err(|e| e.to_string())?;
         let fqn = identity.fully_qualified_name();
         let mut params = Parameters::default();
+        // `history_file` defaults to beside `params_file`, unless set (even to "").
+        let mut history_file_set = false;
         for path in args.params_files() {
             let file = params_file::read(path).map_err(|e| e.to_string())?;
+            history_file_set |= file.entries_for(&fqn).any(|e| e.name == names::HISTORY_FILE);
             let unknown = params.apply_file(&file, &fqn, &path.display().to_string()).map_err(|e| e.to_string())?;
             for name in unknown {
                 debug!("{}: ignoring parameter '{name}' (not a parameter of this node)", path.display());
@@ -70,6 +78,10 @@ impl Config {
         }
         for o in args.param_overrides_for(&identity) {
             params.set(&o.name, &o.value).map_err(|e| format!("-p {}:={}: {e}", o.name, o.value))?;
+            history_file_set |= o.name == names::HISTORY_FILE;
+        }
+        if !history_file_set {
+            params.history_file = records::file::default_path(&params.params_file);
         }
         Ok(Config { identity, args, env, params })
     }
@@ -86,6 +98,15 @@ fn reliable(depth: usize) -> QosProfile {
         .reliability_reliable(WhenFull::DEFAULT)
         .durability(Durability::Volatile)
         .history(History::KeepLast { depth })
+}
+
+/// The `calibration` topic: reliable, transient local, depth 1, so a subscriber that
+/// joins later gets the calibration in force at once.
+fn latched() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 })
 }
 
 /// The DDS participant: `ROS_DOMAIN_ID`, and with
@@ -152,7 +173,31 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             info!("removed {removed} temporary file(s) a killed writer left beside {}", params.params_file);
         }
     }
-    let state = Arc::new(Mutex::new(NodeState::new(fqn.clone(), params.clone())));
+    let mut initial = NodeState::new(fqn.clone(), params.clone());
+    if !params.history_file.is_empty() {
+        match records::file::read(std::path::Path::new(&params.history_file)) {
+            Ok(history) => {
+                for skipped in &history.skipped {
+                    warn!("{skipped}");
+                }
+                initial.adopt_history(&history);
+                info!(
+                    "{}: {} calibration record(s); the calibration in force comes from the {}",
+                    params.history_file,
+                    history.records.len(),
+                    initial.in_force.source
+                );
+            }
+            Err(e) => {
+                warn!("{e}");
+                initial.history_problem = e;
+            }
+        }
+    }
+    let state = Arc::new(Mutex::new(initial));
+    // The calibration in force changed (a parameter set, a /calibrate that applied):
+    // the `calibration` loop publishes it.
+    let (calibration_changed, calibration_changes) = smol::channel::unbounded::<()>();
 
     // Parameters: validated by the same rules as the params file; a change is applied
     // to the state and persisted (only when the value really changes, so the start-up
@@ -163,6 +208,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     }
     let validator_state = state.clone();
     let action_state = state.clone();
+    let action_changed = calibration_changed.clone();
     let options = options
         .parameter_validator(Box::new(move |name, value| {
             if !Parameters::is_known(name) {
@@ -187,6 +233,12 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 st.params = before;
                 return Err(format!("{name}: not changed: {e}"));
             }
+            if names::CALIBRATION_IN_FORCE.contains(&name) {
+                st.calibration_set_by_parameters(std::time::SystemTime::now());
+            }
+            if name.starts_with("calibration.") {
+                let _ = action_changed.try_send(());
+            }
             info!("parameter {name} = {v}");
             Ok(())
         }));
@@ -203,6 +255,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     let contour_name = resolve("contour")?;
     let polygon_name = resolve("contour_polygon")?;
     let diag_name = resolve("/diagnostics")?;
+    let calibration_name = resolve("calibration")?;
     let service_name = {
         let resolved = args.resolve_service("calibrate", &identity).map_err(|e| e.to_string())?;
         ros2_name(&resolved).map_err(|e| e.to_string())?
@@ -215,10 +268,13 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         node.create_topic(&polygon_name, type_names::POLYGON_STAMPED.message_type_name(), &reliable(10)).map_err(mk)?;
     let diag_topic =
         node.create_topic(&diag_name, type_names::DIAGNOSTIC_ARRAY.message_type_name(), &reliable(10)).map_err(mk)?;
+    let calibration_topic =
+        node.create_topic(&calibration_name, CalibrationMsg::NAME.message_type_name(), &latched()).map_err(mk)?;
     let subscription = node.create_subscription::<RawScan>(&raw_topic, None).map_err(mk)?;
     let contour_pub = node.create_publisher::<Contour>(&contour_topic, None).map_err(mk)?;
     let polygon_pub = node.create_publisher::<PolygonStamped>(&polygon_topic, None).map_err(mk)?;
     let diag_pub = node.create_publisher::<DiagnosticArray>(&diag_topic, None).map_err(mk)?;
+    let calibration_pub = node.create_publisher::<CalibrationMsg>(&calibration_topic, None).map_err(mk)?;
     let server = node
         .create_server::<<Calibrate as RosService>::Request, <Calibrate as RosService>::Response>(
             ServiceMapping::Enhanced,
@@ -310,6 +366,9 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                     }
                 }
             }
+            if outcome.applied.is_some() {
+                let _ = calibration_changed.try_send(());
+            }
             let r = &outcome.response;
             if r.success {
                 rosout!(node, ros2_client::ros2::LogLevel::Info, "calibrate: {}", r.message);
@@ -321,6 +380,22 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 Ok(()) => debug!("calibrate response {id:?} sent"),
                 Err(e) => warn!("cannot send a calibrate response: {e:?}"),
             }
+        }
+    };
+
+    // The calibration in force, latched: at start-up, then at every change (several
+    // changes queued by one parameter set go out as one message).
+    let calibration = async {
+        loop {
+            let msg = state.lock().expect("state lock").calibration_msg();
+            debug!("publishing the calibration in force: {msg:?}");
+            if let Err(e) = calibration_pub.async_publish(msg).await {
+                warn!("cannot publish the calibration in force: {e:?}");
+            }
+            if calibration_changes.recv().await.is_err() {
+                break;
+            }
+            while calibration_changes.try_recv().is_ok() {}
         }
     };
 
@@ -356,6 +431,10 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     }));
     loops.push(Box::pin(diagnostics));
     loops.push(Box::pin(async {
+        calibration.await;
+        error!("the calibration change stream ended")
+    }));
+    loops.push(Box::pin(async {
         shutdown.await;
         info!("{fqn}: shutting down")
     }));
@@ -365,7 +444,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     // participant's event loop must still be running to send that, so it goes last,
     // after a moment. Without this, peers keep the node's topics and services in their
     // graphs for the lease duration.
-    drop((subscription, contour_pub, polygon_pub, diag_pub, server));
+    drop((subscription, contour_pub, polygon_pub, diag_pub, calibration_pub, server));
     drop(node);
     std::thread::sleep(Duration::from_millis(150));
     smol::block_on(spinner.cancel());

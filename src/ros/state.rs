@@ -5,19 +5,20 @@
 
 use std::collections::VecDeque;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use ros2_client::builtin_interfaces::Time;
 
 use super::msgs::{
-    CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, DiagnosticStatus, Header, KeyValue, Point, Point32,
-    Polygon, PolygonStamped, RawScan,
+    CalibrateRequest, CalibrateResponse, Calibration as CalibrationMsg, Contour, DiagnosticArray, DiagnosticStatus,
+    Header, KeyValue, Point, Point32, Polygon, PolygonStamped, RawScan,
 };
 use crate::engine::calibrate::{Calibration, calibrate};
 use crate::engine::correct::{Corrector, PolarContour, default_max_gap};
 use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
 use crate::params::{Parameters, file as params_file};
+use crate::records::{self, Drift, History, Previous, Record};
 
 /// Largest scan accepted, in samples: far above any tracer (400-1000 steps a turn),
 /// far below what would hurt the node.
@@ -50,6 +51,54 @@ struct PlateScan {
     scan: Scan,
 }
 
+/// What is known of the calibration in force beyond its parameters: when it was applied
+/// and how it was fitted (what the `calibration` topic publishes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InForce {
+    /// When it was applied: by `/calibrate`, a parameter set, or, for a calibration
+    /// loaded from the parameters, the time of its history record (the node's start when
+    /// the history has none).
+    pub applied_at: SystemTime,
+    /// The model that fitted it (for one set by parameters: the `model` parameter).
+    pub model: String,
+    /// The plate scan it was fitted to; 0 if set by parameters.
+    pub scan_id: u32,
+    /// `[alpha0, offset, delta_l(, scale)]`; empty if unknown.
+    pub stddev: Vec<f64>,
+    /// Metres; 0 if unknown.
+    pub rms_residual: f64,
+    pub samples_used: u32,
+    /// Where this comes from: "calibrate", "history" (the history's last record matches
+    /// the parameters), "parameters".
+    pub source: &'static str,
+}
+
+impl InForce {
+    fn by_parameters(params: &Parameters, at: SystemTime) -> Self {
+        InForce {
+            applied_at: at,
+            model: params.model.as_str().to_string(),
+            scan_id: 0,
+            stddev: Vec::new(),
+            rms_residual: 0.0,
+            samples_used: 0,
+            source: "parameters",
+        }
+    }
+
+    fn from_record(r: &Record, at: SystemTime) -> Self {
+        InForce {
+            applied_at: at,
+            model: r.model.clone(),
+            scan_id: r.scan_id,
+            stddev: r.stddev.clone(),
+            rms_residual: r.rms_residual,
+            samples_used: r.samples_used,
+            source: "history",
+        }
+    }
+}
+
 /// The node's state.
 #[derive(Debug)]
 pub struct NodeState {
@@ -57,9 +106,16 @@ pub struct NodeState {
     pub fqn: String,
     pub params: Parameters,
     pub stats: Stats,
+    /// The calibration in force: when and how.
+    pub in_force: InForce,
+    /// How far the last applied calibration moved from the one before it.
+    pub drift: Option<Drift>,
+    /// Records in the history file (read at start, then appended).
+    pub history_records: usize,
+    /// What is wrong with the history file (skipped lines, unreadable), for /diagnostics.
+    pub history_problem: String,
     corrector: Option<Corrector>,
     plates: VecDeque<PlateScan>,
-    calibrated_at: Option<Instant>,
 }
 
 /// A corrected scan, ready to publish.
@@ -80,9 +136,61 @@ pub struct CalibrateOutcome {
 }
 
 impl NodeState {
+    /// The state at start-up (`now`), with the calibration of `params` in force.
     pub fn new(fqn: String, params: Parameters) -> Self {
-        let calibrated_at = params.calibration_valid.then(Instant::now);
-        NodeState { fqn, params, stats: Stats::default(), corrector: None, plates: VecDeque::new(), calibrated_at }
+        let in_force = InForce::by_parameters(&params, SystemTime::now());
+        NodeState {
+            fqn,
+            params,
+            stats: Stats::default(),
+            in_force,
+            drift: None,
+            history_records: 0,
+            history_problem: String::new(),
+            corrector: None,
+            plates: VecDeque::new(),
+        }
+    }
+
+    /// Take what the history file says about the calibration in force: when its last
+    /// record is the calibration of the parameters, that record's time, fit and drift.
+    pub fn adopt_history(&mut self, history: &History) {
+        self.history_records = history.records.len();
+        self.history_problem = history.skipped.join("; ");
+        let Some(last) = history.records.last() else { return };
+        let Some(in_force) = self.params.calibration_in_force() else { return };
+        if !records::same_calibration(&in_force, &last.mounting()) {
+            return;
+        }
+        let Some(at) = last.applied_at() else { return };
+        self.in_force = InForce::from_record(last, at);
+        self.drift = records::record_drift(&history.records, history.records.len() - 1);
+    }
+
+    /// A parameter set changed the calibration in force (`calibration.*`): it was applied
+    /// now, and nothing is known of its fit.
+    pub fn calibration_set_by_parameters(&mut self, now: SystemTime) {
+        self.in_force = InForce::by_parameters(&self.params, now);
+    }
+
+    /// The `calibration` message: the calibration in force.
+    pub fn calibration_msg(&self) -> CalibrationMsg {
+        let p = &self.params;
+        let since = self.in_force.applied_at.duration_since(UNIX_EPOCH).unwrap_or(Duration::ZERO);
+        let stamp = Time::from_nanos(i64::try_from(since.as_nanos()).unwrap_or(i64::MAX));
+        CalibrationMsg {
+            header: Header { stamp, frame_id: p.output_frame_id.clone() },
+            valid: p.calibration_valid,
+            model: self.in_force.model.clone(),
+            scan_id: self.in_force.scan_id,
+            alpha0: p.calibration.alpha0,
+            offset: p.calibration.offset,
+            delta_l: p.calibration.delta_l,
+            scale: p.calibration.scale,
+            stddev: self.in_force.stddev.clone(),
+            rms_residual: self.in_force.rms_residual,
+            samples_used: self.in_force.samples_used,
+        }
     }
 
     /// The checks of a raw scan that need no pass over its samples.
@@ -237,21 +345,78 @@ impl NodeState {
         };
         self.stats.last_fit_rms = Some(cal.rms_residual);
         let mut response = response_for(&cal, format!("scan {scan_id}: {}", cal.summary()));
+        let mut stddev = cal.stddev.to_vec();
+        if cal.model.fits_scale() {
+            stddev.push(cal.scale_stddev);
+        }
+        let previous = self.params.calibration_in_force();
+        let drift = previous.and_then(|prev| {
+            let prev_sd = (self.in_force.stddev.len() >= 3).then_some(self.in_force.stddev.as_slice());
+            records::drift(&cal.mounting, &stddev, &prev, prev_sd)
+        });
+        if let Some(d) = &drift {
+            response.message = format!("{}; moved since the previous calibration: {}", response.message, d.describe());
+            if d.exceeds(self.params.drift_warn_sigma) {
+                response.message = format!(
+                    "{} — more than calibration.drift_warn_sigma = {}: check the tracer",
+                    response.message, self.params.drift_warn_sigma
+                );
+            }
+        }
         if req.dry_run {
             response.message = format!("dry run, not applied: {}", response.message);
             self.stats.last_fit_message = response.message.clone();
             return CalibrateOutcome { response, applied: None };
         }
+        let now = SystemTime::now();
+        let record = Record {
+            time: records::format_utc(now),
+            node: self.fqn.clone(),
+            scan_id,
+            model: cal.model.as_str().to_string(),
+            alpha0: cal.mounting.alpha0,
+            offset: cal.mounting.offset,
+            delta_l: cal.mounting.delta_l,
+            scale: cal.mounting.scale,
+            stddev: stddev.clone(),
+            rms_residual: cal.rms_residual,
+            samples_used: cal.samples_used as u32,
+            iterations: cal.iterations as u32,
+            previous: previous.map(Previous::from),
+        };
         self.params.calibration = cal.mounting;
         self.params.calibration_valid = true;
-        self.calibrated_at = Some(Instant::now());
+        // The time the record gives, to the millisecond: what a restart reads back.
+        self.in_force = InForce {
+            applied_at: record.applied_at().unwrap_or(now),
+            model: record.model.clone(),
+            scan_id,
+            stddev,
+            rms_residual: cal.rms_residual,
+            samples_used: record.samples_used,
+            source: "calibrate",
+        };
+        self.drift = drift;
         self.stats.calibrations_applied += 1;
-        if let Err(e) = self.persist() {
+        // The record first: a calibration the history cannot show is not persisted
+        // either (a restart goes back to the last recorded one).
+        if let Err(e) = self.append_history(&record).and_then(|()| self.persist()) {
             response.success = false;
             response.message = format!("calibration applied in memory but not persisted: {e}; {}", response.message);
         }
         self.stats.last_fit_message = response.message.clone();
         CalibrateOutcome { response, applied: Some(cal.mounting) }
+    }
+
+    /// Append `record` to `history_file` (if set), durably.
+    fn append_history(&mut self, record: &Record) -> Result<(), String> {
+        if self.params.history_file.is_empty() {
+            return Ok(());
+        }
+        let path = Path::new(&self.params.history_file);
+        records::file::append(path, record).map_err(|e| format!("cannot append to {}: {e}", path.display()))?;
+        self.history_records += 1;
+        Ok(())
     }
 
     /// Write every parameter to `params_file` (if set), atomically.
@@ -287,8 +452,32 @@ impl NodeState {
         } else {
             (DiagnosticStatus::OK, "calibrated".to_string())
         };
+        let now_sys = UNIX_EPOCH + Duration::from_nanos(u64::try_from(now.to_nanos()).unwrap_or(0));
+        let age = now_sys.duration_since(self.in_force.applied_at).unwrap_or(Duration::ZERO);
+        let age_days = age.as_secs_f64() / 86_400.0;
+        let mut warnings = Vec::new();
+        if p.calibration_valid && p.max_age_days > 0.0 && age_days > p.max_age_days {
+            warnings.push(format!(
+                "calibration overdue: applied {} ({age_days:.2} days ago), calibration.max_age_days is {}",
+                records::format_utc(self.in_force.applied_at),
+                p.max_age_days
+            ));
+        }
+        if let Some(d) = self.drift.filter(|d| d.exceeds(p.drift_warn_sigma)) {
+            let (i, sigmas) = d.worst();
+            warnings.push(format!(
+                "the last calibration moved {} by {sigmas:.1}σ from the one before (calibration.drift_warn_sigma is {}): check the tracer; {}",
+                records::DRIFT_NAMES[i],
+                p.drift_warn_sigma,
+                d.describe()
+            ));
+        }
+        let (level, message) = if warnings.is_empty() {
+            (level, message)
+        } else {
+            (level.max(DiagnosticStatus::WARN), format!("{message}; {}", warnings.join("; ")))
+        };
         let kv = |k: &str, v: String| KeyValue { key: k.to_string(), value: v };
-        let age = self.calibrated_at.map(|t| t.elapsed()).unwrap_or(Duration::ZERO);
         let s = &self.stats;
         DiagnosticArray {
             header: Header { stamp: now, frame_id: String::new() },
@@ -303,6 +492,20 @@ impl NodeState {
                         "calibration_age_s",
                         if p.calibration_valid { format!("{:.1}", age.as_secs_f64()) } else { "".into() },
                     ),
+                    kv(
+                        "calibration_time",
+                        if p.calibration_valid { records::format_utc(self.in_force.applied_at) } else { "".into() },
+                    ),
+                    kv("calibration_age_days", if p.calibration_valid { format!("{age_days:.3}") } else { "".into() }),
+                    kv("calibration_source", self.in_force.source.to_string()),
+                    kv("calibration_scan_id", self.in_force.scan_id.to_string()),
+                    kv("max_age_days", p.max_age_days.to_string()),
+                    kv("drift_sigma", self.drift.map(|d| format!("{:.2}", d.worst().1)).unwrap_or_default()),
+                    kv("drift", self.drift.map(|d| d.describe()).unwrap_or_default()),
+                    kv("drift_warn_sigma", p.drift_warn_sigma.to_string()),
+                    kv("history_file", p.history_file.clone()),
+                    kv("history_records", self.history_records.to_string()),
+                    kv("history_problem", self.history_problem.clone()),
                     kv("alpha0_deg", format!("{:.5}", p.calibration.alpha0.to_degrees())),
                     kv("offset_mm", format!("{:.5}", p.calibration.offset * 1e3)),
                     kv("delta_l_mm", format!("{:.5}", p.calibration.delta_l * 1e3)),
@@ -540,6 +743,162 @@ mod tests {
         st.params.set("calibration.scale", &crate::params::ParamValue::Double(1.0)).unwrap();
         let rms = rms_off_truth(&mut st);
         assert!(rms > 30e-6, "{rms:e}");
+    }
+
+    fn temp_dir(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("tracer_calib_state_{name}_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn applied_calibrations_are_recorded_naming_the_one_they_replaced() {
+        let dir = temp_dir("records");
+        let history = dir.join("p.history.jsonl");
+        let params = Parameters {
+            params_file: dir.join("p.yaml").display().to_string(),
+            history_file: history.display().to_string(),
+            ..Parameters::default()
+        };
+        let mut st = NodeState::new("/cell1/tracer".into(), params.clone());
+        assert!(!st.calibration_msg().valid);
+        let m = Mounting::new(0.02, 0.004, 0.001);
+        st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
+        let dry = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: true });
+        assert!(dry.response.success);
+        assert!(!history.exists(), "a dry run is not recorded");
+        let first = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false });
+        assert!(first.response.success, "{}", first.response.message);
+        assert!(!first.response.message.contains("moved"), "nothing to move from: {}", first.response.message);
+        st.on_raw_scan(&plate_msg(2, &m), true).unwrap();
+        let second = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false });
+        assert!(second.response.success);
+        assert!(
+            second.response.message.contains("moved since the previous calibration: alpha0"),
+            "{}",
+            second.response.message
+        );
+        let h = records::file::read(&history).unwrap();
+        assert_eq!(h.records.len(), 2);
+        let (a, b) = (&h.records[0], &h.records[1]);
+        assert_eq!((a.scan_id, b.scan_id), (1, 2));
+        assert_eq!(a.node, "/cell1/tracer");
+        assert_eq!(a.model, "full");
+        assert_eq!(a.previous, None);
+        assert_eq!(b.previous, Some(Previous::from(a.mounting())));
+        assert_eq!(b.alpha0, second.response.alpha0);
+        assert_eq!(b.stddev, second.response.stddev);
+        assert_eq!(b.iterations, second.response.iterations);
+        // The calibration message is the second, to the millisecond of its record.
+        let msg = st.calibration_msg();
+        assert!(msg.valid && msg.scan_id == 2 && msg.alpha0 == b.alpha0 && msg.stddev == b.stddev);
+        assert_eq!(msg.header.frame_id, "tracer_axis");
+        assert_eq!(Some(UNIX_EPOCH + Duration::from_nanos(msg.header.stamp.to_nanos() as u64)), b.applied_at());
+
+        // A restart with the parameters the node persisted: the history supplies the fit.
+        let file = params_file::read(Path::new(&params.params_file)).unwrap();
+        let mut reloaded = Parameters::default();
+        reloaded.apply_file(&file, "/cell1/tracer", "p.yaml").unwrap();
+        assert_eq!(reloaded.history_file, params.history_file);
+        let mut again = NodeState::new("/cell1/tracer".into(), reloaded.clone());
+        again.adopt_history(&h);
+        assert_eq!(again.calibration_msg(), msg);
+        assert_eq!(again.in_force.source, "history");
+        assert!(again.drift.is_some());
+        // Parameters that do not match the last record: it supplies nothing.
+        reloaded.calibration.alpha0 += 1e-3;
+        let mut other = NodeState::new("/cell1/tracer".into(), reloaded);
+        other.adopt_history(&h);
+        let m = other.calibration_msg();
+        assert_eq!((m.scan_id, m.stddev.len(), m.rms_residual, other.in_force.source), (0, 0, 0.0, "parameters"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_history_that_cannot_be_written_fails_the_call_and_persists_nothing() {
+        let dir = temp_dir("nohistory");
+        let params_path = dir.join("p.yaml");
+        let params = Parameters {
+            params_file: params_path.display().to_string(),
+            history_file: dir.join("missing/dir/h.jsonl").display().to_string(),
+            ..Parameters::default()
+        };
+        let mut st = NodeState::new("/t".into(), params);
+        st.on_raw_scan(&plate_msg(1, &Mounting::new(0.01, 0.003, 0.001)), true).unwrap();
+        let out = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false });
+        assert!(!out.response.success);
+        assert!(
+            out.response.message.starts_with("calibration applied in memory but not persisted: cannot append to"),
+            "{}",
+            out.response.message
+        );
+        assert!(out.response.message.contains("missing/dir/h.jsonl"), "{}", out.response.message);
+        assert!(st.params.calibration_valid && out.applied.is_some(), "in force in memory");
+        assert!(!params_path.exists(), "the parameters are not persisted without their record");
+        assert!(st.calibration_msg().valid);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    fn diag_value(d: &DiagnosticArray, key: &str) -> String {
+        d.status[0].values.iter().find(|kv| kv.key == key).map(|kv| kv.value.clone()).unwrap()
+    }
+
+    #[test]
+    fn overdue_and_drifted_calibrations_warn_on_diagnostics() {
+        let m = Mounting::new(0.02, 0.004, 0.001);
+        let mut st = NodeState::new("/t".into(), Parameters::default());
+        st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
+        assert!(st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false }).response.success);
+        let applied = st.in_force.applied_at;
+        let at = |days: f64| {
+            let t = applied + Duration::from_secs_f64(days * 86_400.0);
+            Time::from_nanos(t.duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64)
+        };
+        let d = st.diagnostics(at(40.0));
+        assert_eq!(d.status[0].level, DiagnosticStatus::OK, "no limit by default: {}", d.status[0].message);
+        assert_eq!(diag_value(&d, "calibration_age_days"), "40.000");
+        assert_eq!(diag_value(&d, "calibration_time"), records::format_utc(applied));
+        st.params.max_age_days = 30.0;
+        assert_eq!(st.diagnostics(at(29.9)).status[0].level, DiagnosticStatus::OK);
+        let d = st.diagnostics(at(30.5));
+        assert_eq!(d.status[0].level, DiagnosticStatus::WARN);
+        assert!(d.status[0].message.contains("calibration overdue: applied"), "{}", d.status[0].message);
+        assert!(d.status[0].message.contains("calibration.max_age_days is 30"), "{}", d.status[0].message);
+        st.params.max_age_days = 0.0;
+
+        // The tracer knocked: d moved by 0.1 mm, far beyond its few-µm uncertainty.
+        let knocked = Mounting::new(0.02, 0.0041, 0.001);
+        st.on_raw_scan(&plate_msg(2, &knocked), true).unwrap();
+        let out = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false });
+        assert!(out.response.success, "{}", out.response.message);
+        assert!(
+            out.response.message.contains("more than calibration.drift_warn_sigma = 10"),
+            "{}",
+            out.response.message
+        );
+        let d = st.diagnostics(at(0.0));
+        assert_eq!(d.status[0].level, DiagnosticStatus::WARN);
+        assert!(d.status[0].message.contains("the last calibration moved d by"), "{}", d.status[0].message);
+        assert!(diag_value(&d, "drift_sigma").parse::<f64>().unwrap() > 10.0);
+        // A limit of 0: no drift warning.
+        st.params.drift_warn_sigma = 0.0;
+        assert_eq!(st.diagnostics(at(0.0)).status[0].level, DiagnosticStatus::OK);
+    }
+
+    #[test]
+    fn a_calibration_set_by_parameters_is_published_as_such() {
+        let mut st = NodeState::new("/t".into(), Parameters::default());
+        st.params.set("calibration.alpha0", &crate::params::ParamValue::Double(0.01)).unwrap();
+        st.params.set("calibration.valid", &crate::params::ParamValue::Bool(true)).unwrap();
+        let t = UNIX_EPOCH + Duration::from_secs(1_800_000_000);
+        st.calibration_set_by_parameters(t);
+        let msg = st.calibration_msg();
+        assert!(msg.valid && msg.alpha0 == 0.01 && msg.scan_id == 0 && msg.stddev.is_empty());
+        assert_eq!(
+            (msg.header.stamp.to_nanos(), msg.model.as_str(), msg.scale),
+            (1_800_000_000_000_000_000, "full", 1.0)
+        );
     }
 
     #[test]

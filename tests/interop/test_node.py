@@ -775,6 +775,9 @@ def test_encoder_scale(peer):
 def main():
     rclpy.init()
     peer = Peer()
+    sys.modules.setdefault("test_node", sys.modules[__name__])  # test_records uses these helpers
+    import test_records
+
     tests = [
         ("calibrate_and_correct", lambda: test_calibrate_and_correct(peer)),
         ("parameters", lambda: test_parameters(peer)),
@@ -787,6 +790,10 @@ def main():
         ("kill_during_writes", test_kill_during_writes),
         ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
         ("encoder_scale", lambda: test_encoder_scale(peer)),
+        ("history_and_latched_calibration", lambda: test_records.test_history_and_latched_calibration(peer)),
+        ("max_age_and_drift_on_diagnostics", lambda: test_records.test_max_age_and_drift_on_diagnostics(peer)),
+        ("read_only_history", lambda: test_records.test_read_only_history(peer)),
+        ("full_disk_history", lambda: test_records.test_full_disk_history(peer)),
     ]
     only = [a.removeprefix("test_") for a in sys.argv[1:]]
     unknown = sorted(set(only) - {name for name, _ in tests})

@@ -1,0 +1,474 @@
+//! Calibration records: the history file a lab's quality system keeps of every applied
+//! calibration (CONTRACT.md, "Calibration records"), and how far a calibration moved from
+//! the one before.
+//!
+//! One JSON object a line (JSON Lines), appended and `fsync`ed for every calibration the
+//! node applies:
+//!
+//! ```json
+//! {"time":"2026-11-23T10:12:37.123Z","node":"/tracer_calibrator","scan_id":10,"model":"full",
+//!  "alpha0":0.0349,"offset":0.005,"delta_l":0.002,"scale":1.0,"stddev":[1.2e-4,5.6e-6,1.0e-6],
+//!  "rms_residual":4.9e-6,"samples_used":400,"iterations":7,
+//!  "previous":{"alpha0":0.0348,"offset":0.005,"delta_l":0.002,"scale":1.0}}
+//! ```
+//!
+//! `stddev` is the standard uncertainty of `[alpha0, offset, delta_l]`, and of `scale`
+//! too (a fourth entry) when the model fits it. `previous` is the calibration the record
+//! replaced, or `null`.
+//!
+//! This module is pure (text in, records out; the drift arithmetic; UTC times);
+//! [`file`](mod@file) reads and appends history files.
+
+pub mod file;
+
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use serde::{Deserialize, Serialize};
+
+use crate::engine::geometry::Mounting;
+
+/// One applied calibration, as a line of the history file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Record {
+    /// When it was applied: UTC, ISO 8601 (`2026-11-23T10:12:37.123Z`).
+    pub time: String,
+    /// The node's fully qualified name.
+    pub node: String,
+    /// The plate scan it was fitted to.
+    pub scan_id: u32,
+    /// `full`, `paper` or `full_scale`.
+    pub model: String,
+    /// Radians.
+    pub alpha0: f64,
+    /// Metres (d).
+    pub offset: f64,
+    /// Metres (dL).
+    pub delta_l: f64,
+    /// Encoder scale k.
+    pub scale: f64,
+    /// Standard uncertainty of `[alpha0, offset, delta_l(, scale)]`.
+    pub stddev: Vec<f64>,
+    /// Metres.
+    pub rms_residual: f64,
+    pub samples_used: u32,
+    pub iterations: u32,
+    /// The calibration this one replaced; `None` (`null`) if there was none.
+    pub previous: Option<Previous>,
+}
+
+/// The calibration a record replaced.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Previous {
+    pub alpha0: f64,
+    pub offset: f64,
+    pub delta_l: f64,
+    pub scale: f64,
+}
+
+impl From<Mounting> for Previous {
+    fn from(m: Mounting) -> Self {
+        Previous { alpha0: m.alpha0, offset: m.offset, delta_l: m.delta_l, scale: m.scale }
+    }
+}
+
+impl Previous {
+    pub fn mounting(&self) -> Mounting {
+        Mounting { alpha0: self.alpha0, offset: self.offset, delta_l: self.delta_l, scale: self.scale }
+    }
+}
+
+impl Record {
+    /// The calibration the record holds.
+    pub fn mounting(&self) -> Mounting {
+        Mounting { alpha0: self.alpha0, offset: self.offset, delta_l: self.delta_l, scale: self.scale }
+    }
+
+    /// When it was applied, if `time` is a UTC time this module reads.
+    pub fn applied_at(&self) -> Option<SystemTime> {
+        parse_utc(&self.time)
+    }
+
+    /// The record as one line of JSON (no newline).
+    pub fn to_line(&self) -> String {
+        serde_json::to_string(self).expect("a record always serializes")
+    }
+
+    /// A record with a non-finite number or a stddev of the wrong length is not one
+    /// the node writes.
+    fn check(&self) -> Result<(), String> {
+        let numbers = [self.alpha0, self.offset, self.delta_l, self.scale, self.rms_residual];
+        if !numbers.iter().chain(&self.stddev).all(|v| v.is_finite()) {
+            return Err("a number is not finite".into());
+        }
+        if !(self.stddev.is_empty() || (3..=4).contains(&self.stddev.len())) {
+            return Err(format!("stddev has {} entries, expected 3 or 4", self.stddev.len()));
+        }
+        if self.applied_at().is_none() {
+            return Err(format!("time '{}' is not a UTC time (YYYY-MM-DDTHH:MM:SS[.fff]Z)", self.time));
+        }
+        Ok(())
+    }
+}
+
+/// Are two calibrations the same (within what a round trip through JSON or YAML text
+/// can change: a few units in the last place)?
+pub fn same_calibration(a: &Mounting, b: &Mounting) -> bool {
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-12 * x.abs().max(y.abs()) + 1e-300;
+    close(a.alpha0, b.alpha0) && close(a.offset, b.offset) && close(a.delta_l, b.delta_l) && close(a.scale, b.scale)
+}
+
+/// A history file's records, and the lines skipped (with why).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct History {
+    pub records: Vec<Record>,
+    /// `FILE:LINE: why`, one for each line that is not a record (a line torn by a
+    /// crash mid-write).
+    pub skipped: Vec<String>,
+}
+
+impl History {
+    /// Parse the text of a history file (`path` names it in the messages). A line that
+    /// is not a complete record is skipped with a message: a crash mid-write leaves at
+    /// most a torn last line, and the next append starts on a fresh line, so a torn line
+    /// may also sit between two good ones.
+    pub fn parse(text: &str, path: &str) -> History {
+        let mut h = History::default();
+        let complete = text.ends_with('\n');
+        let lines: Vec<&str> = text.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            if line.trim().is_empty() {
+                continue;
+            }
+            let last = i + 1 == lines.len();
+            match serde_json::from_str::<Record>(line).map_err(|e| e.to_string()).and_then(|r| r.check().map(|()| r)) {
+                Ok(r) => h.records.push(r),
+                Err(e) => {
+                    let what = if last && !complete { "a torn last line (no newline)" } else { "not a record" };
+                    h.skipped.push(format!("{path}:{}: skipped {what}: {e}", i + 1));
+                }
+            }
+        }
+        h
+    }
+
+    /// The last record, and the one before it.
+    pub fn last_two(&self) -> (Option<&Record>, Option<&Record>) {
+        let n = self.records.len();
+        (self.records.last(), n.checked_sub(2).map(|i| &self.records[i]))
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Drift
+
+/// The parameters a drift is measured on, in the order of `stddev`.
+pub const DRIFT_NAMES: [&str; 3] = ["alpha0", "d", "dL"];
+
+/// How far a calibration moved from the one before, parameter by parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drift {
+    /// New minus previous, of `[alpha0, offset, delta_l]` (radians, metres). `alpha0`'s
+    /// difference is taken to the nearest quarter turn (a square plate cannot tell them apart).
+    pub delta: [f64; 3],
+    /// `|delta|` over the combined standard uncertainty `sqrt(σ_new² + σ_prev²)`.
+    pub sigmas: [f64; 3],
+    /// Whether the previous calibration's uncertainties were known (else `σ_prev = 0`).
+    pub previous_uncertainty_known: bool,
+}
+
+impl Drift {
+    /// The largest move, in σ, and the index of its parameter.
+    pub fn worst(&self) -> (usize, f64) {
+        let mut w = (0, self.sigmas[0]);
+        for (i, &s) in self.sigmas.iter().enumerate().skip(1) {
+            if s > w.1 {
+                w = (i, s);
+            }
+        }
+        w
+    }
+
+    /// `alpha0 +0.0123° (1.2σ), d -0.0040 mm (0.8σ), dL +0.0002 mm (0.3σ)`.
+    pub fn describe(&self) -> String {
+        let [a, d, l] = self.delta;
+        let [sa, sd, sl] = self.sigmas;
+        format!(
+            "alpha0 {:+.4}° ({sa:.1}σ), d {:+.4} mm ({sd:.1}σ), dL {:+.4} mm ({sl:.1}σ){}",
+            a.to_degrees(),
+            d * 1e3,
+            l * 1e3,
+            if self.previous_uncertainty_known {
+                ""
+            } else {
+                " (σ of the new calibration alone: the previous one's is unknown)"
+            }
+        )
+    }
+
+    /// Did any parameter move by more than `limit` σ? (`limit` 0: never.)
+    pub fn exceeds(&self, limit: f64) -> bool {
+        limit > 0.0 && self.worst().1 > limit
+    }
+}
+
+/// How far calibration `new` (standard uncertainties `new_sd`) moved from `prev`
+/// (`prev_sd`, if known). `None` when the new uncertainties are not known or a combined
+/// uncertainty is zero.
+pub fn drift(new: &Mounting, new_sd: &[f64], prev: &Mounting, prev_sd: Option<&[f64]>) -> Option<Drift> {
+    if new_sd.len() < 3 {
+        return None;
+    }
+    let prev_sd = prev_sd.filter(|s| s.len() >= 3);
+    let quarter = std::f64::consts::FRAC_PI_2;
+    let da = new.alpha0 - prev.alpha0;
+    let da = da - quarter * (da / quarter).round();
+    let delta = [da, new.offset - prev.offset, new.delta_l - prev.delta_l];
+    let mut sigmas = [0.0; 3];
+    for i in 0..3 {
+        let p = prev_sd.map_or(0.0, |s| s[i]);
+        let u = new_sd[i].hypot(p);
+        if !(u > 0.0 && u.is_finite() && delta[i].is_finite()) {
+            return None;
+        }
+        sigmas[i] = delta[i].abs() / u;
+    }
+    Some(Drift { delta, sigmas, previous_uncertainty_known: prev_sd.is_some() })
+}
+
+/// The drift of history record `i` from the calibration it replaced: the record's
+/// `previous`, with the uncertainties of the record before it when that record is the
+/// calibration replaced.
+pub fn record_drift(records: &[Record], i: usize) -> Option<Drift> {
+    let r = records.get(i)?;
+    let prev = r.previous?;
+    let prev_sd = i
+        .checked_sub(1)
+        .map(|j| &records[j])
+        .filter(|before| same_calibration(&before.mounting(), &prev.mounting()))
+        .map(|before| before.stddev.as_slice());
+    drift(&r.mounting(), &r.stddev, &prev.mounting(), prev_sd)
+}
+
+// ---------------------------------------------------------------------------------------
+// UTC times (ISO 8601), without a date library
+
+/// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
+fn days_from_civil(y: i64, m: u32, d: u32) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (i64::from(m) + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + i64::from(d) - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+/// The date of a day number (inverse of [`days_from_civil`]).
+fn civil_from_days(z: i64) -> (i64, u32, u32) {
+    let z = z + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
+    (if m <= 2 { yoe + era * 400 + 1 } else { yoe + era * 400 }, m, d)
+}
+
+/// `2026-11-23T10:12:37.123Z` (UTC, milliseconds).
+pub fn format_utc(t: SystemTime) -> String {
+    let since = t.duration_since(UNIX_EPOCH).unwrap_or(Duration::ZERO);
+    let secs = since.as_secs() as i64;
+    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    let (y, m, d) = civil_from_days(days);
+    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:03}Z", rem / 3600, rem / 60 % 60, rem % 60, since.subsec_millis())
+}
+
+/// Read a UTC time as [`format_utc`] writes it; also without fractional seconds, with
+/// any number of fractional digits, with a space for `T`, and with `+00:00` for `Z`.
+pub fn parse_utc(s: &str) -> Option<SystemTime> {
+    let s = s.trim();
+    let s = s.strip_suffix('Z').or_else(|| s.strip_suffix("+00:00"))?;
+    let (date, time) = s.split_once(['T', ' '])?;
+    let mut dp = date.splitn(3, '-');
+    let y: i64 = dp.next()?.parse().ok()?;
+    let m: u32 = dp.next()?.parse().ok()?;
+    let d: u32 = dp.next()?.parse().ok()?;
+    let (hms, frac) = time.split_once('.').unwrap_or((time, ""));
+    let mut tp = hms.splitn(3, ':');
+    let hh: u64 = tp.next()?.parse().ok()?;
+    let mm: u64 = tp.next()?.parse().ok()?;
+    let ss: u64 = tp.next()?.parse().ok()?;
+    if !(1970..=9999).contains(&y) || !(1..=12).contains(&m) || !(1..=31).contains(&d) || hh > 23 || mm > 59 || ss > 60
+    {
+        return None;
+    }
+    if !frac.chars().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    let nanos: u32 = if frac.is_empty() {
+        0
+    } else {
+        let digits: String = frac.chars().chain(std::iter::repeat('0')).take(9).collect();
+        digits.parse().ok()?
+    };
+    let days = days_from_civil(y, m, d);
+    if civil_from_days(days) != (y, m, d) {
+        return None; // 31 February
+    }
+    let secs = u64::try_from(days).ok()? * 86_400 + hh * 3600 + mm * 60 + ss;
+    Some(UNIX_EPOCH + Duration::new(secs, nanos))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(time: &str, alpha0: f64, previous: Option<Previous>) -> Record {
+        Record {
+            time: time.into(),
+            node: "/tracer_calibrator".into(),
+            scan_id: 10,
+            model: "full".into(),
+            alpha0,
+            offset: 0.005,
+            delta_l: 0.002,
+            scale: 1.0,
+            stddev: vec![1e-4, 5e-6, 1e-6],
+            rms_residual: 5e-6,
+            samples_used: 400,
+            iterations: 7,
+            previous,
+        }
+    }
+
+    #[test]
+    fn utc_times_round_trip() {
+        let t = UNIX_EPOCH + Duration::new(1_795_428_757, 123_456_789);
+        assert_eq!(format_utc(t), "2026-11-23T10:12:37.123Z");
+        assert_eq!(parse_utc("2026-11-23T10:12:37.123Z"), Some(UNIX_EPOCH + Duration::new(1_795_428_757, 123_000_000)));
+        assert_eq!(parse_utc("2026-11-23T10:12:37Z"), Some(UNIX_EPOCH + Duration::new(1_795_428_757, 0)));
+        assert_eq!(
+            parse_utc("2026-11-23 10:12:37.5+00:00"),
+            Some(UNIX_EPOCH + Duration::new(1_795_428_757, 500_000_000))
+        );
+        assert_eq!(format_utc(UNIX_EPOCH), "1970-01-01T00:00:00.000Z");
+        assert_eq!(parse_utc("2024-02-29T00:00:00Z").map(format_utc).as_deref(), Some("2024-02-29T00:00:00.000Z"));
+        for bad in [
+            "",
+            "2026-11-23T10:12:37",
+            "2026-02-30T00:00:00Z",
+            "2026-11-23T25:00:00Z",
+            "x-1-1T0:0:0Z",
+            "2026-11-23T10:12:37.1e3Z",
+        ] {
+            assert_eq!(parse_utc(bad), None, "{bad}");
+        }
+        // Every day of four centuries round-trips.
+        for day in (0..146_097 * 4).step_by(7) {
+            let t = UNIX_EPOCH + Duration::from_secs(day * 86_400 + 3_599);
+            assert_eq!(parse_utc(&format_utc(t)), Some(t));
+        }
+    }
+
+    #[test]
+    fn records_round_trip_as_lines_of_the_contracts_fields() {
+        let r = record(
+            "2026-11-23T10:12:37.123Z",
+            0.0349,
+            Some(Previous { alpha0: 0.03, offset: 0.005, delta_l: 0.002, scale: 1.0 }),
+        );
+        let line = r.to_line();
+        assert!(!line.contains('\n'));
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+        assert_eq!(
+            keys,
+            [
+                "time",
+                "node",
+                "scan_id",
+                "model",
+                "alpha0",
+                "offset",
+                "delta_l",
+                "scale",
+                "stddev",
+                "rms_residual",
+                "samples_used",
+                "iterations",
+                "previous"
+            ]
+        );
+        let first = record("2026-11-22T10:00:00.000Z", 0.03, None);
+        assert!(first.to_line().ends_with("\"previous\":null}"));
+        let h = History::parse(&format!("{}\n{line}\n", first.to_line()), "h.jsonl");
+        assert_eq!(h.records, [first, r]);
+        assert!(h.skipped.is_empty());
+    }
+
+    #[test]
+    fn torn_lines_are_skipped_with_their_line() {
+        let a = record("2026-11-22T10:00:00.000Z", 0.03, None).to_line();
+        let b = record("2026-11-23T10:00:00.000Z", 0.031, None).to_line();
+        // A torn last line.
+        let h = History::parse(&format!("{a}\n{}", &b[..b.len() / 2]), "h.jsonl");
+        assert_eq!(h.records.len(), 1);
+        assert_eq!(h.skipped.len(), 1);
+        assert!(h.skipped[0].starts_with("h.jsonl:2: skipped a torn last line (no newline)"), "{}", h.skipped[0]);
+        // A torn line the next append started after.
+        let h = History::parse(&format!("{a}\n{}\n{b}\n", &b[..30]), "h.jsonl");
+        assert_eq!(h.records.len(), 2);
+        assert!(h.skipped[0].starts_with("h.jsonl:2: skipped not a record"), "{}", h.skipped[0]);
+        // Wrong content is not a record either.
+        let bad_time = a.replace("2026-11-22T10:00:00.000Z", "yesterday");
+        let h = History::parse(&format!("{bad_time}\n\n{{}}\n"), "h.jsonl");
+        assert!(h.records.is_empty());
+        assert_eq!(h.skipped.len(), 2);
+        assert!(h.skipped[0].contains("yesterday"), "{}", h.skipped[0]);
+        assert!(h.skipped[1].starts_with("h.jsonl:3:"), "{}", h.skipped[1]);
+    }
+
+    #[test]
+    fn drift_in_combined_standard_uncertainties() {
+        let prev = Mounting::new(0.03, 0.005, 0.002);
+        let new = Mounting::new(0.03 + 5e-4, 0.005 - 3e-5, 0.002);
+        let sd = [1e-4, 1e-5, 1e-6];
+        let d = drift(&new, &sd, &prev, Some(&sd)).unwrap();
+        let u = 2f64.sqrt();
+        assert!((d.sigmas[0] - 5.0 / u).abs() < 1e-9, "{d:?}");
+        assert!((d.sigmas[1] - 3.0 / u).abs() < 1e-9, "{d:?}");
+        assert_eq!(d.sigmas[2], 0.0);
+        assert_eq!(d.worst().0, 0);
+        assert!(d.exceeds(3.0) && !d.exceeds(4.0) && !d.exceeds(0.0));
+        assert!(
+            d.describe().starts_with("alpha0 +0.0286° (3.5σ), d -0.0300 mm (2.1σ), dL +0.0000 mm (0.0σ)"),
+            "{}",
+            d.describe()
+        );
+        // Unknown previous uncertainties: the new ones alone.
+        let d = drift(&new, &sd, &prev, None).unwrap();
+        assert!((d.sigmas[0] - 5.0).abs() < 1e-9 && !d.previous_uncertainty_known);
+        // A quarter turn apart is no move.
+        let turned = Mounting::new(0.03 - std::f64::consts::FRAC_PI_2, 0.005, 0.002);
+        assert!(drift(&turned, &sd, &prev, Some(&sd)).unwrap().sigmas[0] < 1e-9);
+        assert!(drift(&new, &[], &prev, None).is_none());
+        assert!(drift(&new, &[0.0, 0.0, 0.0], &prev, None).is_none());
+    }
+
+    #[test]
+    fn record_drift_takes_the_uncertainties_of_the_record_replaced() {
+        let a = record("2026-11-22T10:00:00.000Z", 0.03, None);
+        let b = record("2026-11-23T10:00:00.000Z", 0.031, Some(Previous::from(a.mounting())));
+        let c =
+            record("2026-11-24T10:00:00.000Z", 0.031, Some(Previous { alpha0: 0.02, ..Previous::from(b.mounting()) }));
+        let rs = [a, b, c];
+        assert!(record_drift(&rs, 0).is_none());
+        let d = record_drift(&rs, 1).unwrap();
+        assert!(d.previous_uncertainty_known && (d.sigmas[0] - 1e-3 / (1e-4 * 2f64.sqrt())).abs() < 1e-6, "{d:?}");
+        // The record before is not the calibration replaced (set by hand in between).
+        let d = record_drift(&rs, 2).unwrap();
+        assert!(!d.previous_uncertainty_known && (d.sigmas[0] - 110.0).abs() < 1e-6, "{d:?}");
+    }
+}
