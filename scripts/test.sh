@@ -1,17 +1,27 @@
 #!/usr/bin/env bash
 # The test command (README, .ci/run). One release build, reused by every step:
 #   1. the Rust tests (unit, engine, node over DDS), inside a private network namespace;
-#   2. the real ROS 2 peer: rclpy (Kilted, Fast DDS) from PyPI wheels and the message
-#      package built by rosidl (tests/interop/setup.sh installs both), against the node.
+#   2. the real ROS 2 peer, once per distribution (Kilted, and Jazzy, the LTS): rclpy with
+#      Fast DDS from PyPI wheels and the message package built by rosidl
+#      (tests/interop/setup.sh installs both), against the node; then this repository
+#      built as a colcon workspace over those wheels (the README's `colcon build` line,
+#      reusing the release build), and the installed package run as `ros2 run` and
+#      `ros2 launch` would run it (tests/interop/run.sh).
 # Nothing sends a packet off this machine: every DDS participant runs in a network
 # namespace whose only interface is loopback (tests/interop/netns.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
-cargo build --release --locked --bins
-cargo test --release --locked --no-run
+# part NAME CMD...: run a step, then print how long it took (CI's time per part).
+part() {
+    local t0=$SECONDS
+    "${@:2}"
+    echo "test.sh: $1 took $((SECONDS - t0)) s"
+}
+part "cargo build" cargo build --release --locked --bins
+part "cargo test build" cargo test --release --locked --no-run
 # The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags
 # to read the bags we write. Needs the package registries, so outside the namespace.
-tests/interop/setup.sh
-tests/interop/netns.sh cargo test --release --locked --offline
-bash tests/interop/run.sh
+part "ROS setup (kilted, jazzy)" tests/interop/setup.sh
+part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline
+part "interop (kilted, jazzy)" bash tests/interop/run.sh

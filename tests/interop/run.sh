@@ -1,20 +1,27 @@
 #!/usr/bin/env bash
-# The real-ROS-2-peer tests: sets up rclpy + tracer_calib_msgs (tests/interop/setup.sh,
-# quick when up to date), then runs against the release binaries:
-#   - tests/interop/test_node.py inside a private network namespace (nothing leaves
-#     the machine);
-#   - tests/interop/test_graph.py, the node in the ROS graph (leaving it, matching, QoS),
-#     in a private network namespace too;
-#   - tests/interop/test_two_hosts.py on two "hosts", network namespaces joined by a
-#     veth pair with multicast off (tests/interop/two_hosts.sh; root only).
+# The real-ROS-2-peer tests, once per ROS 2 distribution (Kilted, then Jazzy, the LTS):
+#   1. tests/interop/setup.sh DISTRO: rclpy + tracer_calib_msgs (quick when up to date);
+#   2. against the release binaries (target/release), with the peer's environment
+#      target/ros/DISTRO/env.sh:
+#      - test_node.py (and test_records.py, which it runs) in a private network namespace;
+#      - test_graph.py, the node in the ROS graph (leaving it, matching, QoS), in a private
+#        network namespace too;
+#      - test_two_hosts.py on two "hosts", network namespaces joined by a veth pair with
+#        multicast off (tests/interop/two_hosts.sh; root only);
+#   3. tests/interop/workspace.sh DISTRO: the README's `colcon build` in a workspace over
+#      the distribution's wheels, and what it installs;
+#   4. test_launch.py against that workspace (install/setup.bash sourced): the launch files
+#      as `ros2 launch` would run them, `ros2 run`, with the installed interfaces.
+# Nothing leaves the machine. Prints each part's time.
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), two_hosts
-# test_two_hosts.py's scenarios (two_hosts: all); the others, test_node.py's tests.
-# No names: everything.
+# test_two_hosts.py's scenarios (two_hosts: all); the others, test_node.py's tests; with
+# names, 3 and 4 are skipped. No names: everything.
+#   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
-"$HERE/setup.sh" >/dev/null
+DISTROS=${TRACER_ROS_DISTROS:-kilted jazzy}
 trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
 export TRACER_CALIB_NODE="$ROOT/target/release/tracer_calib_node"
 export TRACER_CALIB="$ROOT/target/release/tracer_calib"
@@ -29,31 +36,71 @@ for a in "$@"; do
         *) node_tests+=("$a") ;;
     esac
 done
-if [ "$#" -eq 0 ] || [ "${#node_tests[@]}" -gt 0 ]; then
+now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
+took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
+# A test script with the distribution's peer environment: SCRIPT DISTRO [NAME...]
+# (test_node.py, test_graph.py), through WRAPPER (netns.sh or two_hosts.sh).
+peer_run() {
+    local wrapper=$1 script=$2 d=$3
+    shift 3
     # shellcheck disable=SC2016
-    "$HERE/netns.sh" bash -c '
-        . "$1/target/ros/env.sh"
-        shift
+    "$HERE/$wrapper" bash -c '
+        . "$1/target/ros/$2/env.sh"
+        shift 2
         exec timeout -s KILL 600 python "$0" "$@"
-    ' "$HERE/test_node.py" "$ROOT" ${node_tests[@]+"${node_tests[@]}"}
-fi
-if [ "$#" -eq 0 ] || [ "${#graph[@]}" -gt 0 ]; then
-    # shellcheck disable=SC2016
-    "$HERE/netns.sh" bash -c '
-        . "$1/target/ros/env.sh"
-        shift
-        exec timeout -s KILL 600 python "$0" "$@"
-    ' "$HERE/test_graph.py" "$ROOT" ${graph[@]+"${graph[@]}"}
-fi
-if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
-    if [ "$(id -u)" -ne 0 ]; then
-        echo "interop: two_hosts skipped (needs root for ip netns)"
-    else
-        # shellcheck disable=SC2016
-        "$HERE/two_hosts.sh" bash -c '
-            . "$1/target/ros/env.sh"
-            shift
-            exec timeout -s KILL 600 python "$0" "$@"
-        ' "$HERE/test_two_hosts.py" "$ROOT" ${two_hosts[@]+"${two_hosts[@]}"}
+    ' "$HERE/$script" "$ROOT" "$d" "$@"
+}
+failed=()
+for d in $DISTROS; do
+    t0=$(now_ms)
+    "$HERE/setup.sh" "$d" >/dev/null
+    echo "run.sh: $d: setup $(took "$t0")"
+    if [ "$#" -eq 0 ] || [ "${#node_tests[@]}" -gt 0 ]; then
+        t0=$(now_ms)
+        echo "run.sh: $d: test_node.py (ROS 2 $d rclpy, release binaries)"
+        peer_run netns.sh test_node.py "$d" ${node_tests[@]+"${node_tests[@]}"} || failed+=("$d:test_node")
+        echo "run.sh: $d: test_node.py $(took "$t0")"
     fi
+    if [ "$#" -eq 0 ] || [ "${#graph[@]}" -gt 0 ]; then
+        t0=$(now_ms)
+        echo "run.sh: $d: test_graph.py (ROS 2 $d rclpy, release binaries)"
+        peer_run netns.sh test_graph.py "$d" ${graph[@]+"${graph[@]}"} || failed+=("$d:test_graph")
+        echo "run.sh: $d: test_graph.py $(took "$t0")"
+    fi
+    if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
+        if [ "$(id -u)" -ne 0 ]; then
+            echo "run.sh: $d: two_hosts skipped (needs root for ip netns)"
+        else
+            t0=$(now_ms)
+            echo "run.sh: $d: test_two_hosts.py (ROS 2 $d rclpy, release binaries)"
+            peer_run two_hosts.sh test_two_hosts.py "$d" ${two_hosts[@]+"${two_hosts[@]}"} || failed+=("$d:two_hosts")
+            echo "run.sh: $d: test_two_hosts.py $(took "$t0")"
+        fi
+    fi
+    [ "$#" -eq 0 ] || continue
+    t0=$(now_ms)
+    if ! "$HERE/workspace.sh" "$d"; then
+        failed+=("$d:workspace")
+        continue
+    fi
+    echo "run.sh: $d: workspace $(took "$t0")"
+    t0=$(now_ms)
+    echo "run.sh: $d: test_launch.py (installed workspace, ROS 2 $d rclpy)"
+    # The environment of a shell that sourced ROS 2 and the workspace, plus the loopback-only
+    # DDS settings of the tests.
+    # shellcheck disable=SC2016
+    if ! "$HERE/netns.sh" env -i HOME="$HOME" PATH="$PATH" bash -c '
+        . "$1/target/ros/$2/ros_setup.sh"
+        . "$1/target/colcon_ws/$2/install/setup.bash"
+        export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+        export FASTDDS_DEFAULT_PROFILES_FILE="$1/target/ros/$2/fastdds_localhost.xml"
+        exec timeout -s KILL 300 python "$0"
+    ' "$HERE/test_launch.py" "$ROOT" "$d"; then
+        failed+=("$d:test_launch")
+    fi
+    echo "run.sh: $d: test_launch.py $(took "$t0")"
+done
+if [ "${#failed[@]}" -gt 0 ]; then
+    echo "run.sh: failed: ${failed[*]}" >&2
+    exit 1
 fi

@@ -1,14 +1,23 @@
 #!/usr/bin/env bash
 # Installs what the real-ROS-2-peer tests need, into target/ros/ (never system-wide,
-# apart from Debian build tools that are missing):
+# apart from Debian build tools that are missing), once per ROS 2 distribution:
 #
-#   target/ros/venv/               rclpy (ROS 2 Kilted, Fast DDS) + message wheels, rosbags,
-#                                  numpy, cmake -- from PyPI, pinned by requirements.lock
-#   target/ros/msgs_install/       msg/ (tracer_calib_msgs) built with cmake + rosidl
-#   target/ros/fastdds_localhost.xml  Fast DDS profile: UDPv4 on 127.0.0.1 only
-#   target/ros/env.sh              source it to use all of the above
+#   kilted   ros-* wheels:       rclpy 9.1, rmw_fastrtps_cpp 9.3 (Fast DDS 3.2)
+#            tests/interop/requirements.txt, pinned by requirements.lock
+#   jazzy    ros-jazzy-* wheels: rclpy 7.1, rmw_fastrtps_cpp 8.4 (Fast DDS 2.14), the LTS
+#            tests/interop/requirements-jazzy.txt, pinned by requirements-jazzy.lock
 #
-# Usage: tests/interop/setup.sh [--force]    (--force: redo every step)
+# and for each distribution D:
+#   target/ros/D/venv/         rclpy + message wheels, rosbags, numpy, cmake -- from PyPI
+#   target/ros/D/msgs_install/ msg/ (tracer_calib_msgs) built with cmake + rosidl
+#   target/ros/D/fastdds_localhost.xml  Fast DDS profile: UDPv4 on 127.0.0.1 only
+#   target/ros/D/ros_setup.sh  what `source /opt/ros/D/setup.bash` does, for the venv
+#                              (the underlay of a colcon workspace: tests/interop/workspace.sh)
+#   target/ros/D/env.sh        source it to use all of the above (ros_setup.sh + msgs_install)
+# target/ros/venv and target/ros/env.sh point at kilted's (older callers, tests/bags.rs).
+#
+# Usage: tests/interop/setup.sh [--force] [kilted|jazzy|all]...   (default: all;
+#        --force: redo every step)
 #
 # Idempotent and quick when up to date: each step is keyed on a stamp (hashes of its
 # inputs) and skipped when the stamp matches. Prints one line per step with its time.
@@ -19,37 +28,35 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
-ROS_DIR=$ROOT/target/ros
-VENV=$ROS_DIR/venv
-BUILD=$ROS_DIR/build/msgs
-INSTALL=$ROS_DIR/msgs_install
-STAMPS=$ROS_DIR/stamps
-LOGS=$ROS_DIR/logs
-PROFILE=$ROS_DIR/fastdds_localhost.xml
-ENV_SH=$ROS_DIR/env.sh
+ROS_TOP=$ROOT/target/ros
 JOBS=${ROS_SETUP_JOBS:-2}
 # Bump when the way the venv is made changes (the requirement files are hashed anyway).
 VENV_RECIPE=1
 
 FORCE=0
-case "${1:-}" in
-    "") ;;
-    --force) FORCE=1 ;;
-    -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
-    *) echo "usage: $0 [--force]" >&2; exit 2 ;;
-esac
+DISTROS=()
+for a in "$@"; do
+    case "$a" in
+        --force) FORCE=1 ;;
+        kilted|jazzy) DISTROS+=("$a") ;;
+        all) DISTROS+=(kilted jazzy) ;;
+        -h|--help) sed -n '2,27p' "$0"; exit 0 ;;
+        *) echo "usage: $0 [--force] [kilted|jazzy|all]..." >&2; exit 2 ;;
+    esac
+done
+[ "${#DISTROS[@]}" -gt 0 ] || DISTROS=(kilted jazzy)
 
-# Work in a clean environment even when target/ros/env.sh is sourced in this shell.
+# Work in a clean environment even when a target/ros/*/env.sh is sourced in this shell.
 if [ -n "${TRACER_ROS_ENV:-}" ]; then
     PATH=$(printf '%s' "$PATH" | tr ':' '\n' | grep -vxF "$TRACER_ROS_ENV/venv/bin" | paste -sd: -)
-    unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH AMENT_PREFIX_PATH FASTDDS_DEFAULT_PROFILES_FILE
+    unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH AMENT_PREFIX_PATH CMAKE_PREFIX_PATH FASTDDS_DEFAULT_PROFILES_FILE
 fi
 unset _ROS_WHEELS_BOOTSTRAP_COMPLETE VIRTUAL_ENV PYTHONHOME
 export PATH
 
-mkdir -p "$ROS_DIR" "$STAMPS" "$LOGS"
+mkdir -p "$ROS_TOP"
 # One setup at a time (a test run and a developer may start it together).
-exec 9>"$ROS_DIR/.setup.lock"
+exec 9>"$ROS_TOP/.setup.lock"
 if command -v flock >/dev/null 2>&1; then
     flock 9
 fi
@@ -57,10 +64,11 @@ fi
 now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 T_ALL=$(now_ms)
 CHANGED=0
+DISTRO=""
 # step_done NAME STATUS T0_MS
 step_done() {
     local ms=$(( $(now_ms) - $3 ))
-    printf 'setup.sh: %-8s %-9s %4d.%01ds\n' "$1" "$2" $(( ms / 1000 )) $(( (ms % 1000) / 100 ))
+    printf 'setup.sh: %-7s%-8s %-9s %4d.%01ds\n' "$DISTRO" "$1" "$2" $(( ms / 1000 )) $(( (ms % 1000) / 100 ))
 }
 die() { echo "setup.sh: error: $*" >&2; exit 1; }
 # show_log FILE: last lines of a failed step's log
@@ -102,8 +110,8 @@ if [ "${#APT_PKGS[@]}" -gt 0 ]; then
     [ "$(id -u)" -eq 0 ] || die "missing ${APT_PKGS[*]} and not root: apt-get install -y ${APT_PKGS[*]}"
     echo "setup.sh: apt-get install ${APT_PKGS[*]}"
     if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${APT_PKGS[@]}"; } \
-        >"$LOGS/apt.log" 2>&1; then
-        show_log "$LOGS/apt.log"
+        >"$ROS_TOP/apt.log" 2>&1; then
+        show_log "$ROS_TOP/apt.log"
         die "apt-get install ${APT_PKGS[*]} failed"
     fi
     if [ -z "$PY" ]; then PY=/usr/bin/python3.11; PY_VERSION=$("$PY" -c 'import sys; print(sys.version.split()[0])'); fi
@@ -112,10 +120,31 @@ else
     step_done tools ok "$t0"
 fi
 
+# A venv whose python runs a ROS wheel re-execs itself through ros_wheels_bootstrapper
+# unless this is set (env.sh sets LD_LIBRARY_PATH itself).
+# setup_distro DISTRO: steps 2-5 for one distribution, in target/ros/DISTRO/.
+setup_distro() {
+DISTRO=$1
+CHANGED=0
+ROS_DIR=$ROS_TOP/$DISTRO
+VENV=$ROS_DIR/venv
+BUILD=$ROS_DIR/build/msgs
+INSTALL=$ROS_DIR/msgs_install
+STAMPS=$ROS_DIR/stamps
+LOGS=$ROS_DIR/logs
+PROFILE=$ROS_DIR/fastdds_localhost.xml
+ENV_SH=$ROS_DIR/env.sh
+ROS_SETUP_SH=$ROS_DIR/ros_setup.sh
+case "$DISTRO" in
+    kilted) REQ=$HERE/requirements.txt; LOCK=$HERE/requirements.lock ;;
+    *) REQ=$HERE/requirements-$DISTRO.txt; LOCK=$HERE/requirements-$DISTRO.lock ;;
+esac
+mkdir -p "$ROS_DIR" "$STAMPS" "$LOGS"
+
 # ---------------------------------------------------------------------------------
 # 2. venv: made afresh whenever the requirements, the interpreter or the recipe change.
 t0=$(now_ms)
-VENV_KEY=$({ cat "$HERE/requirements.txt" "$HERE/requirements.lock"
+VENV_KEY=$({ cat "$REQ" "$LOCK"
              echo "python=$PY $PY_VERSION recipe=$VENV_RECIPE"; } | hash_stdin)
 if stamp_ok venv "$VENV_KEY" && "$VENV/bin/python" -S -c '' >/dev/null 2>&1; then
     step_done venv skipped "$t0"
@@ -125,7 +154,7 @@ else
     rm -rf "$VENV"
     "$PY" -m venv "$VENV"
     if ! "$VENV/bin/python" -m pip install --disable-pip-version-check --no-input \
-            -r "$HERE/requirements.txt" -c "$HERE/requirements.lock" >"$LOGS/pip.log" 2>&1; then
+            -r "$REQ" -c "$LOCK" >"$LOGS/pip.log" 2>&1; then
         show_log "$LOGS/pip.log"
         die "pip install into $VENV failed"
     fi
@@ -152,7 +181,7 @@ fi
 #    or this script change.
 t0=$(now_ms)
 MSGS_KEY=$({ (cd "$ROOT/msg" && find . -type f -print0 | LC_ALL=C sort -z | xargs -0 sha256sum)
-             echo "venv=$VENV_KEY"; sha256sum <"$0"; } | hash_stdin)
+             echo "venv=$VENV_KEY distro=$DISTRO"; sha256sum <"$0"; } | hash_stdin)
 if stamp_ok msgs "$MSGS_KEY" && [ -d "$INSTALL/lib/python3.11/site-packages/tracer_calib_msgs" ]; then
     step_done msgs skipped "$t0"
 else
@@ -229,9 +258,9 @@ EOF
 
 LIBS_DIRS=$(cd "$VENV/lib/python3.11/site-packages" && for d in ros_*.libs; do [ -d "$d" ] && printf ':$TRACER_ROS_DIR/venv/lib/python3.11/site-packages/%s' "$d"; done; true)
 write_if_changed "$ENV_SH" <<EOF && env_changed=1
-# Written by tests/interop/setup.sh -- do not edit. Source it:  . target/ros/env.sh
-# Sets this shell's environment for the real ROS 2 peer (rclpy, Kilted, Fast DDS) and the
-# tracer_calib_msgs built from msg/. Activates nothing globally. Sourcing twice is harmless.
+# Written by tests/interop/setup.sh -- do not edit. Source it:  . target/ros/$DISTRO/env.sh
+# Sets this shell's environment for the real ROS 2 peer (rclpy, ROS 2 $DISTRO, Fast DDS) and
+# the tracer_calib_msgs built from msg/. Activates nothing globally. Sourcing twice is harmless.
 TRACER_ROS_DIR='$ROS_DIR'
 export TRACER_ROS_DIR
 if [ "\${TRACER_ROS_ENV:-}" != "\$TRACER_ROS_DIR" ]; then
@@ -249,6 +278,24 @@ export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
 # ROS_LOCALHOST_ONLY) plus a Fast DDS profile allowing UDPv4 on 127.0.0.1 only.
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export FASTDDS_DEFAULT_PROFILES_FILE="\$TRACER_ROS_DIR/fastdds_localhost.xml"
+EOF
+write_if_changed "$ROS_SETUP_SH" <<EOF && env_changed=1
+# Written by tests/interop/setup.sh -- do not edit. Source it:  . target/ros/$DISTRO/ros_setup.sh
+# What \`source /opt/ros/$DISTRO/setup.bash\` does, for ROS 2 $DISTRO installed from PyPI wheels
+# into target/ros/$DISTRO/venv: the underlay of a colcon workspace (tests/interop/workspace.sh).
+# (env.sh is this plus tracer_calib_msgs from target/ros/$DISTRO/msgs_install and the
+# loopback-only DDS settings of the tests.)
+_tracer_venv='$VENV'
+export ROS_DISTRO=$DISTRO ROS_VERSION=2 ROS_PYTHON_VERSION=3
+export AMENT_PREFIX_PATH="\$_tracer_venv\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}"
+export CMAKE_PREFIX_PATH="\$_tracer_venv\${CMAKE_PREFIX_PATH:+:\$CMAKE_PREFIX_PATH}"
+export PATH="\$_tracer_venv/bin\${PATH:+:\$PATH}"
+export LD_LIBRARY_PATH="\$_tracer_venv/lib${LIBS_DIRS//\$TRACER_ROS_DIR\/venv/\$_tracer_venv}\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}"
+# cmake's FindPython3 prefers an active venv: the interpreter that has rosidl's modules.
+export VIRTUAL_ENV="\$_tracer_venv"
+export _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
+export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
+unset _tracer_venv
 EOF
 if [ "$env_changed" = 1 ]; then CHANGED=1; step_done env written "$t0"; else step_done env unchanged "$t0"; fi
 
@@ -278,9 +325,27 @@ else
     step_done check skipped "$t0"
 fi
 
+}
+
+for d in "${DISTROS[@]}"; do
+    setup_distro "$d"
+done
+DISTRO=""
+# Older callers (tests/bags.rs, fixtures scripts) know target/ros/venv and target/ros/env.sh:
+# Kilted's. A tree set up by the single-distribution setup.sh had them as real
+# directories and files: replaced by links (its other leftovers removed).
+if [ -d "$ROS_TOP/kilted/venv" ]; then
+    for old in venv msgs_install build stamps logs env.sh fastdds_localhost.xml; do
+        if [ -e "$ROS_TOP/$old" ] && [ ! -L "$ROS_TOP/$old" ]; then rm -rf "${ROS_TOP:?}/$old"; fi
+    done
+    ln -sfn kilted/venv "$ROS_TOP/venv"
+    ln -sfn kilted/env.sh "$ROS_TOP/env.sh"
+fi
 step_done total done "$T_ALL"
 
-# Regenerating requirements.lock after changing requirements.txt:
-#   rm -rf target/ros && python3 -m venv /tmp/v && /tmp/v/bin/pip install -r tests/interop/requirements.txt
+# Regenerating a lock file after changing its requirements file (kilted: requirements.txt
+# -> requirements.lock; jazzy: requirements-jazzy.txt -> requirements-jazzy.lock):
+#   python3.11 -m venv /tmp/v && /tmp/v/bin/pip install -r tests/interop/requirements-jazzy.txt
 #   then list what pip installed (distributions whose INSTALLER is pip, less pip/setuptools)
-#   as NAME==VERSION lines, e.g. with importlib.metadata, into tests/interop/requirements.lock.
+#   as NAME==VERSION lines, e.g. with importlib.metadata, into the lock file; then
+#   rm -rf target/ros/jazzy and run this script.
