@@ -87,6 +87,14 @@ pub fn verify_ros_distro_env() {
     Ok(distro) if distro == built.as_str() => {
       info!("ROS_DISTRO='{distro}' matches the ros2-client build.");
     }
+    // PATCH (tracer_calib): a distribution whose build would be the same code is not an
+    // error.
+    Ok(distro) if same_build(built, &distro) => {
+      info!(
+        "ROS_DISTRO='{distro}': ros2-client was built for '{built}', which compiles the same \
+         code (wire-compatible)."
+      );
+    }
     Ok(distro) if distro == "rolling" => {
       warn!(
         "ROS_DISTRO='rolling'; ros2-client was built for '{built}'. Assuming compatible, but \
@@ -100,4 +108,13 @@ pub fn verify_ros_distro_env() {
       );
     }
   }
+}
+
+/// PATCH (tracer_calib): does a build for `distro` compile the same code as one for
+/// `built`? The `kilted` feature enables nothing beyond `jazzy`'s in this version (no
+/// `cfg(feature = "kilted")` outside this module), so Jazzy and Kilted builds are the
+/// same on the wire. Update when a feature starts to select code.
+fn same_build(built: RosDistro, distro: &str) -> bool {
+  let jazzy_or_kilted = |d: &str| d == RosDistro::Jazzy.as_str() || d == RosDistro::Kilted.as_str();
+  jazzy_or_kilted(built.as_str()) && jazzy_or_kilted(distro)
 }
