@@ -152,29 +152,32 @@ pub fn calibration_report_svg(report: &CalibrationReport<'_>) -> String {
     contour_panel(&mut out, 0.0, header, PANEL_W, PANEL_H, &report.contours);
     residual_panel(&mut out, PANEL_W, header, PANEL_W, PANEL_H, &report.residuals);
     if !lines.is_empty() {
-        let _ = writeln!(
-            out,
-            r##"<rect x="12" y="{:.1}" width="{:.1}" height="{:.1}" fill="#f6f6f6" stroke="#cccccc"/>"##,
-            header + PANEL_H,
-            width - 24.0,
-            text_h - 8.0
-        );
-        let _ = writeln!(
-            out,
-            r#"<g class="summary" font-family="DejaVu Sans Mono, Menlo, Consolas, monospace" font-size="12">"#
-        );
-        for (k, line) in lines.iter().enumerate() {
-            let _ = writeln!(
-                out,
-                r#"<text x="20" y="{:.1}" xml:space="preserve">{}</text>"#,
-                header + PANEL_H + 18.0 + line_h * k as f64,
-                xml_escape(line)
-            );
-        }
-        out.push_str("</g>\n");
+        summary_box(&mut out, header + PANEL_H, width - 24.0, text_h - 8.0, line_h, &lines);
     }
     out.push_str("</svg>\n");
     out
+}
+
+/// A grey box at `top`, `w` × `h`, of monospaced text lines `line_h` apart: a picture's
+/// summary under its panels.
+fn summary_box(out: &mut String, top: f64, w: f64, h: f64, line_h: f64, lines: &[String]) {
+    let _ = writeln!(
+        out,
+        r##"<rect x="12" y="{top:.1}" width="{w:.1}" height="{h:.1}" fill="#f6f6f6" stroke="#cccccc"/>"##
+    );
+    let _ = writeln!(
+        out,
+        r#"<g class="summary" font-family="DejaVu Sans Mono, Menlo, Consolas, monospace" font-size="12">"#
+    );
+    for (k, line) in lines.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            r#"<text x="20" y="{:.1}" xml:space="preserve">{}</text>"#,
+            top + 18.0 + line_h * k as f64,
+            xml_escape(line)
+        );
+    }
+    out.push_str("</g>\n");
 }
 
 fn svg_open(out: &mut String, w: f64, h: f64) {
@@ -868,25 +871,7 @@ pub fn history_svg(plot: &HistoryPlot<'_>) -> String {
     out.push_str("</g>\n");
     if !lines.is_empty() {
         let top = header + 3.0 * HISTORY_PANEL_H + legend_h - 12.0;
-        let _ = writeln!(
-            out,
-            r##"<rect x="12" y="{top:.1}" width="{:.1}" height="{:.1}" fill="#f6f6f6" stroke="#cccccc"/>"##,
-            HISTORY_W - 24.0,
-            text_h - 4.0
-        );
-        let _ = writeln!(
-            out,
-            r#"<g class="summary" font-family="DejaVu Sans Mono, Menlo, Consolas, monospace" font-size="12">"#
-        );
-        for (k, line) in lines.iter().enumerate() {
-            let _ = writeln!(
-                out,
-                r#"<text x="20" y="{:.1}" xml:space="preserve">{}</text>"#,
-                top + 18.0 + line_h * k as f64,
-                xml_escape(line)
-            );
-        }
-        out.push_str("</g>\n");
+        summary_box(&mut out, top, HISTORY_W - 24.0, text_h - 4.0, line_h, &lines);
     }
     out.push_str("</svg>\n");
     out
