@@ -18,7 +18,6 @@ import os
 import signal
 import sys
 import time
-import traceback
 
 import rclpy
 
@@ -195,25 +194,12 @@ def main():
         ("qos_best_effort_driver", lambda: test_qos_best_effort_driver(peer)),
     ]
     only = [a.removeprefix("graph_") for a in sys.argv[1:] if a != "graph"]
-    passed = failed = 0
-    for name, fn in tests:
-        if only and name not in only:
-            continue
-        t0 = time.monotonic()
-        try:
-            fn()
-            passed += 1
-            print(f"test interop::graph_{name} ... ok ({time.monotonic() - t0:.1f} s)", flush=True)
-        except Exception:
-            failed += 1
-            print(f"test interop::graph_{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
-            traceback.print_exc()
-            for log in sorted(os.listdir(t.WORK)):
-                if log.endswith(".log"):
-                    print(f"--- {log}:\n" + open(os.path.join(t.WORK, log)).read()[-3000:], flush=True)
+
+    def stop_nodes():
         for n in list(t.RUNNING):
             n.stop()
-    print(f"graph: {passed} passed, {failed} failed", flush=True)
+
+    failed = t.run_tests(tests, only, "interop::graph_", "graph", after_each=stop_nodes)
     os._exit(0 if failed == 0 else 1)
 
 

@@ -29,7 +29,6 @@ import shutil
 import subprocess
 import sys
 import time
-import traceback
 import xml.etree.ElementTree as ET
 
 from ament_index_python.packages import get_package_prefix, get_package_share_directory
@@ -406,25 +405,9 @@ def main():
         ("ros2_run", lambda: test_ros2_run(peer)),
     ]
     only = [a.removeprefix("test_") for a in sys.argv[1:]]
-    passed = failed = 0
-    for name, fn in tests:
-        if only and name not in only:
-            continue
-        t0 = time.monotonic()
-        try:
-            fn()
-            passed += 1
-            print(f"test launch::{name} ... ok ({time.monotonic() - t0:.1f} s)", flush=True)
-        except Exception:
-            failed += 1
-            print(f"test launch::{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
-            traceback.print_exc()
-            for log in sorted(os.listdir(WORK)):
-                if log.endswith(".log"):
-                    print(f"--- {log}:\n" + open(os.path.join(WORK, log)).read()[-3000:], flush=True)
+    failed = tn.run_tests(tests, only, "launch::", "launch")
     if failed == 0:
         shutil.rmtree(WORK, ignore_errors=True)
-    print(f"launch: {passed} passed, {failed} failed", flush=True)
     sys.stdout.flush()
     os._exit(0 if failed == 0 else 1)
 

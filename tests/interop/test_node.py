@@ -772,6 +772,34 @@ def test_encoder_scale(peer):
     assert back["calibration.scale"] == r.scale and back["model"] == "full_scale", back
 
 
+def run_tests(tests, only, label, summary, after_each=None):
+    """Run the `(name, fn)` pairs (all, or those named in `only`), one line each as cargo
+    test prints them (`test LABELname ... ok (1.2 s)`, with what `fn` returns if it is a
+    string), a failure's traceback and the tail of every node log in WORK, and a closing
+    `SUMMARY: N passed, M failed`. `after_each()` runs after every test. Returns M."""
+    passed = failed = 0
+    for name, fn in tests:
+        if only and name not in only:
+            continue
+        t0 = time.monotonic()
+        try:
+            detail = fn()
+            passed += 1
+            extra = f" {detail}" if isinstance(detail, str) and detail else ""
+            print(f"test {label}{name} ... ok ({time.monotonic() - t0:.1f} s){extra}", flush=True)
+        except Exception:
+            failed += 1
+            print(f"test {label}{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
+            traceback.print_exc()
+            for log in sorted(os.listdir(WORK)):
+                if log.endswith(".log"):
+                    print(f"--- {log}:\n" + open(os.path.join(WORK, log)).read()[-3000:], flush=True)
+        if after_each:
+            after_each()
+    print(f"{summary}: {passed} passed, {failed} failed", flush=True)
+    return failed
+
+
 def main():
     rclpy.init()
     peer = Peer()
@@ -800,27 +828,11 @@ def main():
     if unknown:
         print(f"interop: no such test: {', '.join(unknown)} (have: {', '.join(n for n, _ in tests)})", flush=True)
         os._exit(2)
-    passed = failed = 0
-    for name, fn in tests:
-        if only and name not in only:
-            continue
-        t0 = time.monotonic()
-        try:
-            fn()
-            passed += 1
-            print(f"test interop::{name} ... ok ({time.monotonic() - t0:.1f} s)", flush=True)
-        except Exception:
-            failed += 1
-            print(f"test interop::{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
-            traceback.print_exc()
-            for log in sorted(os.listdir(WORK)):
-                if log.endswith(".log"):
-                    print(f"--- {log}:\n" + open(os.path.join(WORK, log)).read()[-3000:], flush=True)
+    failed = run_tests(tests, only, "interop::", "interop")
     if failed == 0:
         import shutil
 
         shutil.rmtree(WORK, ignore_errors=True)
-    print(f"interop: {passed} passed, {failed} failed", flush=True)
     sys.stdout.flush()
     # rclpy's shutdown can hang (notes/ros2-peer.md): leave without it.
     os._exit(0 if failed == 0 else 1)
