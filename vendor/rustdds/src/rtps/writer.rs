@@ -46,7 +46,7 @@ use crate::{
     entity::RTPSEntity,
     guid::{EntityId, GuidPrefix, GUID},
     locator::Locator,
-    sequence_number::{FragmentNumber, SequenceNumber},
+    sequence_number::{FragmentNumber, SequenceNumber, SequenceNumberRange},
     time::Timestamp,
   },
 };
@@ -630,6 +630,64 @@ impl Writer {
   // repair path (`mark_change_sent`), so a best-effort push (which never gets
   // ACKNACKs) left `unsent_changes` growing by one entry per sample forever.
   // Pruning here keeps the per-reader bookkeeping bounded on the push path too.
+  // tracer_calib patch: begin (discovery data in order to a catching-up reader)
+  //
+  // A built-in (discovery) writer sends every matched reader its samples in
+  // sequence-number order: a reader that has not yet acknowledged anything (it
+  // may not have matched us yet) or that still has lower samples to get from us
+  // is not sent a new sample live; it gets it after those, lowest first, by
+  // repair. Fast DDS acknowledges an SEDP stream that starts above 1 and is
+  // repaired afterwards, but sometimes never creates its endpoints.
+  fn sends_in_order(&self) -> bool {
+    self.my_guid.entity_id.kind().is_built_in() && self.is_reliable() && !self.like_stateless
+  }
+
+  // Whether `reader` must get `sequence_number` by repair, after what it lacks.
+  // A best-effort reader sends no ACKNACK: it is never behind.
+  fn behind(reader: &RtpsReaderProxy, sequence_number: SequenceNumber) -> bool {
+    reader.qos().is_reliable()
+      && (reader.last_acknack_count.is_none()
+        || reader
+          .first_unsent_change()
+          .is_some_and(|first| first < sequence_number))
+  }
+  fn any_reader_behind(&self, sequence_number: SequenceNumber) -> bool {
+    self.sends_in_order()
+      && self
+        .readers
+        .values()
+        .any(|rp| Self::behind(rp, sequence_number))
+  }
+
+  // Push `cc` to the readers that are not behind, one by one; leave it unsent
+  // for the others and have those that answer us repaired.
+  fn push_in_order(&mut self, cc: &CacheChange) {
+    let sequence_number = cc.sequence_number;
+    let mut behind = Vec::new();
+    for rp in self.readers.values() {
+      if Self::behind(rp, sequence_number) {
+        behind.push(rp.remote_reader_guid);
+      } else {
+        self.send_cache_change(cc, true, Some(rp));
+      }
+    }
+    for rp in self.readers.values_mut() {
+      if !behind.contains(&rp.remote_reader_guid) {
+        rp.mark_change_sent(sequence_number);
+      }
+    }
+    for guid in behind {
+      if self
+        .readers
+        .get(&guid)
+        .is_some_and(|rp| rp.last_acknack_count.is_some())
+      {
+        self.schedule_repair_data(guid, self.nack_response_delay);
+      }
+    }
+  }
+  // tracer_calib patch: end
+
   fn mark_change_sent_to_all_readers(&mut self, sequence_number: SequenceNumber) {
     if self.like_stateless {
       return;
@@ -789,7 +847,9 @@ impl Writer {
       // batching). `try_send_aggregated_batch` returns None when the first
       // sample is not eligible (fragmented or destined to a single reader), in
       // which case we fall through to the per-sample path below.
+      let in_order = self.push_mode && self.any_reader_behind(sequence_number); // tracer_calib patch
       if self.push_mode
+        && !in_order // tracer_calib patch
         && self.sample_cursor == SampleCursor::Fresh
         && self.security_plugins.is_none()
       {
@@ -840,6 +900,15 @@ impl Writer {
             }
           }
         }
+      }
+
+      // tracer_calib patch: a reader is behind; see `push_in_order`.
+      if in_order && write_options.to_single_reader().is_none() {
+        self.push_in_order(&cc);
+        self.last_sent = sequence_number;
+        self.sample_cursor = SampleCursor::Fresh;
+        self.send_buffer.set_sent_frontier(sequence_number);
+        continue;
       }
 
       if self.push_mode {
@@ -1985,6 +2054,17 @@ impl Writer {
         // and thus the back-pressure window.
         self.refresh_acked_frontier();
         if new_reader {
+          // tracer_calib patch: the history the new reader is to get, in order
+          // (`push_in_order`), once it has answered our HEARTBEAT.
+          if self.sends_in_order() && !self.qos().is_volatile() {
+            let first = self.send_buffer.first_change_sequence_number();
+            let last = self.send_buffer.last_change_sequence_number();
+            if let Some(rp) = self.readers.get_mut(&reader_proxy.remote_reader_guid) {
+              for sn in SequenceNumberRange::new(first, last) {
+                rp.notify_new_cache_change(sn);
+              }
+            }
+          }
           self.matched_readers_count_total += 1;
           self.send_status(DataWriterStatus::PublicationMatched {
             // total: How many matches have been detected ever?
