@@ -46,12 +46,11 @@ def rss_mb(pid):
     return 0.0
 
 
-def main():
-    n = int(sys.argv[1])
-    scans = int(sys.argv[2]) if len(sys.argv) > 2 else 50
-    rate = float(sys.argv[3]) if len(sys.argv) > 3 else 5.0
-    rclpy.init()
-    peer = t.Peer("planner")
+def cell_graph(peer, n, scans=50, rate=5.0, stagger=0.0, head_start=1.0, discovery_timeout=120.0):
+    """The cell graph with `peer` as the planner (up `head_start` seconds before the nodes,
+    which start `stagger` seconds apart); the figures as a dict. Raises AssertionError if
+    the planner does not see every cell within `discovery_timeout`; the nodes are stopped
+    in any case."""
     cells = [f"/cell{k}" for k in range(1, n + 1)]
     pubs, boxes, clients = {}, {}, {}
     for c in cells:
@@ -63,12 +62,10 @@ def main():
     plate = t.simulate("cell_plate", "plate", seed=2)
     lens = t.simulate("cell_lens", "ellipse", seed=3)
 
-    # The planner up first (CELL_PLANNER_HEAD_START seconds, default 1).
-    end = time.monotonic() + float(os.environ.get("CELL_PLANNER_HEAD_START", "1"))
+    end = time.monotonic() + head_start
     while time.monotonic() < end:
         peer.executor.spin_once(timeout_sec=0.02)
     t0 = time.monotonic()
-    stagger = float(os.environ.get("CELL_STAGGER", "0"))  # seconds between node starts
     nodes = []
     for k in range(1, n + 1):
         nodes.append(t.NodeProcess(f"cell{k}", ["-r", f"__ns:=/cell{k}", "-r", "__node:=tracer"]))
@@ -80,7 +77,7 @@ def main():
         peer.spin_until(
             lambda: all(pubs[c].get_subscription_count() > 0 for c in cells)
             and all(clients[c].service_is_ready() for c in cells),
-            float(os.environ.get("CELL_DISCOVERY_TIMEOUT", "120")),
+            discovery_timeout,
             lambda: "the cells (raw_scan matched: {}; calibrate ready: {}; in the graph: {})".format(
                 [c for c in cells if pubs[c].get_subscription_count() > 0],
                 [c for c in cells if clients[c].service_is_ready()],
@@ -149,8 +146,26 @@ def main():
         "calls_answered_ok": calls_ok,
         "all_corrected": corrected,
     }
+    return out
+
+
+def main():
+    n = int(sys.argv[1])
+    scans = int(sys.argv[2]) if len(sys.argv) > 2 else 50
+    rate = float(sys.argv[3]) if len(sys.argv) > 3 else 5.0
+    rclpy.init()
+    out = cell_graph(
+        t.Peer("planner"),
+        n,
+        scans,
+        rate,
+        stagger=float(os.environ.get("CELL_STAGGER", "0")),
+        head_start=float(os.environ.get("CELL_PLANNER_HEAD_START", "1")),
+        discovery_timeout=float(os.environ.get("CELL_DISCOVERY_TIMEOUT", "120")),
+    )
     print(json.dumps(out), flush=True)
-    os._exit(0 if got == sent and calls_ok == n and corrected else 1)
+    ok = out["scans_answered"] == out["scans_sent"] and out["calls_answered_ok"] == n and out["all_corrected"]
+    os._exit(0 if ok else 1)
 
 
 if __name__ == "__main__":

@@ -127,9 +127,11 @@ class NodeProcess:
 class Peer:
     """An rclpy node with helpers that wait with deadlines."""
 
-    def __init__(self, name="interop_peer"):
-        self.node = Node(name)
-        self.executor = SingleThreadedExecutor()
+    def __init__(self, name="interop_peer", context=None):
+        """`context`: an rclpy Context of its own (a DDS participant of its own), or the
+        default one."""
+        self.node = Node(name, context=context)
+        self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.received = {}
 
