@@ -617,19 +617,6 @@ impl Writer {
     (num_frags, fragment_size as u16)
   }
 
-  // The DataWriter has admitted one or more new samples into the shared send
-  // buffer and rung the doorbell. Transmit every sample we have not sent yet.
-  //
-  // nonblocking-transmit: this is also the resume entry point. When a socket
-  // returns WouldBlock mid-way, we stop and remember exactly where (`last_sent`
-  // + `sample_cursor`); the event loop re-invokes us on write readiness. Large
-  // (fragmented) samples resume from the exact fragment, never restart. Blocked
-  // sockets are recorded in `blocked_sockets` for the event loop to schedule.
-  // Prune a completed / dropped / skipped sequence number from every matched
-  // reader's `unsent_changes` set. Historically this was only done on the NACK
-  // repair path (`mark_change_sent`), so a best-effort push (which never gets
-  // ACKNACKs) left `unsent_changes` growing by one entry per sample forever.
-  // Pruning here keeps the per-reader bookkeeping bounded on the push path too.
   // tracer_calib patch: begin (discovery data in order to a catching-up reader)
   //
   // A built-in (discovery) writer sends every matched reader its samples in
@@ -651,6 +638,7 @@ impl Writer {
           .first_unsent_change()
           .is_some_and(|first| first < sequence_number))
   }
+
   fn any_reader_behind(&self, sequence_number: SequenceNumber) -> bool {
     self.sends_in_order()
       && self
@@ -677,17 +665,30 @@ impl Writer {
       }
     }
     for guid in behind {
-      if self
-        .readers
-        .get(&guid)
-        .is_some_and(|rp| rp.last_acknack_count.is_some())
-      {
+      let Some(rp) = self.readers.get_mut(&guid) else {
+        continue;
+      };
+      if rp.last_acknack_count.is_some() {
+        rp.repair_mode = true; // rounds until all is sent
         self.schedule_repair_data(guid, self.nack_response_delay);
       }
     }
   }
   // tracer_calib patch: end
 
+  // The DataWriter has admitted one or more new samples into the shared send
+  // buffer and rung the doorbell. Transmit every sample we have not sent yet.
+  //
+  // nonblocking-transmit: this is also the resume entry point. When a socket
+  // returns WouldBlock mid-way, we stop and remember exactly where (`last_sent`
+  // + `sample_cursor`); the event loop re-invokes us on write readiness. Large
+  // (fragmented) samples resume from the exact fragment, never restart. Blocked
+  // sockets are recorded in `blocked_sockets` for the event loop to schedule.
+  // Prune a completed / dropped / skipped sequence number from every matched
+  // reader's `unsent_changes` set. Historically this was only done on the NACK
+  // repair path (`mark_change_sent`), so a best-effort push (which never gets
+  // ACKNACKs) left `unsent_changes` growing by one entry per sample forever.
+  // Pruning here keeps the per-reader bookkeeping bounded on the push path too.
   fn mark_change_sent_to_all_readers(&mut self, sequence_number: SequenceNumber) {
     if self.like_stateless {
       return;
