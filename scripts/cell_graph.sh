@@ -5,7 +5,8 @@
 # Runs in a private network namespace: nothing leaves the machine.
 #   bash scripts/cell_graph.sh [N...]          (default: 1 5 10)
 # SCANS (default 50) lens scans per cell at RATE (default 5) Hz each, all cells at once;
-# CELL_STAGGER=S starts the nodes S seconds apart (default 0: all at once).
+# CELL_STAGGER=S starts the nodes S seconds apart (default 0: all at once);
+# CELL_PLANNER_HEAD_START=S starts the planner S seconds before them (default 1; 0: together).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --bins

@@ -3,7 +3,8 @@
 stock rclpy node, Kilted, Fast DDS) that subscribes to every /cellK/contour, publishes to
 every /cellK/raw_scan and calls every /cellK/calibrate. Measures, on this machine:
 
-- discovery: from starting the N nodes (all at once, or CELL_STAGGER seconds apart) until
+- discovery: from starting the N nodes (all at once, or CELL_STAGGER seconds apart; the
+  planner CELL_PLANNER_HEAD_START seconds before them, default 1) until
   the planner has matched every raw_scan subscription and sees every calibrate service
   (given up after CELL_DISCOVERY_TIMEOUT, default 120 s);
 - every scan answered and every call answered (nothing lost): per cell, a plate scan,
