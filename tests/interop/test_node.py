@@ -21,7 +21,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import traceback
 
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -34,6 +33,9 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PolygonStamped
 from tracer_calib_msgs.msg import Contour, RawScan
 from tracer_calib_msgs.srv import Calibrate
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runner  # noqa: E402
 
 NODE_BIN = os.environ["TRACER_CALIB_NODE"]
 TOOL_BIN = os.environ["TRACER_CALIB"]
@@ -106,17 +108,10 @@ class NodeProcess:
         """SIGTERM, then the seconds it took to exit."""
         if self in RUNNING:
             RUNNING.remove(self)
-        if self.proc.poll() is not None:
-            return 0.0
-        t0 = time.monotonic()
-        self.proc.send_signal(signal.SIGTERM)
-        try:
-            self.proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+        took = runner.terminate(self.proc)
+        if took is None:
             raise AssertionError(f"{self.label}: did not exit within 5 s of SIGTERM")
-        return time.monotonic() - t0
+        return took
 
     def output(self):
         self.log.flush()
@@ -775,31 +770,8 @@ def test_encoder_scale(peer):
 
 
 def run_tests(tests, only, label, summary, after_each=None):
-    """Run the `(name, fn)` pairs (all, or those named in `only`), one line each as cargo
-    test prints them (`test LABELname ... ok (1.2 s)`, with what `fn` returns if it is a
-    string), a failure's traceback and the tail of every node log in WORK, and a closing
-    `SUMMARY: N passed, M failed`. `after_each()` runs after every test. Returns M."""
-    passed = failed = 0
-    for name, fn in tests:
-        if only and name not in only:
-            continue
-        t0 = time.monotonic()
-        try:
-            detail = fn()
-            passed += 1
-            extra = f" {detail}" if isinstance(detail, str) and detail else ""
-            print(f"test {label}{name} ... ok ({time.monotonic() - t0:.1f} s){extra}", flush=True)
-        except Exception:
-            failed += 1
-            print(f"test {label}{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
-            traceback.print_exc()
-            for log in sorted(os.listdir(WORK)):
-                if log.endswith(".log"):
-                    print(f"--- {log}:\n" + open(os.path.join(WORK, log)).read()[-3000:], flush=True)
-        if after_each:
-            after_each()
-    print(f"{summary}: {passed} passed, {failed} failed", flush=True)
-    return failed
+    """runner.run_tests, with the tail of every node log in WORK after a failure."""
+    return runner.run_tests(tests, only, label, summary, after_each, log_dir=WORK)
 
 
 def main():

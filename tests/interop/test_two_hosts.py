@@ -14,13 +14,15 @@ Run by tests/interop/run.sh (`two_hosts` or a scenario name selects it), as
 """
 
 import os
-import signal
 import subprocess
 import sys
 import time
 import traceback
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+import runner  # noqa: E402
+
 DOMAIN = "42"
 PEER_TIMEOUT = 120
 
@@ -44,7 +46,6 @@ def peer_env(range_, peers):
 def peer_main(mode):
     import rclpy
 
-    sys.path.insert(0, HERE)
     import test_node as t
     from geometry_msgs.msg import PolygonStamped
     from tracer_calib_msgs.msg import Contour, RawScan
@@ -115,13 +116,7 @@ class Host:
             return f.read()
 
     def stop(self):
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+        runner.terminate(self.proc)
 
 
 def scenario(work, name, node_range, node_peers, peer_range, peer_peers, mode, expect_warnings=()):
@@ -189,20 +184,7 @@ def main():
     only = sys.argv[1:]
     if only == ["two_hosts"]:
         only = []
-    passed = failed = 0
-    for name, fn in scenarios:
-        if only and name not in only:
-            continue
-        t0 = time.monotonic()
-        try:
-            detail = fn()
-            passed += 1
-            print(f"test interop::{name} ... ok ({time.monotonic() - t0:.1f} s) {detail}", flush=True)
-        except Exception:
-            failed += 1
-            print(f"test interop::{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
-            traceback.print_exc()
-    print(f"two hosts: {passed} passed, {failed} failed", flush=True)
+    failed = runner.run_tests(scenarios, only, "interop::", "two hosts")
     os._exit(0 if failed == 0 else 1)
 
 
