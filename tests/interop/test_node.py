@@ -91,27 +91,35 @@ RUNNING = []
 
 
 class NodeProcess:
-    """tracer_calib_node in a subprocess, stopped with SIGTERM."""
+    """tracer_calib_node in a subprocess, stopped with SIGTERM. `argv`, if given, is the
+    command that runs the node instead of `NODE_BIN --ros-args ROS_ARGS`."""
 
-    def __init__(self, label, ros_args):
+    def __init__(self, label, ros_args=(), argv=None):
         self.label = label
         self.log_path = os.path.join(WORK, label + ".log")
         self.log = open(self.log_path, "w")
-        self.proc = subprocess.Popen([NODE_BIN, "--ros-args"] + ros_args, stdout=self.log, stderr=subprocess.STDOUT)
+        argv = argv or [NODE_BIN, "--ros-args", *ros_args]
+        self.proc = subprocess.Popen(argv, stdout=self.log, stderr=subprocess.STDOUT)
         RUNNING.append(self)
 
     def check_alive(self):
         if self.proc.poll() is not None:
             raise AssertionError(f"{self.label}: the node exited with {self.proc.returncode}:\n{self.output()}")
 
-    def stop(self):
+    def stop(self, timeout=5):
         """SIGTERM, then the seconds it took to exit."""
         if self in RUNNING:
             RUNNING.remove(self)
-        took = runner.terminate(self.proc)
+        took = runner.terminate(self.proc, timeout)
         if took is None:
-            raise AssertionError(f"{self.label}: did not exit within 5 s of SIGTERM")
+            raise AssertionError(f"{self.label}: did not exit within {timeout} s of SIGTERM")
         return took
+
+
+def node_in_mount_namespace(label, script):
+    """`script` (sh, starting the node) as a NodeProcess in a mount namespace of its own,
+    so that what it mounts (a tmpfs, a read-only bind) is the node's alone."""
+    return NodeProcess(label, argv=["unshare", "--mount", "--propagation", "private", "sh", "-c", script])
 
     def output(self):
         self.log.flush()
@@ -630,6 +638,19 @@ while True:
     print(f"    12 kills, the file was whole every time ({len(seen)} different versions seen)", flush=True)
 
 
+def calibrate_then_lens(peer, scan_id, name, seed, calibrate):
+    """A plate scan `scan_id` to /raw_scan, `calibrate(scan_id)`, then a lens scan
+    `scan_id + 1` (simulated with seeds `seed` and `seed + 1`): the calibrate response and
+    the lens's Contour."""
+    pub = peer.publisher("/raw_scan")
+    contours = peer.subscribe(Contour, "/contour")
+    plate = simulate(f"{name}_plate", "plate", seed=seed)
+    peer.send_scan(pub, raw_scan(scan_id, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+    r = calibrate(scan_id)
+    lens = simulate(f"{name}_lens", "ellipse", seed=seed + 1)
+    return r, peer.send_scan(pub, raw_scan(scan_id + 1, RawScan.TARGET_LENS, *lens), contours)
+
+
 def test_read_only_and_full_disk(peer):
     """A params file on a read-only or a full file system: calibrate answers
     success: false with the reason, and the calibration stays in force in memory."""
@@ -645,18 +666,15 @@ if [ {int(fill)} = 1 ]; then dd if=/dev/zero of={mnt}/filler bs=4k 2>/dev/null |
 mount -o remount,{mount_opts} {mnt}
 exec {NODE_BIN} --ros-args -r __node:=disk_tracer -p params_file:={mnt}/params.yaml --params-file {mnt}/params.yaml
 """
-        log = open(os.path.join(WORK, f"disk_{kind}.log"), "w")
-        proc = subprocess.Popen(["unshare", "--mount", "--propagation", "private", "sh", "-c", script], stdout=log, stderr=subprocess.STDOUT)
+        node = node_in_mount_namespace(f"disk_{kind}", script)
         try:
-            pub = peer.publisher("/raw_scan")
-            contours = peer.subscribe(Contour, "/contour")
-            peer.send_scan(pub, raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *simulate(f"plate_{kind}", "plate", seed=11)), contours)
-            r = peer.call("/calibrate", Calibrate.Request(scan_id=1))
+            r, c = calibrate_then_lens(
+                peer, 1, f"disk_{kind}", 11, lambda scan_id: peer.call("/calibrate", Calibrate.Request(scan_id=scan_id))
+            )
             assert not r.success, (kind, r)
             assert "applied in memory but not persisted" in r.message, (kind, r.message)
             reason = "Read-only file system" if kind == "read-only" else "No space left on device"
             assert reason in r.message, (kind, r.message)
-            c = peer.send_scan(pub, raw_scan(2, RawScan.TARGET_LENS, *simulate(f"lens_{kind}", "ellipse", seed=12)), contours)
             assert c.calibrated, f"{kind}: the calibration is not in force"
             pc = peer.param_client("/disk_tracer")
             got = peer.param(lambda: pc.get_parameters(["calibration.valid", "calibration.alpha0"])).values
@@ -664,9 +682,7 @@ exec {NODE_BIN} --ros-args -r __node:=disk_tracer -p params_file:={mnt}/params.y
             bad = peer.param(lambda: pc.set_parameters([Parameter("output_frame_id", value="x")])).results[0]
             assert not bad.successful and reason in bad.reason, (kind, bad)
         finally:
-            proc.send_signal(signal.SIGTERM)
-            proc.wait(timeout=5)
-            log.close()
+            node.stop()
 
 
 FIXTURES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "fixtures")

@@ -9,7 +9,6 @@ import datetime
 import json
 import math
 import os
-import signal
 import subprocess
 import time
 
@@ -20,7 +19,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from tracer_calib_msgs.msg import Calibration, Contour, RawScan
 from tracer_calib_msgs.srv import Calibrate
 
-from test_node import TOOL_BIN, TRUTH, WORK, NodeProcess, raw_scan, simulate
+from test_node import TOOL_BIN, TRUTH, WORK, NodeProcess, calibrate_then_lens, node_in_mount_namespace, raw_scan, simulate
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -281,26 +280,18 @@ mount --bind {ro} {ro}
 mount -o remount,bind,ro {ro}
 exec {os.environ['TRACER_CALIB_NODE']} --ros-args -r __node:=ro_tracer -p params_file:={persisted} -p history_file:={history}
 """
-    log = open(os.path.join(WORK, "ro_history.log"), "w")
-    proc = subprocess.Popen(["unshare", "--mount", "--propagation", "private", "sh", "-c", script], stdout=log, stderr=subprocess.STDOUT)
+    node = node_in_mount_namespace("ro_history", script)
     try:
-        pub = peer.publisher("/raw_scan")
-        contours = peer.subscribe(Contour, "/contour")
-        peer.send_scan(pub, raw_scan(5, RawScan.TARGET_CALIBRATION_PLATE, *simulate("ro_plate", "plate", seed=41)), contours)
-        calibrate = Calibrator(peer)
-        r = calibrate(5)
+        r, c = calibrate_then_lens(peer, 5, "ro", 41, Calibrator(peer))
         assert not r.success, r
         assert r.message.startswith(f"calibration applied in memory but not persisted: cannot append to {history}: Read-only file system"), r.message
-        c = peer.send_scan(pub, raw_scan(6, RawScan.TARGET_LENS, *simulate("ro_lens", "ellipse", seed=42)), contours)
         assert c.calibrated, "the calibration is not in force"
         late = latched_subscription(peer)
         peer.spin_until(lambda: any(m.scan_id == 5 for m in late), 10, "the calibration in force, latched")
         m = next(m for m in late if m.scan_id == 5)
         assert m.valid and m.alpha0 == r.alpha0, m
     finally:
-        proc.send_signal(signal.SIGTERM)
-        proc.wait(timeout=5)
-        log.close()
+        node.stop()
     with open(history) as f:
         assert f.read() == before, "the history file changed"
     assert not os.path.exists(persisted), "parameters persisted without their record"
@@ -333,22 +324,14 @@ wait $pid || true
 wait $pid || true
 cp {mnt}/h.jsonl {after}
 """
-    log = open(os.path.join(WORK, "full_history.log"), "w")
-    proc = subprocess.Popen(["unshare", "--mount", "--propagation", "private", "sh", "-c", script], stdout=log, stderr=subprocess.STDOUT)
+    node = node_in_mount_namespace("full_history", script)
     try:
-        pub = peer.publisher("/raw_scan")
-        contours = peer.subscribe(Contour, "/contour")
-        peer.send_scan(pub, raw_scan(7, RawScan.TARGET_CALIBRATION_PLATE, *simulate("full_plate", "plate", seed=51)), contours)
-        calibrate = Calibrator(peer)
-        r = calibrate(7)
+        r, c = calibrate_then_lens(peer, 7, "full", 51, Calibrator(peer))
         assert not r.success, r
         assert r.message.startswith(f"calibration applied in memory but not persisted: cannot append to {mnt}/h.jsonl: No space left on device"), r.message
-        c = peer.send_scan(pub, raw_scan(8, RawScan.TARGET_LENS, *simulate("full_lens", "ellipse", seed=52)), contours)
         assert c.calibrated, "the calibration is not in force"
     finally:
-        proc.send_signal(signal.SIGTERM)
-        proc.wait(timeout=10)
-        log.close()
+        node.stop(timeout=10)
     with open(after) as f:
         assert f.read() == before, "the history file changed"
     assert not os.path.exists(persisted), "parameters persisted without their record"
