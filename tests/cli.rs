@@ -1,6 +1,6 @@
 //! The offline tool as users run it: arguments, files, JSON, exit statuses.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn tool(args: &[&str]) -> Output {
@@ -21,6 +21,40 @@ fn json(o: &Output) -> serde_json::Value {
     let text = String::from_utf8_lossy(&o.stdout);
     assert_eq!(text.lines().count(), 1, "exactly one line of JSON: {text}");
     serde_json::from_str(&text).expect("valid JSON")
+}
+
+/// A params file with the calibration `v` (`calibrate --json`'s output) in force; with
+/// `scale`, `calibration.scale` too.
+fn calibration_params(name: &str, v: &serde_json::Value, scale: Option<&serde_json::Value>) -> PathBuf {
+    let params = temp(name);
+    let scale = scale.map(|k| format!("    calibration.scale: {k}\n")).unwrap_or_default();
+    std::fs::write(
+        &params,
+        format!(
+            "tracer_calibrator:\n  ros__parameters:\n    calibration.alpha0: {}\n    calibration.offset: {}\n    calibration.delta_l: {}\n{scale}    calibration.valid: true\n",
+            v["alpha0"], v["offset"], v["delta_l"]
+        ),
+    )
+    .unwrap();
+    params
+}
+
+/// `tracer_calib correct` of the bag `input` with `params`: the corrected bag to `out`,
+/// the OMA file to `oma`, then `extra`.
+fn correct_to_oma(input: &str, params: &Path, out: &Path, oma: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "correct",
+        "--input",
+        input,
+        "--params",
+        params.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--oma",
+        oma.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    tool(&args)
 }
 
 #[test]
@@ -223,31 +257,10 @@ fn simulate_correct_and_read_the_oma_back() {
     assert!(o.status.success(), "{}", stderr(&o));
     let cal = tool(&["calibrate", "--input", b, "--json"]);
     assert_eq!(cal.status.code(), Some(0), "{}", stderr(&cal));
-    let v = json(&cal);
-    let params = temp("sim_cal.yaml");
-    std::fs::write(
-        &params,
-        format!(
-            "tracer_calibrator:\n  ros__parameters:\n    calibration.alpha0: {}\n    calibration.offset: {}\n    calibration.delta_l: {}\n    calibration.valid: true\n",
-            v["alpha0"], v["offset"], v["delta_l"]
-        ),
-    )
-    .unwrap();
+    let params = calibration_params("sim_cal.yaml", &json(&cal), None);
     let out = temp("sim_corrected.mcap");
     let oma_path = temp("sim_lens.oma");
-    let o = tool(&[
-        "correct",
-        "--input",
-        b,
-        "--params",
-        params.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--oma",
-        oma_path.to_str().unwrap(),
-        "--eye",
-        "L",
-    ]);
+    let o = correct_to_oma(b, &params, &out, &oma_path, &["--eye", "L"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).starts_with("2 scans corrected (calibrated), 0 rejected"));
     let o = tool(&["oma", "--input", oma_path.to_str().unwrap(), "--json"]);
@@ -386,27 +399,9 @@ fn correct_applies_the_encoder_scale() {
     assert_eq!(cal.status.code(), Some(0), "{}", stderr(&cal));
     let v = json(&cal);
     let radius_at_0 = |scale: &serde_json::Value, name: &str| {
-        let params = temp(&format!("{name}.yaml"));
-        std::fs::write(
-            &params,
-            format!(
-                "tracer_calibrator:\n  ros__parameters:\n    calibration.alpha0: {}\n    calibration.offset: {}\n    calibration.delta_l: {}\n    calibration.scale: {scale}\n    calibration.valid: true\n",
-                v["alpha0"], v["offset"], v["delta_l"]
-            ),
-        )
-        .unwrap();
+        let params = calibration_params(&format!("{name}.yaml"), &v, Some(scale));
         let (out, oma) = (temp(&format!("{name}.mcap")), temp(&format!("{name}.oma")));
-        let o = tool(&[
-            "correct",
-            "--input",
-            b,
-            "--params",
-            params.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--oma",
-            oma.to_str().unwrap(),
-        ]);
+        let o = correct_to_oma(b, &params, &out, &oma, &[]);
         assert!(o.status.success(), "{}", stderr(&o));
         let t = json(&tool(&["oma", "--input", oma.to_str().unwrap(), "--json"]));
         t["traces"][0]["radii"][0].as_f64().unwrap()
