@@ -76,21 +76,7 @@ mod tests {
     use super::*;
 
     fn record(scan_id: u32) -> Record {
-        Record {
-            time: "2026-11-23T10:12:37.123Z".into(),
-            node: "/t".into(),
-            scan_id,
-            model: "full".into(),
-            alpha0: 0.03,
-            offset: 0.005,
-            delta_l: 0.002,
-            scale: 1.0,
-            stddev: vec![1e-4, 5e-6, 1e-6],
-            rms_residual: 5e-6,
-            samples_used: 400,
-            iterations: 7,
-            previous: None,
-        }
+        Record { node: "/t".into(), scan_id, ..Record::example() }
     }
 
     #[test]

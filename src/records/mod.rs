@@ -322,16 +322,15 @@ pub fn parse_utc(s: &str) -> Option<SystemTime> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn record(time: &str, alpha0: f64, previous: Option<Previous>) -> Record {
+impl Record {
+    /// A full-model calibration record, for tests to vary.
+    pub(crate) fn example() -> Record {
         Record {
-            time: time.into(),
+            time: "2026-11-23T10:12:37.123Z".into(),
             node: "/tracer_calibrator".into(),
             scan_id: 10,
             model: "full".into(),
-            alpha0,
+            alpha0: 0.03,
             offset: 0.005,
             delta_l: 0.002,
             scale: 1.0,
@@ -339,8 +338,17 @@ mod tests {
             rms_residual: 5e-6,
             samples_used: 400,
             iterations: 7,
-            previous,
+            previous: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(time: &str, alpha0: f64, previous: Option<Previous>) -> Record {
+        Record { time: time.into(), alpha0, previous, ..Record::example() }
     }
 
     #[test]
