@@ -115,16 +115,16 @@ class NodeProcess:
             raise AssertionError(f"{self.label}: did not exit within {timeout} s of SIGTERM")
         return took
 
+    def output(self):
+        self.log.flush()
+        with open(self.log_path) as f:
+            return f.read()
+
 
 def node_in_mount_namespace(label, script):
     """`script` (sh, starting the node) as a NodeProcess in a mount namespace of its own,
     so that what it mounts (a tmpfs, a read-only bind) is the node's alone."""
     return NodeProcess(label, argv=["unshare", "--mount", "--propagation", "private", "sh", "-c", script])
-
-    def output(self):
-        self.log.flush()
-        with open(self.log_path) as f:
-            return f.read()
 
 
 class Peer:
