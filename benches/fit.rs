@@ -13,6 +13,7 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{Dyn, Owned, U5, Vector2};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
+use tracer_calib::cell::NodeState;
 use tracer_calib::engine::calibrate::{Options, calibrate};
 use tracer_calib::engine::correct::{Corrector, correct, default_max_gap, resample_radii};
 use tracer_calib::engine::geometry::Mounting;
@@ -22,8 +23,7 @@ use tracer_calib::engine::model::{ModelKind, PlateSpec};
 use tracer_calib::engine::scan::Scan;
 use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
-use tracer_calib::ros::msgs::{Header, RawScan, from_cdr, to_cdr};
-use tracer_calib::ros::state::NodeState;
+use tracer_calib::interfaces::{Header, RawScan, from_cdr, to_cdr};
 
 /// The full model behind the `levenberg-marquardt` crate's trait: residuals and the
 /// n×5 Jacobian from the same `for_each_row` our solver uses.

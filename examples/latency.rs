@@ -40,7 +40,7 @@ use ros2_client::{Context, Name, NodeName, NodeOptions, QosProfile, qos::*};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
-use tracer_calib::ros::msgs::{Contour, Header, RawScan, RosMsg};
+use tracer_calib::interfaces::{Contour, Header, RawScan, RosMsg};
 
 /// Round trips in the first 20 s are not timed. Every process's heap grows while
 /// rustdds' reader and writer caches fill up to their steady state (samples are freed
@@ -85,17 +85,13 @@ fn relay(prefix: &str) {
     let publisher = node.create_publisher::<RawScan>(&t_out, None).unwrap();
     let contour_pub = node.create_publisher::<Contour>(&t_contour, None).unwrap();
     let t_polygon = node
-        .create_topic(
-            &name("polygon"),
-            tracer_calib::ros::msgs::type_names::POLYGON_STAMPED.message_type_name(),
-            &qos(),
-        )
+        .create_topic(&name("polygon"), tracer_calib::interfaces::PolygonStamped::NAME.message_type_name(), &qos())
         .unwrap();
-    let polygon_pub = node.create_publisher::<tracer_calib::ros::msgs::PolygonStamped>(&t_polygon, None).unwrap();
-    let polygon = tracer_calib::ros::msgs::PolygonStamped {
+    let polygon_pub = node.create_publisher::<tracer_calib::interfaces::PolygonStamped>(&t_polygon, None).unwrap();
+    let polygon = tracer_calib::interfaces::PolygonStamped {
         header: Header::default(),
-        polygon: tracer_calib::ros::msgs::Polygon {
-            points: (0..400).map(|k| tracer_calib::ros::msgs::Point32 { x: k as f32, y: 0.0, z: 0.0 }).collect(),
+        polygon: tracer_calib::interfaces::Polygon {
+            points: (0..400).map(|k| tracer_calib::interfaces::Point32 { x: k as f32, y: 0.0, z: 0.0 }).collect(),
         },
     };
     let contour = Contour {
@@ -104,7 +100,7 @@ fn relay(prefix: &str) {
         target: RawScan::TARGET_LENS,
         calibrated: true,
         points: (0..400)
-            .map(|k| tracer_calib::ros::msgs::Point { x: 0.02 + k as f64 * 1e-6, y: 0.01, z: 0.0 })
+            .map(|k| tracer_calib::interfaces::Point { x: 0.02 + k as f64 * 1e-6, y: 0.01, z: 0.0 })
             .collect(),
         radii: (0..400).map(|k| 0.02 + k as f64 * 1e-6).collect(),
     };

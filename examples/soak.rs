@@ -26,8 +26,8 @@ use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::model::PlateSpec;
 use tracer_calib::engine::shape::{Ellipse, RoundedRect, Shape};
 use tracer_calib::engine::simulate::{SimOptions, simulate};
-use tracer_calib::ros::msgs::{
-    Calibrate, CalibrateRequest, Contour, DiagnosticArray, Header, RawScan, RosMsg, RosService, type_names,
+use tracer_calib::interfaces::{
+    Calibrate, CalibrateRequest, Contour, DiagnosticArray, Header, RawScan, RosMsg, RosService,
 };
 
 fn qos(depth: usize) -> QosProfile {
@@ -111,11 +111,7 @@ fn main() {
     let t_contour =
         n.create_topic(&Name::new("/", "contour").unwrap(), Contour::NAME.message_type_name(), &qos(100)).unwrap();
     let t_diag = n
-        .create_topic(
-            &Name::new("/", "diagnostics").unwrap(),
-            type_names::DIAGNOSTIC_ARRAY.message_type_name(),
-            &qos(10),
-        )
+        .create_topic(&Name::new("/", "diagnostics").unwrap(), DiagnosticArray::NAME.message_type_name(), &qos(10))
         .unwrap();
     let publisher = n.create_publisher::<RawScan>(&t_raw, None).unwrap();
     let contours = n.create_subscription::<Contour>(&t_contour, None).unwrap();

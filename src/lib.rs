@@ -1,14 +1,28 @@
 //! `tracer_calib`: makes the contact contour tracer of a lens-edging cell measure true.
 //!
-//! - [`engine`]: the pure calibration engine (geometry, plate models, LM, correction);
-//! - the shell around it: files ([`io`]) and the offline tool ([`cli`]).
+//! The layers, each using only those listed before it:
+//!
+//! - [`engine`]: the pure calibration engine (geometry, plate models, LM, correction): no
+//!   I/O, no ROS types;
+//! - [`interfaces`]: the ROS message types, their `.msg` texts and the CDR codec;
+//! - [`params`], [`records`]: the node's parameters (and their YAML file), the
+//!   calibration history;
+//! - [`cell`]: the cell's logic (scan checks, correction, calibration in force, records,
+//!   diagnostics), without any middleware;
+//! - [`io`]: files (CSV, rosbag2, OMA, SVG);
+//! - [`rmw`]: joining a ROS graph (the ROS environment, the DDS participant);
+//! - [`ros`]: the node shell (`tracer_calib_node`); [`cli`]: the offline tool
+//!   (`tracer_calib`). Neither uses the other.
 //!
 //! Conventions (see the README): SI units (metres, radians), the rail turns
-//! counter-clockwise, `P = (rho - dL) u + d v`.
+//! counter-clockwise, `P = (k rho - dL) u + d v`.
 
+pub mod cell;
 pub mod cli;
 pub mod engine;
+pub mod interfaces;
 pub mod io;
 pub mod params;
 pub mod records;
+pub mod rmw;
 pub mod ros;

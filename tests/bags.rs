@@ -14,11 +14,11 @@ use std::process::Command;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use tracer_calib::engine::{self, Mounting, PlateSpec, Scan};
-use tracer_calib::io::bag::{Bag, BagError, BagWriter, StorageFormat, definitions};
-use tracer_calib::ros::msgs::{
-    Contour, DiagnosticArray, FieldDef, Header, InterfaceName, Point, Point32, Polygon, PolygonStamped, RawScan,
-    RosMsg, Time,
+use tracer_calib::interfaces::definition;
+use tracer_calib::interfaces::{
+    Contour, Definition, Header, InterfaceName, Point, Point32, Polygon, PolygonStamped, RawScan, RosMsg, Time,
 };
+use tracer_calib::io::bag::{Bag, BagError, BagWriter, StorageFormat};
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -42,7 +42,19 @@ struct StdString {
 
 impl RosMsg for StdString {
     const NAME: InterfaceName = InterfaceName::msg("std_msgs", "String");
-    const FIELDS: &'static [FieldDef] = &[("string", "data")];
+    const DEFINITION: Definition = Definition::Msg("string data\n");
+}
+
+/// `tf2_msgs/msg/TFMessage`, whose dependency (`geometry_msgs/TransformStamped`) the crate
+/// has no definition of: a type that cannot be written to a bag.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct TfMessage {
+    transforms: Vec<u8>,
+}
+
+impl RosMsg for TfMessage {
+    const NAME: InterfaceName = InterfaceName::msg("tf2_msgs", "TFMessage");
+    const DEFINITION: Definition = Definition::Msg("geometry_msgs/TransformStamped[] transforms\n");
 }
 
 // ------------------------------------------------------------------------------ samples
@@ -182,7 +194,7 @@ fn check_mcap_records(file: &Path) {
     assert_eq!(profile.as_deref(), Some("ros2"));
     assert_eq!(channels.len(), 4);
     for ty in ["tracer_calib_msgs/msg/RawScan", "tracer_calib_msgs/msg/Contour", "geometry_msgs/msg/PolygonStamped"] {
-        assert_eq!(schemas.get(ty), definitions::full_definition(ty).as_ref(), "{ty}");
+        assert_eq!(schemas.get(ty), definition::full_definition(ty).as_ref(), "{ty}");
     }
     let raw_scan = &schemas["tracer_calib_msgs/msg/RawScan"];
     assert!(raw_scan.starts_with("# One revolution of a contact contour tracer"));
@@ -718,10 +730,10 @@ fn undecodable_message_names_topic_index_and_time() {
         .profile("ros2")
         .create(std::io::BufWriter::new(std::fs::File::create(&path).unwrap()))
         .unwrap();
-    let def = definitions::full_definition("tracer_calib_msgs/msg/RawScan").unwrap();
+    let def = definition::full_definition("tracer_calib_msgs/msg/RawScan").unwrap();
     let schema = w.add_schema("tracer_calib_msgs/msg/RawScan", "ros2msg", def.as_bytes()).unwrap();
     let channel = w.add_channel(schema, "/raw_scan", "cdr", &BTreeMap::new()).unwrap();
-    let good = tracer_calib::ros::msgs::to_cdr(&raw_scan(1, 0)).unwrap();
+    let good = tracer_calib::interfaces::to_cdr(&raw_scan(1, 0)).unwrap();
     for (seq, (t, data)) in [(100u64, &good[..]), (200, &good[..40])].into_iter().enumerate() {
         let header =
             mcap::records::MessageHeader { channel_id: channel, sequence: seq as u32, log_time: t, publish_time: t };
@@ -765,10 +777,10 @@ fn writer_errors() {
             path.display()
         )
     );
-    // Only types whose definitions are known can be written.
-    let err = w.add_topic::<DiagnosticArray>("/diagnostics").unwrap_err().to_string();
+    // Only types whose complete definitions are known can be written.
+    let err = w.add_topic::<TfMessage>("/tf").unwrap_err().to_string();
     assert!(
-        err.starts_with("cannot write diagnostic_msgs/msg/DiagnosticArray to a bag: its message definition is unknown"),
+        err.starts_with("cannot write tf2_msgs/msg/TFMessage to a bag: its message definition is unknown"),
         "{err}"
     );
     w.finish().unwrap();

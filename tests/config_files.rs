@@ -1,7 +1,8 @@
 //! The shipped params files in config/ load as the node loads them.
 
 use tracer_calib::params::ParamValue;
-use tracer_calib::ros::args::{RosArgs, RosEnv};
+use tracer_calib::rmw::RosEnv;
+use tracer_calib::ros::args::RosArgs;
 use tracer_calib::ros::node::Config;
 
 fn load(argv: &[&str]) -> Result<Config, String> {

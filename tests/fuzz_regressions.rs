@@ -3,13 +3,13 @@
 //! behaviour, a clear error rather than a panic or an abort.
 
 use nalgebra::Vector2;
+use tracer_calib::cell::NodeState;
 use tracer_calib::engine::correct::resample_radii;
 use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::interfaces::{CalibrateRequest, RawScan, from_cdr};
 use tracer_calib::io::oma;
 use tracer_calib::params::file as params_file;
 use tracer_calib::params::{ParamValue, Parameters};
-use tracer_calib::ros::msgs::{CalibrateRequest, RawScan, from_cdr};
-use tracer_calib::ros::state::NodeState;
 
 /// `fuzz/fuzz_targets/oma.rs`: a `TRCFMT` declaring an absurd point count made the reader
 /// preallocate that many radii (`Vec::with_capacity(N)`): out of memory, or a "capacity

@@ -20,8 +20,8 @@ use tracer_calib::engine::calibrate::{Calibration, Options, calibrate};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::params::file as params_file;
 use tracer_calib::params::{ParamValue, Parameters, names};
-use tracer_calib::ros::msgs::{RawScan, from_cdr};
-use tracer_calib::ros::state::NodeState;
+use tracer_calib::interfaces::{RawScan, from_cdr};
+use tracer_calib::cell::NodeState;
 
 /// The fit is the expensive part: only scans up to this many samples are fitted.
 const MAX_FIT_SAMPLES: usize = 2000;

@@ -10,7 +10,8 @@
 
 use libfuzzer_sys::fuzz_target;
 use tracer_calib::params::Parameters;
-use tracer_calib::ros::args::{RosArgs, ros2_name, validate_full_name};
+use tracer_calib::ros::args::RosArgs;
+use tracer_calib::ros::names::{ros2_name, validate_full_name};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);

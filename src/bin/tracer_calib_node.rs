@@ -10,7 +10,8 @@
 
 use std::process::ExitCode;
 
-use tracer_calib::ros::args::{RosArgs, RosEnv};
+use tracer_calib::rmw::RosEnv;
+use tracer_calib::ros::args::RosArgs;
 use tracer_calib::ros::node::{Config, run};
 
 fn main() -> ExitCode {

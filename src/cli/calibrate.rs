@@ -3,14 +3,14 @@
 use std::path::{Path, PathBuf};
 
 use super::exit;
+use crate::cell::{intake, response_for};
 use crate::engine::calibrate::{Options, calibrate};
 use crate::engine::model::ModelKind;
 use crate::engine::scan::Scan;
+use crate::interfaces::{CalibrateResponse, RawScan};
 use crate::io::bag::Bag;
 use crate::io::csv;
 use crate::params::{Parameters, ParamsFile, file as params_file};
-use crate::ros::msgs::{CalibrateResponse, RawScan};
-use crate::ros::state::response_for;
 
 /// Fit alpha0, d and dL to a scan of the calibration plate.
 ///
@@ -117,7 +117,7 @@ pub fn load_scan(args: &Args, p: &Parameters) -> Result<Scan, String> {
     let path = &args.input;
     let scan = if is_bag(path) {
         let msg = plate_scan_from_bag(path, &args.topic, args.scan_id)?;
-        Scan::from_counts(msg.steps_per_revolution, &msg.step, &msg.counts, p.meters_per_count)
+        intake::to_scan(&msg, p.meters_per_count)
             .map_err(|e| format!("{}: scan {} on {}: {e}", path.display(), msg.scan_id, args.topic))?
     } else {
         let rev = csv::read(path)?;

@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 
 use super::calibrate::default_section;
 use super::exit;
+use crate::cell::NodeState;
+use crate::interfaces::{Contour, PolygonStamped, RawScan};
 use crate::io::bag::{Bag, BagWriter};
 use crate::io::oma::{self, Eye, OmaFile, Trace, TraceType};
 use crate::params::{Parameters, file as params_file};
-use crate::ros::msgs::{Contour, PolygonStamped, RawScan};
-use crate::ros::state::NodeState;
 
 /// Correct every RawScan of a bag with a calibration, into a bag of Contour and
 /// PolygonStamped messages (and optionally VCA/OMA trace files).

@@ -24,7 +24,7 @@ use crate::engine::geometry::Mounting;
 use crate::engine::model::{ModelKind, PlateSpec};
 use crate::engine::shape::{Ellipse, RoundedRect, Shape};
 use crate::engine::simulate::{SimOptions, SimScan, simulate};
-use crate::ros::msgs::{Calibrate, CalibrateRequest, Contour, Header, RawScan, RosMsg, RosService};
+use crate::interfaces::{Calibrate, CalibrateRequest, Contour, Header, RawScan, RosMsg, RosService};
 
 /// Simulate a miscalibrated tracer, run the node, calibrate it over DDS, correct scans.
 ///

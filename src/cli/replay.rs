@@ -7,9 +7,9 @@ use std::time::{Duration, Instant};
 use ros2_client::{Context, NodeName, NodeOptions, QosProfile, qos::*};
 
 use super::exit;
+use crate::interfaces::{Contour, RawScan, RosMsg};
 use crate::io::bag::Bag;
-use crate::ros::args::{RosEnv, ros2_name};
-use crate::ros::msgs::{Contour, RawScan, RosMsg};
+use crate::rmw::RosEnv;
 
 /// Publish a bag's RawScan (and Contour) messages with their recorded timing.
 ///
@@ -99,7 +99,7 @@ fn replay(args: &Args) -> Result<String, String> {
     timeline.sort_by_key(|(t, _, _)| *t);
 
     let env = RosEnv::from_env().map_err(|e| e.to_string())?;
-    let participant = crate::ros::discovery::participant_from_env(&env)?;
+    let participant = crate::rmw::dds::participant_from_env(&env)?;
     let ctx = Context::from_domain_participant(participant).map_err(|e| format!("{e:?}"))?;
     let mut node = ctx
         .new_node(NodeName::new("/", "tracer_calib_replay").unwrap(), NodeOptions::new().enable_rosout(false))
@@ -112,7 +112,7 @@ fn replay(args: &Args) -> Result<String, String> {
     let mut raw_pubs = Vec::new();
     let mut contour_pubs = Vec::new();
     for (name, kind) in &topics {
-        let n = ros2_name(name).map_err(|e| e.to_string())?;
+        let n = ros2_client::Name::parse(name).map_err(|e| format!("invalid topic or service name '{name}': {e}"))?;
         if *kind == "raw" {
             let topic = node.create_topic(&n, RawScan::NAME.message_type_name(), &qos).map_err(mk)?;
             raw_pubs.push(Some(node.create_publisher::<RawScan>(&topic, None).map_err(mk)?));

@@ -11,9 +11,9 @@ use crate::engine::geometry::Mounting;
 use crate::engine::model::PlateSpec;
 use crate::engine::shape::{Ellipse, RoundedRect};
 use crate::engine::simulate::{SimOptions, SimScan, simulate};
+use crate::interfaces::{Header, RawScan, Time};
 use crate::io::bag::BagWriter;
 use crate::io::csv::{self, RawRevolution};
-use crate::ros::msgs::{Header, RawScan, Time};
 
 /// The shapes the simulator traces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

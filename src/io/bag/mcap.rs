@@ -19,7 +19,6 @@ use mcap::read::{ChunkFlattener, Options};
 use mcap::records::{MessageHeader, Metadata, Record};
 use mcap::{Compression, McapError, WriteOptions, Writer};
 
-use super::definitions;
 use super::{BagError, BagMessage, TopicInfo, metadata};
 
 struct ChannelInfo {
@@ -133,8 +132,15 @@ impl McapFile {
     }
 
     /// Adds channel `topic` of type `type_name` (`pkg/msg/Type`), and the type's schema record the
-    /// first time it is seen. Adding the same topic with the same type again does nothing.
-    pub fn add_channel(&mut self, topic: &str, type_name: &str) -> Result<(), BagError> {
+    /// first time it is seen, with the complete definition `definition` gives (`None`: the
+    /// type or one of its dependencies is unknown, an error). Adding the same topic with the
+    /// same type again does nothing.
+    pub fn add_channel(
+        &mut self,
+        topic: &str,
+        type_name: &str,
+        definition: impl FnOnce() -> Option<String>,
+    ) -> Result<(), BagError> {
         if let Some(c) = self.channels.iter().find(|c| c.name == topic) {
             if c.type_name == type_name {
                 return Ok(());
@@ -152,8 +158,8 @@ impl McapFile {
         let schema_id = match self.schemas.get(type_name) {
             Some(&id) => id,
             None => {
-                let definition = definitions::full_definition(type_name)
-                    .ok_or_else(|| BagError::NoDefinition { type_name: type_name.to_string() })?;
+                let definition =
+                    definition().ok_or_else(|| BagError::NoDefinition { type_name: type_name.to_string() })?;
                 let id = self
                     .writer
                     .add_schema(type_name, "ros2msg", definition.as_bytes())

@@ -11,7 +11,8 @@
 //! it travelled over DDS (so [`from_cdr`] decodes it as is).
 //!
 //! - MCAP (`.mcap`, default since Iron), see [`mcap`]: the `ros2` profile; every
-//!   type's complete `.msg` definition is stored in a schema record (see [`definitions`]).
+//!   type's complete `.msg` definition is stored in a schema record (see
+//!   [`crate::interfaces::definition`]).
 //! - sqlite3 (`.db3`, default up to Humble), see [`sqlite`]: tables `topics` and `messages`.
 //!
 //! [`Bag::open`] takes a bag directory, its `metadata.yaml`, or a bare `.mcap` / `.db3` file; a
@@ -26,7 +27,7 @@
 //! ```no_run
 //! use std::path::Path;
 //! use tracer_calib::io::bag::{Bag, BagWriter};
-//! use tracer_calib::ros::msgs::RawScan;
+//! use tracer_calib::interfaces::RawScan;
 //!
 //! let mut out = BagWriter::create(Path::new("scans"))?;
 //! out.write("/raw_scan", 1_700_000_000_000_000_000, &RawScan::default())?;
@@ -39,7 +40,6 @@
 //! # Ok::<(), tracer_calib::io::bag::BagError>(())
 //! ```
 
-pub mod definitions;
 pub mod mcap;
 pub mod metadata;
 pub mod sqlite;
@@ -48,7 +48,7 @@ mod writer;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::ros::msgs::{CdrError, RosMsg, from_cdr};
+use crate::interfaces::{CdrError, RosMsg, definition, from_cdr};
 
 pub use writer::BagWriter;
 
@@ -188,7 +188,8 @@ pub enum BagError {
         /// The topic name.
         topic: String,
     },
-    /// Writing: no message definition for the type is known (see [`definitions`]).
+    /// Writing: no message definition for the type, or one it depends on, is known (see
+    /// [`crate::interfaces::KNOWN`]).
     #[error("cannot write {type_name} to a bag: its message definition is unknown (known: {})", known_types())]
     NoDefinition {
         /// The type.
@@ -217,7 +218,7 @@ pub enum BagError {
 }
 
 fn known_types() -> String {
-    definitions::known_types().collect::<Vec<_>>().join(", ")
+    definition::known_types().collect::<Vec<_>>().join(", ")
 }
 
 /// The storage plugin of a bag.

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use super::mcap::McapFile;
 use super::{BagError, metadata};
-use crate::ros::msgs::{RosMsg, to_cdr};
+use crate::interfaces::{RosMsg, definition, to_cdr};
 
 /// Writes an MCAP rosbag2 bag.
 ///
@@ -12,7 +12,7 @@ use crate::ros::msgs::{RosMsg, to_cdr};
 /// bag directory `NAME/` holding `NAME_0.mcap` and `metadata.yaml`, like `ros2 bag record -s mcap`
 /// (the directory must not exist, or be empty). Topics carry the complete message definition
 /// of their type, so any rosbag2 tool can decode them; the types with known definitions are
-/// listed in [`definitions`](super::definitions).
+/// listed in [`KNOWN`](crate::interfaces::KNOWN).
 ///
 /// Call [`BagWriter::finish`]: it completes the MCAP file and writes `metadata.yaml`, and
 /// reports errors. Dropping an unfinished writer finishes it too, logging any error.
@@ -73,7 +73,7 @@ impl BagWriter {
     ///
     /// [`write`]: BagWriter::write
     pub fn add_topic<T: RosMsg>(&mut self, name: &str) -> Result<(), BagError> {
-        self.file().add_channel(name, &T::NAME.ros_name())
+        self.file().add_channel(name, &T::NAME.ros_name(), definition::full_definition_of::<T>)
     }
 
     /// Writes `msg` to `topic` with log time `log_time_ns` (ns since the epoch; also used as

@@ -21,7 +21,7 @@ use std::net::{IpAddr, Ipv4Addr, ToSocketAddrs};
 
 use rustdds::{DomainParticipant, DomainParticipantBuilder};
 
-use super::args::{DiscoveryRange, RosEnv};
+use super::env::{DiscoveryRange, RosEnv};
 
 /// Participant ids probed at each static peer: how many ROS processes (DDS participants)
 /// a peer host may run and still be found, the range rmw_fastrtps probes on localhost.

@@ -1,0 +1,137 @@
+//! A calibrate request: the requested plate scan fitted; unless a dry run, the result
+//! applied, recorded in the history and persisted in the params file. A failed fit, or one
+//! that cannot be recorded, leaves the calibration in force as it was on disk.
+
+use std::time::SystemTime;
+
+use super::{InForce, NodeState};
+use crate::engine::calibrate::{Calibration, calibrate};
+use crate::engine::geometry::Mounting;
+use crate::interfaces::{CalibrateRequest, CalibrateResponse};
+use crate::records::{self, Previous, Record};
+
+/// What a calibrate request did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateOutcome {
+    pub response: CalibrateResponse,
+    /// The new calibration, if one was applied (the node mirrors it into its ROS
+    /// parameters).
+    pub applied: Option<Mounting>,
+}
+
+impl NodeState {
+    /// Handle a calibrate request: fit the requested plate scan; unless it is a dry
+    /// run, apply the result and persist the parameters. A failed fit leaves the
+    /// calibration in force untouched.
+    pub fn on_calibrate(&mut self, req: &CalibrateRequest) -> CalibrateOutcome {
+        let fail = |this: &mut Self, message: String| {
+            this.stats.calibrations_failed += 1;
+            this.stats.last_fit_message = message.clone();
+            CalibrateOutcome {
+                response: CalibrateResponse { success: false, message, ..Default::default() },
+                applied: None,
+            }
+        };
+        let plate =
+            if req.scan_id == 0 { self.plates.back() } else { self.plates.iter().find(|p| p.scan_id == req.scan_id) };
+        let Some(plate) = plate else {
+            let have: Vec<String> = self.plates.iter().map(|p| p.scan_id.to_string()).collect();
+            let message = if have.is_empty() {
+                "no calibration-plate scan received yet (publish a RawScan with target TARGET_CALIBRATION_PLATE)"
+                    .to_string()
+            } else {
+                format!("no calibration-plate scan with scan_id {} (kept: {})", req.scan_id, have.join(", "))
+            };
+            return fail(self, message);
+        };
+        let scan_id = plate.scan_id;
+        let cal = match calibrate(&plate.scan, &self.params.plate, &self.params.calibration_options()) {
+            Ok(cal) => cal,
+            Err(e) => return fail(self, format!("calibration failed on scan {scan_id}: {e}")),
+        };
+        self.stats.last_fit_rms = Some(cal.rms_residual);
+        let mut response = response_for(&cal, format!("scan {scan_id}: {}", cal.summary()));
+        let mut stddev = cal.stddev.to_vec();
+        if cal.model.fits_scale() {
+            stddev.push(cal.scale_stddev);
+        }
+        let previous = self.params.calibration_in_force();
+        let drift = previous.and_then(|prev| {
+            let prev_sd = (self.in_force.stddev.len() >= 3).then_some(self.in_force.stddev.as_slice());
+            records::drift(&cal.mounting, &stddev, &prev, prev_sd)
+        });
+        if let Some(d) = &drift {
+            response.message = format!("{}; moved since the previous calibration: {}", response.message, d.describe());
+            if d.exceeds(self.params.drift_warn_sigma) {
+                response.message = format!(
+                    "{} — more than calibration.drift_warn_sigma = {}: check the tracer",
+                    response.message, self.params.drift_warn_sigma
+                );
+            }
+        }
+        if req.dry_run {
+            response.message = format!("dry run, not applied: {}", response.message);
+            self.stats.last_fit_message = response.message.clone();
+            return CalibrateOutcome { response, applied: None };
+        }
+        let now = SystemTime::now();
+        let record = Record {
+            time: records::format_utc(now),
+            node: self.fqn.clone(),
+            scan_id,
+            model: cal.model.as_str().to_string(),
+            alpha0: cal.mounting.alpha0,
+            offset: cal.mounting.offset,
+            delta_l: cal.mounting.delta_l,
+            scale: cal.mounting.scale,
+            stddev: stddev.clone(),
+            rms_residual: cal.rms_residual,
+            samples_used: cal.samples_used as u32,
+            iterations: cal.iterations as u32,
+            previous: previous.map(Previous::from),
+        };
+        self.params.calibration = cal.mounting;
+        self.params.calibration_valid = true;
+        // The time the record gives, to the millisecond: what a restart reads back.
+        self.in_force = InForce {
+            applied_at: record.applied_at().unwrap_or(now),
+            model: record.model.clone(),
+            scan_id,
+            stddev,
+            rms_residual: cal.rms_residual,
+            samples_used: record.samples_used,
+            source: "calibrate",
+        };
+        self.drift = drift;
+        self.stats.calibrations_applied += 1;
+        // The record first: a calibration the history cannot show is not persisted
+        // either (a restart goes back to the last recorded one).
+        if let Err(e) = self.append_history(&record).and_then(|()| self.persist()) {
+            response.success = false;
+            response.message = format!("calibration applied in memory but not persisted: {e}; {}", response.message);
+        }
+        self.stats.last_fit_message = response.message.clone();
+        CalibrateOutcome { response, applied: Some(cal.mounting) }
+    }
+}
+
+/// The Calibrate response of a successful fit (the node's, and the offline tool's JSON):
+/// `scale` and `scale_stddev` are the fitted ones, or 1 and 0 for a model that does not
+/// fit the scale.
+pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
+    let (scale, scale_stddev) =
+        if cal.model.fits_scale() { (cal.mounting.scale, cal.scale_stddev) } else { (1.0, 0.0) };
+    CalibrateResponse {
+        success: true,
+        message,
+        alpha0: cal.mounting.alpha0,
+        offset: cal.mounting.offset,
+        delta_l: cal.mounting.delta_l,
+        stddev: cal.stddev.to_vec(),
+        rms_residual: cal.rms_residual,
+        iterations: cal.iterations as u32,
+        samples_used: cal.samples_used as u32,
+        scale,
+        scale_stddev,
+    }
+}

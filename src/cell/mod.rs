@@ -1,0 +1,149 @@
+//! The cell's logic: what the node does with each message, without any middleware. The
+//! node's state ([`NodeState`]) and its handlers: a raw scan ([`NodeState::on_raw_scan`]),
+//! a calibrate request ([`NodeState::on_calibrate`]), a diagnostics tick
+//! ([`NodeState::diagnostics`]), and the calibration in force ([`NodeState::calibration_msg`]).
+//!
+//! It speaks the interface layer's message types ([`crate::interfaces`]) and calls the engine,
+//! the parameters and the records; it knows nothing of DDS or of any other middleware. The
+//! node shell ([`crate::ros`]) moves messages between the wire and these functions, and the
+//! offline tools ([`crate::cli`]) call the same functions on files, so everything here is
+//! tested without a network.
+//!
+//! - [`intake`]: the checks of a raw scan and the one `RawScan` -> engine `Scan` conversion;
+//! - [`scans`]: a raw scan corrected into a `Contour` (and a `PolygonStamped`);
+//! - [`calibrate`]: a calibrate request fitted, applied, recorded and persisted;
+//! - [`diagnostics`]: the `/diagnostics` report;
+//! - [`stats`]: the counts it reports (every rejection counted in one place);
+//! - [`in_force`]: what is known of the calibration in force.
+
+use std::collections::VecDeque;
+use std::path::Path;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use crate::engine::correct::Corrector;
+use crate::interfaces::{Header, Time, tracer_calib_msgs as msgs};
+use crate::params::{Parameters, file as params_file};
+use crate::records::{self, Drift, History, Record};
+
+pub mod calibrate;
+pub mod diagnostics;
+pub mod in_force;
+pub mod intake;
+pub mod scans;
+pub mod stats;
+
+#[cfg(test)]
+mod tests;
+
+pub use calibrate::{CalibrateOutcome, response_for};
+pub use in_force::InForce;
+pub use scans::{Corrected, PLATE_SCANS_KEPT};
+pub use stats::Stats;
+
+/// The node's state.
+#[derive(Debug)]
+pub struct NodeState {
+    /// The node's fully qualified name: its section in the params file.
+    pub fqn: String,
+    pub params: Parameters,
+    pub stats: Stats,
+    /// The calibration in force: when and how.
+    pub in_force: InForce,
+    /// How far the last applied calibration moved from the one before it.
+    pub drift: Option<Drift>,
+    /// Records in the history file (read at start, then appended).
+    pub history_records: usize,
+    /// What is wrong with the history file (skipped lines, unreadable), for /diagnostics.
+    pub history_problem: String,
+    /// Parameters persisted beside [`Parameters`]: the QoS overrides in force.
+    pub extra_params: Vec<(String, crate::params::ParamValue)>,
+    corrector: Option<Corrector>,
+    plates: VecDeque<scans::PlateScan>,
+}
+
+impl NodeState {
+    /// The state at start-up (`now`), with the calibration of `params` in force.
+    pub fn new(fqn: String, params: Parameters) -> Self {
+        let in_force = InForce::by_parameters(&params, SystemTime::now());
+        NodeState {
+            fqn,
+            params,
+            stats: Stats::default(),
+            in_force,
+            drift: None,
+            history_records: 0,
+            history_problem: String::new(),
+            extra_params: Vec::new(),
+            corrector: None,
+            plates: VecDeque::new(),
+        }
+    }
+
+    /// Take what the history file says about the calibration in force: when its last
+    /// record is the calibration of the parameters, that record's time, fit and drift.
+    pub fn adopt_history(&mut self, history: &History) {
+        self.history_records = history.records.len();
+        self.history_problem = history.skipped.join("; ");
+        let Some(last) = history.records.last() else { return };
+        let Some(in_force) = self.params.calibration_in_force() else { return };
+        if !records::same_calibration(&in_force, &last.mounting()) {
+            return;
+        }
+        let Some(at) = last.applied_at() else { return };
+        self.in_force = InForce::from_record(last, at);
+        self.drift = records::record_drift(&history.records, history.records.len() - 1);
+    }
+
+    /// A parameter set changed the calibration in force (`calibration.*`): it was applied
+    /// now, and nothing is known of its fit.
+    pub fn calibration_set_by_parameters(&mut self, now: SystemTime) {
+        self.in_force = InForce::by_parameters(&self.params, now);
+    }
+
+    /// The `calibration` message: the calibration in force.
+    pub fn calibration_msg(&self) -> msgs::Calibration {
+        let p = &self.params;
+        let since = self.in_force.applied_at.duration_since(UNIX_EPOCH).unwrap_or(Duration::ZERO);
+        let stamp = Time::from_nanos(i64::try_from(since.as_nanos()).unwrap_or(i64::MAX));
+        msgs::Calibration {
+            header: Header { stamp, frame_id: p.output_frame_id.clone() },
+            valid: p.calibration_valid,
+            model: self.in_force.model.clone(),
+            scan_id: self.in_force.scan_id,
+            alpha0: p.calibration.alpha0,
+            offset: p.calibration.offset,
+            delta_l: p.calibration.delta_l,
+            scale: p.calibration.scale,
+            stddev: self.in_force.stddev.clone(),
+            rms_residual: self.in_force.rms_residual,
+            samples_used: self.in_force.samples_used,
+        }
+    }
+
+    /// Append `record` to `history_file` (if set), durably.
+    fn append_history(&mut self, record: &Record) -> Result<(), String> {
+        if self.params.history_file.is_empty() {
+            return Ok(());
+        }
+        let path = Path::new(&self.params.history_file);
+        records::file::append(path, record).map_err(|e| format!("cannot append to {}: {e}", path.display()))?;
+        self.history_records += 1;
+        Ok(())
+    }
+
+    /// Write every parameter to `params_file` (if set), atomically.
+    pub fn persist(&self) -> Result<(), String> {
+        if self.params.params_file.is_empty() {
+            return Ok(());
+        }
+        let path = Path::new(&self.params.params_file);
+        let mut list = self.params.to_list();
+        list.extend(self.extra_params.iter().cloned());
+        let text = params_file::render(
+            &self.fqn,
+            &list,
+            "Parameters of tracer_calib_node, written by the node after each change.\nLoad with: --ros-args --params-file THIS_FILE",
+        );
+        params_file::write_atomic(path, &text).map_err(|e| format!("cannot write {}: {e}", path.display()))
+    }
+}

@@ -1,0 +1,108 @@
+//! A raw scan corrected: every sample to where the probe really touched, as a `Contour`
+//! (and a `PolygonStamped` for RViz), the plate scans kept for `/calibrate`.
+
+use super::{NodeState, intake};
+use crate::engine::correct::{Corrector, PolarContour, default_max_gap};
+use crate::engine::geometry::Mounting;
+use crate::engine::scan::Scan;
+use crate::interfaces::{Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan};
+
+/// Largest coordinate of a corrected point, metres: what a `Point32` of the polygon holds.
+/// (Any contour of a real tracer is a few centimetres.)
+pub const MAX_COORDINATE: f64 = f32::MAX as f64;
+/// Calibration-plate scans kept for `/calibrate`.
+pub const PLATE_SCANS_KEPT: usize = 16;
+
+/// A plate scan kept for calibration.
+#[derive(Debug, Clone)]
+pub(super) struct PlateScan {
+    pub(super) scan_id: u32,
+    pub(super) scan: Scan,
+}
+
+/// A corrected scan, ready to publish.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Corrected {
+    pub contour: Contour,
+    /// The same points as a `PolygonStamped`, when asked for (someone listens).
+    pub polygon: Option<PolygonStamped>,
+}
+
+impl NodeState {
+    /// Handle one raw scan: check it, keep it if it is of the plate, correct it, and
+    /// build the `PolygonStamped` too if `with_polygon`. An error is a rejected scan
+    /// (counted).
+    ///
+    /// A lens scan is corrected straight from the message's arrays: each point goes into
+    /// the `Contour` and into the polar form the radii are resampled from as it comes
+    /// (no engine `Scan`, no array of points: less memory to bring into cache for every
+    /// scan).
+    pub fn on_raw_scan(&mut self, msg: &RawScan, with_polygon: bool) -> Result<Corrected, String> {
+        self.stats.scans_received += 1;
+        // A plate scan is kept as an engine scan (for /calibrate); any other is only
+        // checked. Either way its samples are checked once.
+        let checked = if msg.target == RawScan::TARGET_CALIBRATION_PLATE {
+            intake::to_scan(msg, self.params.meters_per_count).map(Some)
+        } else {
+            intake::check(msg, self.params.meters_per_count).map(|()| None)
+        };
+        if let Some(scan) = checked.map_err(|e| self.reject(msg, e))? {
+            self.plates.retain(|p| p.scan_id != msg.scan_id);
+            if self.plates.len() == PLATE_SCANS_KEPT {
+                self.plates.pop_front();
+            }
+            self.plates.push_back(PlateScan { scan_id: msg.scan_id, scan });
+        }
+        let calibration = self.params.calibration_in_force();
+        let mounting = calibration.unwrap_or(Mounting::IDEAL);
+        let steps_per_rev = msg.steps_per_revolution;
+        let corrector = match &self.corrector {
+            Some(c) if *c.mounting() == mounting && c.steps_per_rev() == steps_per_rev => c,
+            _ => self.corrector.insert(Corrector::new(mounting, steps_per_rev)),
+        };
+        let n = msg.step.len();
+        let mut points = Vec::with_capacity(n);
+        let mut polar = (self.params.resample_points > 0).then(|| PolarContour::with_capacity(n));
+        // Extreme but accepted parameters (encoder.meters_per_count, calibration.offset,
+        // calibration.delta_l up to 1e308) can put points beyond what a float32 polygon or
+        // a radius (sqrt(x² + y²)) can hold: refuse the scan rather than publish inf/NaN.
+        // (A plate scan is kept above all the same: it is what a recalibration needs.)
+        let mut out_of_range = None;
+        corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, |p| {
+            if out_of_range.is_none() && !(p.x.abs() <= MAX_COORDINATE && p.y.abs() <= MAX_COORDINATE) {
+                out_of_range = Some((points.len(), p));
+            }
+            points.push(Point { x: p.x, y: p.y, z: 0.0 });
+            if let Some(polar) = polar.as_mut() {
+                polar.push(p);
+            }
+        });
+        if let Some((i, p)) = out_of_range {
+            let e = format!(
+                "sample {i}: the corrected point ({}, {}) m is out of range (check encoder.meters_per_count and the calibration)",
+                p.x, p.y
+            );
+            return Err(self.reject(msg, e));
+        }
+        let radii = polar
+            .and_then(|polar| polar.resample(self.params.resample_points, default_max_gap(steps_per_rev)))
+            .unwrap_or_default();
+        let header = Header { stamp: msg.header.stamp, frame_id: self.params.output_frame_id.clone() };
+        let polygon = with_polygon.then(|| PolygonStamped {
+            header: header.clone(),
+            polygon: Polygon {
+                points: points.iter().map(|p| Point32 { x: p.x as f32, y: p.y as f32, z: 0.0 }).collect(),
+            },
+        });
+        let contour = Contour {
+            header,
+            scan_id: msg.scan_id,
+            target: msg.target,
+            calibrated: calibration.is_some(),
+            points,
+            radii,
+        };
+        self.stats.contours_published += 1;
+        Ok(Corrected { contour, polygon })
+    }
+}

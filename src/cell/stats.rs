@@ -1,0 +1,39 @@
+//! The counts the node reports on `/diagnostics`, and the one place a rejected scan is
+//! counted.
+
+use super::NodeState;
+use crate::interfaces::RawScan;
+
+/// Counters reported on `/diagnostics`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Stats {
+    pub scans_received: u64,
+    pub scans_rejected: u64,
+    pub contours_published: u64,
+    pub calibrations_applied: u64,
+    pub calibrations_failed: u64,
+    pub last_rejection: String,
+    pub last_fit_rms: Option<f64>,
+    pub last_fit_message: String,
+    /// Remote publishers and subscriptions discovered with a QoS incompatible with the
+    /// node's endpoint on their topic (no data flows), and the last one.
+    pub qos_incompatible: u64,
+    pub last_qos_incompatible: String,
+}
+
+impl NodeState {
+    /// Count a rejected scan; returns the error.
+    pub(super) fn reject(&mut self, msg: &RawScan, e: String) -> String {
+        self.stats.scans_rejected += 1;
+        self.stats.last_rejection = format!("scan {}: {e}", msg.scan_id);
+        e
+    }
+
+    /// Count a message on the raw scan topic that does not even decode (the middleware
+    /// could not deserialize it): a received and rejected scan like a malformed one.
+    pub fn reject_undecodable(&mut self, what: &str) {
+        self.stats.scans_received += 1;
+        self.stats.scans_rejected += 1;
+        self.stats.last_rejection = format!("undecodable message: {what}");
+    }
+}

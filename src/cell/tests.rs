@@ -1,0 +1,321 @@
+//! The cell's handlers, without a network.
+
+use super::intake::MAX_SAMPLES;
+use super::*;
+use crate::engine::geometry::Mounting;
+use crate::engine::model::PlateSpec;
+use crate::engine::simulate::{SimOptions, simulate};
+use crate::interfaces::{CalibrateRequest, DiagnosticArray, DiagnosticStatus, Header, RawScan, Time};
+use crate::params::Parameters;
+use crate::records::Previous;
+use nalgebra::Vector2;
+use rand::SeedableRng;
+use std::time::{Duration, UNIX_EPOCH};
+
+fn plate_msg(scan_id: u32, m: &Mounting) -> RawScan {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(u64::from(scan_id));
+    let sim = simulate(
+        &PlateSpec::default().at(Vector2::new(0.0005, -0.0003)),
+        m,
+        &SimOptions { noise: 2e-6, ..SimOptions::default() },
+        &mut rng,
+    )
+    .unwrap();
+    RawScan {
+        header: Header::default(),
+        scan_id,
+        target: RawScan::TARGET_CALIBRATION_PLATE,
+        steps_per_revolution: 400,
+        step: sim.scan.samples().iter().map(|s| s.step).collect(),
+        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+    }
+}
+
+#[test]
+fn scans_are_corrected_once_calibrated() {
+    let m = Mounting::new(0.02, 0.004, 0.001);
+    let mut st = NodeState::new("/tracer_calibrator".into(), Parameters::default());
+    let before = st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
+    assert!(!before.contour.calibrated);
+    assert_eq!(before.contour.points.len(), 400);
+    assert_eq!(before.contour.radii.len(), 400);
+    assert_eq!(before.polygon.as_ref().unwrap().polygon.points.len(), 400);
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+    assert!(out.response.success, "{}", out.response.message);
+    assert!((out.response.offset - 0.004).abs() < 1e-5);
+    assert_eq!(out.response.stddev.len(), 3);
+    let after = st.on_raw_scan(&plate_msg(2, &m), true).unwrap();
+    assert!(after.contour.calibrated);
+    assert_eq!(st.stats.calibrations_applied, 1);
+}
+
+#[test]
+fn malformed_scans_are_rejected_and_counted() {
+    let mut st = NodeState::new("/t".into(), Parameters::default());
+    let good = plate_msg(1, &Mounting::IDEAL);
+    let cases: Vec<(RawScan, &str)> = vec![
+        (RawScan { steps_per_revolution: 0, ..good.clone() }, "steps_per_revolution is 0"),
+        (RawScan { counts: good.counts[..10].to_vec(), ..good.clone() }, "step has 400 entries but counts has 10"),
+        (RawScan { step: vec![1, 2], counts: vec![1, 2], ..good.clone() }, "at least 3 are needed"),
+        (RawScan { target: 9, ..good.clone() }, "target 9"),
+        (RawScan { steps_per_revolution: u32::MAX, ..good.clone() }, "larger than the limit"),
+        (
+            RawScan { step: vec![0; MAX_SAMPLES + 1], counts: vec![0; MAX_SAMPLES + 1], ..good.clone() },
+            "more than the limit",
+        ),
+        (RawScan { step: good.step.iter().map(|s| s + 400).collect(), ..good.clone() }, "is out of range"),
+    ];
+    for (i, (msg, want)) in cases.iter().enumerate() {
+        let e = st.on_raw_scan(msg, true).unwrap_err();
+        assert!(e.contains(want), "case {i}: {e}");
+        assert_eq!(st.stats.scans_rejected, i as u64 + 1);
+    }
+    assert!(st.on_raw_scan(&good, true).is_ok());
+    assert_eq!(st.stats.scans_received, cases.len() as u64 + 1);
+}
+
+#[test]
+fn a_failed_calibration_keeps_the_old_one() {
+    let mut st = NodeState::new("/t".into(), Parameters::default());
+    let out = st.on_calibrate(&CalibrateRequest::default());
+    assert!(!out.response.success);
+    assert!(out.response.message.starts_with("no calibration-plate scan received yet"), "{}", out.response.message);
+    let m = Mounting::new(0.01, 0.003, 0.001);
+    st.on_raw_scan(&plate_msg(5, &m), true).unwrap();
+    assert!(st.on_calibrate(&CalibrateRequest::default()).response.success);
+    let in_force = st.params.calibration;
+    // A wrong plate size: the fit is refused, the calibration stays.
+    st.params.plate.side = 0.05;
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 5, dry_run: false });
+    assert!(!out.response.success);
+    assert!(out.response.message.contains("does not match the plate"), "{}", out.response.message);
+    assert_eq!(st.params.calibration, in_force);
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 77, dry_run: false });
+    assert_eq!(out.response.message, "no calibration-plate scan with scan_id 77 (kept: 5)");
+    assert_eq!(st.stats.calibrations_failed, 3);
+}
+
+#[test]
+fn dry_runs_change_nothing_and_persisting_failures_are_reported() {
+    let m = Mounting::new(0.01, 0.003, 0.001);
+    let mut st = NodeState::new("/t".into(), Parameters::default());
+    st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true });
+    assert!(out.response.success && out.applied.is_none());
+    assert!(!st.params.calibration_valid);
+    st.params.params_file = "/nonexistent-dir/x/params.yaml".into();
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+    assert!(!out.response.success);
+    assert!(
+        out.response.message.starts_with("calibration applied in memory but not persisted"),
+        "{}",
+        out.response.message
+    );
+    assert!(st.params.calibration_valid);
+}
+
+/// A lens scan (noise-free ellipse) by a tracer with mounting `m`, and where each
+/// sample really touched.
+fn lens_msg(scan_id: u32, m: &Mounting) -> (RawScan, Vec<Vector2<f64>>) {
+    use crate::engine::shape::Ellipse;
+    let lens = Ellipse { center: Vector2::new(0.001, -0.002), a: 0.03, b: 0.018, angle: 0.3 };
+    let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+    let sim = simulate(&lens, m, &SimOptions::default(), &mut rng).unwrap();
+    let msg = RawScan {
+        header: Header::default(),
+        scan_id,
+        target: RawScan::TARGET_LENS,
+        steps_per_revolution: 400,
+        step: sim.scan.samples().iter().map(|s| s.step).collect(),
+        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+    };
+    (msg, sim.truth)
+}
+
+#[test]
+fn an_encoder_scale_error_is_refused_by_full_and_corrected_with_full_scale() {
+    // The encoder reads 0.25 % long.
+    let m = Mounting::new(0.02, 0.004, 0.001).with_scale(1.0 / 1.0025);
+    let mut st = NodeState::new("/t".into(), Parameters::default());
+    st.on_raw_scan(&plate_msg(3, &m), true).unwrap();
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+    assert!(!out.response.success);
+    assert!(out.response.message.contains("encoder scale looks off"), "{}", out.response.message);
+    assert!(!st.params.calibration_valid, "the failed fit applied nothing");
+    let diag = st.diagnostics(Time::ZERO);
+    assert_eq!(diag.status[0].level, DiagnosticStatus::WARN);
+    assert!(diag.status[0].message.contains("encoder scale looks off"), "{}", diag.status[0].message);
+
+    st.params.set("model", &crate::params::ParamValue::String("full_scale".into())).unwrap();
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+    assert!(out.response.success, "{}", out.response.message);
+    let r = &out.response;
+    assert!((r.scale - m.scale).abs() < 5.0 * r.scale_stddev && r.scale_stddev > 0.0, "{r:?}");
+    assert_eq!(st.params.calibration.scale, r.scale);
+    assert_eq!(out.applied.unwrap().scale, r.scale);
+
+    // A lens traced by the same tracer comes out true to within the counts' rounding
+    // (1 µm) and the calibration's noise (2 µm on the plate).
+    let (lens, truth) = lens_msg(4, &m);
+    let rms_off_truth = |st: &mut NodeState| {
+        let c = st.on_raw_scan(&lens, false).unwrap().contour;
+        assert!(c.calibrated);
+        let ss: f64 = c.points.iter().zip(&truth).map(|(p, q)| (p.x - q.x).powi(2) + (p.y - q.y).powi(2)).sum();
+        (ss / truth.len() as f64).sqrt()
+    };
+    let rms = rms_off_truth(&mut st);
+    assert!(rms < 3e-6, "{rms:e}");
+    // With the scale left out the same lens is tens of µm off.
+    st.params.set("calibration.scale", &crate::params::ParamValue::Double(1.0)).unwrap();
+    let rms = rms_off_truth(&mut st);
+    assert!(rms > 30e-6, "{rms:e}");
+}
+
+fn temp_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("tracer_calib_state_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn applied_calibrations_are_recorded_naming_the_one_they_replaced() {
+    let dir = temp_dir("records");
+    let history = dir.join("p.history.jsonl");
+    let params = Parameters {
+        params_file: dir.join("p.yaml").display().to_string(),
+        history_file: history.display().to_string(),
+        ..Parameters::default()
+    };
+    let mut st = NodeState::new("/cell1/tracer".into(), params.clone());
+    assert!(!st.calibration_msg().valid);
+    let m = Mounting::new(0.02, 0.004, 0.001);
+    st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
+    let dry = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: true });
+    assert!(dry.response.success);
+    assert!(!history.exists(), "a dry run is not recorded");
+    let first = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false });
+    assert!(first.response.success, "{}", first.response.message);
+    assert!(!first.response.message.contains("moved"), "nothing to move from: {}", first.response.message);
+    st.on_raw_scan(&plate_msg(2, &m), true).unwrap();
+    let second = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false });
+    assert!(second.response.success);
+    assert!(
+        second.response.message.contains("moved since the previous calibration: alpha0"),
+        "{}",
+        second.response.message
+    );
+    let h = records::file::read(&history).unwrap();
+    assert_eq!(h.records.len(), 2);
+    let (a, b) = (&h.records[0], &h.records[1]);
+    assert_eq!((a.scan_id, b.scan_id), (1, 2));
+    assert_eq!(a.node, "/cell1/tracer");
+    assert_eq!(a.model, "full");
+    assert_eq!(a.previous, None);
+    assert_eq!(b.previous, Some(Previous::from(a.mounting())));
+    assert_eq!(b.alpha0, second.response.alpha0);
+    assert_eq!(b.stddev, second.response.stddev);
+    assert_eq!(b.iterations, second.response.iterations);
+    // The calibration message is the second, to the millisecond of its record.
+    let msg = st.calibration_msg();
+    assert!(msg.valid && msg.scan_id == 2 && msg.alpha0 == b.alpha0 && msg.stddev == b.stddev);
+    assert_eq!(msg.header.frame_id, "tracer_axis");
+    assert_eq!(Some(UNIX_EPOCH + Duration::from_nanos(msg.header.stamp.to_nanos() as u64)), b.applied_at());
+
+    // A restart with the parameters the node persisted: the history supplies the fit.
+    let file = params_file::read(Path::new(&params.params_file)).unwrap();
+    let mut reloaded = Parameters::default();
+    reloaded.apply_file(&file, "/cell1/tracer", "p.yaml").unwrap();
+    assert_eq!(reloaded.history_file, params.history_file);
+    let mut again = NodeState::new("/cell1/tracer".into(), reloaded.clone());
+    again.adopt_history(&h);
+    assert_eq!(again.calibration_msg(), msg);
+    assert_eq!(again.in_force.source, "history");
+    assert!(again.drift.is_some());
+    // Parameters that do not match the last record: it supplies nothing.
+    reloaded.calibration.alpha0 += 1e-3;
+    let mut other = NodeState::new("/cell1/tracer".into(), reloaded);
+    other.adopt_history(&h);
+    let m = other.calibration_msg();
+    assert_eq!((m.scan_id, m.stddev.len(), m.rms_residual, other.in_force.source), (0, 0, 0.0, "parameters"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_history_that_cannot_be_written_fails_the_call_and_persists_nothing() {
+    let dir = temp_dir("nohistory");
+    let params_path = dir.join("p.yaml");
+    let params = Parameters {
+        params_file: params_path.display().to_string(),
+        history_file: dir.join("missing/dir/h.jsonl").display().to_string(),
+        ..Parameters::default()
+    };
+    let mut st = NodeState::new("/t".into(), params);
+    st.on_raw_scan(&plate_msg(1, &Mounting::new(0.01, 0.003, 0.001)), true).unwrap();
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false });
+    assert!(!out.response.success);
+    assert!(
+        out.response.message.starts_with("calibration applied in memory but not persisted: cannot append to"),
+        "{}",
+        out.response.message
+    );
+    assert!(out.response.message.contains("missing/dir/h.jsonl"), "{}", out.response.message);
+    assert!(st.params.calibration_valid && out.applied.is_some(), "in force in memory");
+    assert!(!params_path.exists(), "the parameters are not persisted without their record");
+    assert!(st.calibration_msg().valid);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn diag_value(d: &DiagnosticArray, key: &str) -> String {
+    d.status[0].values.iter().find(|kv| kv.key == key).map(|kv| kv.value.clone()).unwrap()
+}
+
+#[test]
+fn overdue_and_drifted_calibrations_warn_on_diagnostics() {
+    let m = Mounting::new(0.02, 0.004, 0.001);
+    let mut st = NodeState::new("/t".into(), Parameters::default());
+    st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
+    assert!(st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false }).response.success);
+    let applied = st.in_force.applied_at;
+    let at = |days: f64| {
+        let t = applied + Duration::from_secs_f64(days * 86_400.0);
+        Time::from_nanos(t.duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64)
+    };
+    let d = st.diagnostics(at(40.0));
+    assert_eq!(d.status[0].level, DiagnosticStatus::OK, "no limit by default: {}", d.status[0].message);
+    assert_eq!(diag_value(&d, "calibration_age_days"), "40.000");
+    assert_eq!(diag_value(&d, "calibration_time"), records::format_utc(applied));
+    st.params.max_age_days = 30.0;
+    assert_eq!(st.diagnostics(at(29.9)).status[0].level, DiagnosticStatus::OK);
+    let d = st.diagnostics(at(30.5));
+    assert_eq!(d.status[0].level, DiagnosticStatus::WARN);
+    assert!(d.status[0].message.contains("calibration overdue: applied"), "{}", d.status[0].message);
+    assert!(d.status[0].message.contains("calibration.max_age_days is 30"), "{}", d.status[0].message);
+    st.params.max_age_days = 0.0;
+
+    // The tracer knocked: d moved by 0.1 mm, far beyond its few-µm uncertainty.
+    let knocked = Mounting::new(0.02, 0.0041, 0.001);
+    st.on_raw_scan(&plate_msg(2, &knocked), true).unwrap();
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false });
+    assert!(out.response.success, "{}", out.response.message);
+    assert!(out.response.message.contains("more than calibration.drift_warn_sigma = 10"), "{}", out.response.message);
+    let d = st.diagnostics(at(0.0));
+    assert_eq!(d.status[0].level, DiagnosticStatus::WARN);
+    assert!(d.status[0].message.contains("the last calibration moved d by"), "{}", d.status[0].message);
+    assert!(diag_value(&d, "drift_sigma").parse::<f64>().unwrap() > 10.0);
+    // A limit of 0: no drift warning.
+    st.params.drift_warn_sigma = 0.0;
+    assert_eq!(st.diagnostics(at(0.0)).status[0].level, DiagnosticStatus::OK);
+}
+
+#[test]
+fn a_calibration_set_by_parameters_is_published_as_such() {
+    let mut st = NodeState::new("/t".into(), Parameters::default());
+    st.params.set("calibration.alpha0", &crate::params::ParamValue::Double(0.01)).unwrap();
+    st.params.set("calibration.valid", &crate::params::ParamValue::Bool(true)).unwrap();
+    let t = UNIX_EPOCH + Duration::from_secs(1_800_000_000);
+    st.calibration_set_by_parameters(t);
+    let msg = st.calibration_msg();
+    assert!(msg.valid && msg.alpha0 == 0.01 && msg.scan_id == 0 && msg.stddev.is_empty());
+    assert_eq!((msg.header.stamp.to_nanos(), msg.model.as_str(), msg.scale), (1_800_000_000_000_000_000, "full", 1.0));
+}

@@ -1,0 +1,77 @@
+//! Plain CDR (XCDR version 1), as ROS 2 puts messages on the DDS wire and in rosbag2 files.
+//!
+//! - a 4-byte *encapsulation header* precedes the payload: `00 01 00 00` for little-endian CDR
+//!   (`00 00 00 00` for big-endian). Byte 1 selects the byte order; bytes 2-3 are options
+//!   (DDS writers put the count of trailing padding bytes there). DDS adds and strips the
+//!   header itself; rosbag2 stores it with each message. [`to_cdr`] and [`from_cdr`] handle it
+//!   for files and tests;
+//! - every primitive is aligned to its own size (1, 2, 4 or 8 bytes), counted from the first
+//!   byte *after* the encapsulation header; padding bytes are zero;
+//! - `bool`, `byte`, `uint8`, `char` are one octet; `float64` is 8 bytes, aligned to 8;
+//! - `string` is a `u32` length that *includes* the terminating NUL, then the bytes, then NUL;
+//! - an unbounded or bounded sequence `T[]` / `T[<=N]` is a `u32` element count, then the
+//!   elements (each aligned as usual); a fixed array `T[N]` has no count;
+//! - nested messages are inlined, with no alignment of their own beyond their first member;
+//! - constants (`uint8 TARGET_LENS=3`) are not on the wire; here they are associated consts.
+//!
+//! The (de)serializer is rustdds', the one the DDS publishers and subscriptions use.
+
+use rustdds::RepresentationIdentifier;
+use serde::{Serialize, de::DeserializeOwned};
+
+/// Encapsulation header of little-endian plain CDR: `00 01`, options `00 00`.
+pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+
+/// Why CDR bytes could not be decoded or encoded.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CdrError {
+    /// Fewer than the 4 bytes of the encapsulation header.
+    #[error("CDR data too short for the 4-byte encapsulation header ({0} bytes)")]
+    TooShort(usize),
+    /// An encapsulation other than plain CDR (e.g. XCDR2 or parameter lists).
+    #[error("unsupported CDR encapsulation {} (only plain CDR: 00 00 or 00 01)", hex_pair(.0))]
+    Encapsulation([u8; 2]),
+    /// The CDR (de)serializer failed: truncated data, a bad bool, bad UTF-8...
+    #[error("CDR: {0}")]
+    Codec(String),
+    /// More bytes followed the message than the at most 3 bytes of padding: probably the
+    /// wrong type.
+    #[error("{0} unexpected bytes after the message (wrong message type?)")]
+    TrailingBytes(usize),
+}
+
+fn hex_pair(bytes: &[u8; 2]) -> String {
+    format!("{:02x} {:02x}", bytes[0], bytes[1])
+}
+
+/// Serializes `value` as little-endian plain CDR, with the encapsulation header, as ROS 2 puts it
+/// on the wire and in rosbag2 files.
+pub fn to_cdr<T: Serialize>(value: &T) -> Result<Vec<u8>, CdrError> {
+    let mut out = CDR_LE_HEADER.to_vec();
+    rustdds::serialization::to_writer_with_rep_id(&mut out, value, RepresentationIdentifier::CDR_LE)
+        .map_err(|e| CdrError::Codec(e.to_string()))?;
+    Ok(out)
+}
+
+/// Deserializes plain CDR with its encapsulation header (either byte order).
+///
+/// Up to 3 trailing bytes are accepted (DDS and rosbag2 pad payloads to a multiple of 4);
+/// more is an error, since it usually means the bytes are of another type.
+pub fn from_cdr<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, CdrError> {
+    if bytes.len() < 4 {
+        return Err(CdrError::TooShort(bytes.len()));
+    }
+    let rep_id = match [bytes[0], bytes[1]] {
+        [0x00, 0x00] => RepresentationIdentifier::CDR_BE,
+        [0x00, 0x01] => RepresentationIdentifier::CDR_LE,
+        other => return Err(CdrError::Encapsulation(other)),
+    };
+    let payload = &bytes[4..];
+    let (value, used) = rustdds::serialization::deserialize_from_cdr_with_rep_id::<T>(payload, rep_id)
+        .map_err(|e| CdrError::Codec(e.to_string()))?;
+    let rest = payload.len().saturating_sub(used);
+    if rest > 3 {
+        return Err(CdrError::TrailingBytes(rest));
+    }
+    Ok(value)
+}

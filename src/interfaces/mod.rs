@@ -1,0 +1,144 @@
+//! The interface layer: Rust mirrors of every ROS 2 message and service the node and the
+//! tools speak, each with its `.msg` text, and the CDR codec that puts them on the wire and in
+//! bag files.
+//!
+//! It sits below everything that moves messages: the node shell ([`crate::ros`]), the files
+//! ([`crate::io`]: rosbag2), the offline tool ([`crate::cli`]) and the cell's logic
+//! ([`crate::cell`]) all use it; it uses none of them.
+//!
+//! - [`standard`]: the standard types used (`builtin_interfaces`, `std_msgs`,
+//!   `geometry_msgs`, `diagnostic_msgs`), their `.msg` texts copied verbatim from ROS 2
+//!   (`standard/msg/<package>/<Type>.msg`);
+//! - [`tracer_calib_msgs`]: the node's own package, its texts read from `msg/` at compile
+//!   time (the files colcon builds the package from);
+//! - [`definition`]: the `.msg` / `.srv` parser (the one checker), and the complete
+//!   definitions rosbag2 stores;
+//! - [`cdr`]: plain CDR with its encapsulation header, as DDS sends and rosbag2 stores it.
+//!
+//! # One declaration per type
+//!
+//! Each mirror is declared once, with [`ros_message!`]: the struct (field order = `.msg`
+//! order = wire order), its ROS name and its definition text ([`RosMsg::DEFINITION`]). The
+//! tests check every struct against its text (field names, order and kinds, through serde:
+//! what CDR sees), so a struct and its `.msg` cannot drift apart unnoticed.
+//!
+//! # Wire layout
+//!
+//! ROS 2 over DDS sends each message as *plain CDR* (XCDR version 1), which is exactly what
+//! rustdds' serializer produces from a serde `Serialize` impl when the struct fields appear in
+//! the same order as in the `.msg` file ([`cdr`] says how each type is laid out). A service
+//! with the *Enhanced* mapping (what `rmw_fastrtps_cpp` uses) sends the request and response
+//! structs exactly like messages: the request id travels in the RTPS inline QoS, not in the
+//! payload.
+
+use serde::{Serialize, de::DeserializeOwned};
+
+pub mod cdr;
+pub mod definition;
+mod name;
+pub mod standard;
+pub mod tracer_calib_msgs;
+
+#[cfg(test)]
+mod shape;
+#[cfg(test)]
+mod tests;
+
+pub use cdr::{CDR_LE_HEADER, CdrError, from_cdr, to_cdr};
+pub use definition::Definition;
+pub use name::{InterfaceKind, InterfaceName};
+pub use standard::{
+    DiagnosticArray, DiagnosticStatus, Header, KeyValue, Point, Point32, Polygon, PolygonStamped, Time,
+};
+pub use tracer_calib_msgs::{Calibrate, CalibrateRequest, CalibrateResponse, Calibration, Contour, RawScan};
+
+/// A Rust mirror of a ROS 2 interface type, with the definition it mirrors.
+///
+/// Not a subtrait of ros2-client's [`ros2_client::Message`] only because ros2-client's
+/// [`Time`] does not implement `Message`; every other mirror here implements both.
+pub trait RosMsg: Serialize + DeserializeOwned {
+    /// The ROS type name.
+    const NAME: InterfaceName;
+    /// The type's `.msg` text (for a service half, the part of the `.srv` text it is).
+    const DEFINITION: Definition;
+}
+
+/// A ROS 2 service type: its name and its request and response mirrors.
+///
+/// ros2-client 0.12 has no service trait of its own; `Node::create_server::<Req, Resp>` takes
+/// the two types and a [`ros2_client::ServiceTypeName`] separately. Use
+/// `node.create_server::<S::Request, S::Response>(ServiceMapping::Enhanced, &name,
+/// &S::type_name(), qos.clone(), qos)`.
+pub trait RosService {
+    /// The request mirror.
+    type Request: RosMsg + ros2_client::Message + Clone + 'static;
+    /// The response mirror.
+    type Response: RosMsg + ros2_client::Message + 'static;
+    /// The service type name (`pkg/srv/Name`).
+    const NAME: InterfaceName;
+
+    /// The service type name in ros2-client's form.
+    fn type_name() -> ros2_client::ServiceTypeName {
+        Self::NAME.service_type_name()
+    }
+}
+
+/// Every type this layer mirrors, with its definition: what complete definitions (rosbag2)
+/// resolve dependencies against.
+pub const KNOWN: &[(InterfaceName, Definition)] = &[
+    (Time::NAME, Time::DEFINITION),
+    (Header::NAME, Header::DEFINITION),
+    (Point::NAME, Point::DEFINITION),
+    (Point32::NAME, Point32::DEFINITION),
+    (Polygon::NAME, Polygon::DEFINITION),
+    (PolygonStamped::NAME, PolygonStamped::DEFINITION),
+    (KeyValue::NAME, KeyValue::DEFINITION),
+    (DiagnosticStatus::NAME, DiagnosticStatus::DEFINITION),
+    (DiagnosticArray::NAME, DiagnosticArray::DEFINITION),
+    (RawScan::NAME, RawScan::DEFINITION),
+    (Contour::NAME, Contour::DEFINITION),
+    (Calibration::NAME, Calibration::DEFINITION),
+    (CalibrateRequest::NAME, CalibrateRequest::DEFINITION),
+    (CalibrateResponse::NAME, CalibrateResponse::DEFINITION),
+];
+
+/// Declares the Rust mirror of a ROS 2 message (or service half): the struct, with serde's
+/// derives (field order = `.msg` order = CDR order), ros2-client's `Message` marker, and
+/// [`RosMsg`] with the ROS name and the definition text.
+///
+/// ```ignore
+/// ros_message! {
+///     /// `std_msgs/msg/Header`: a timestamp and a coordinate frame id.
+///     #[derive(Debug, Clone, PartialEq)]
+///     pub struct Header(std_msgs/msg/Header, Definition::Msg(HEADER_TEXT)) {
+///         pub stamp: Time,
+///         pub frame_id: String,
+///     }
+/// }
+/// ```
+macro_rules! ros_message {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $ty:ident ($package:ident / $kind:ident / $name:ident, $definition:expr) {
+            $( $(#[$field_meta:meta])* $field_vis:vis $field:ident : $field_ty:ty ),* $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(serde::Serialize, serde::Deserialize)]
+        $vis struct $ty {
+            $( $(#[$field_meta])* $field_vis $field: $field_ty, )*
+        }
+
+        impl ros2_client::Message for $ty {}
+
+        impl $crate::interfaces::RosMsg for $ty {
+            const NAME: $crate::interfaces::InterfaceName = $crate::interfaces::InterfaceName::new(
+                stringify!($package),
+                $crate::interfaces::InterfaceKind::from_segment(stringify!($kind)),
+                stringify!($name),
+            );
+            const DEFINITION: $crate::interfaces::Definition = $definition;
+        }
+    };
+}
+pub(crate) use ros_message;

@@ -1,0 +1,41 @@
+//! The `calibrate` service: one fit at a time, the result mirrored into the parameters,
+//! logged to rosout, and answered.
+
+use futures::StreamExt;
+use log::{debug, warn};
+use ros2_client::rosout;
+
+use super::{Entities, Shared, parameters};
+
+/// Each request through the cell ([`crate::cell::NodeState::on_calibrate`]), to the end
+/// before the next. Ends when the server's request stream does.
+pub(super) async fn run(e: &Entities, shared: &Shared) {
+    let node = &e.node;
+    let mut requests = std::pin::pin!(e.calibrate.receive_request_stream());
+    while let Some(item) = requests.next().await {
+        let (id, req) = match item {
+            Ok(r) => r,
+            Err(err) => {
+                warn!("cannot read a calibrate request: {err:?}");
+                continue;
+            }
+        };
+        debug!("calibrate request {id:?}: scan_id {}, dry_run {}", req.scan_id, req.dry_run);
+        let outcome = shared.state.lock().expect("state lock").on_calibrate(&req);
+        if let Some(m) = &outcome.applied {
+            parameters::mirror_calibration(node, m);
+            let _ = shared.calibration_changed.try_send(());
+        }
+        let r = &outcome.response;
+        if r.success {
+            rosout!(e.node, ros2_client::ros2::LogLevel::Info, "calibrate: {}", r.message);
+        } else {
+            rosout!(e.node, ros2_client::ros2::LogLevel::Warn, "calibrate: {}", r.message);
+            warn!("calibrate: {}", r.message);
+        }
+        match e.calibrate.async_send_response(id, outcome.response).await {
+            Ok(()) => debug!("calibrate response {id:?} sent"),
+            Err(err) => warn!("cannot send a calibrate response: {err:?}"),
+        }
+    }
+}

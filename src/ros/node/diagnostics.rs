@@ -1,0 +1,53 @@
+//! `/diagnostics` at 1 Hz, and the memory a burst left behind given back.
+
+use std::time::{Duration, Instant};
+
+use log::debug;
+use ros2_client::builtin_interfaces::Time;
+
+use super::{Entities, Shared};
+
+/// Free heap below which the node gives nothing back to the OS (bytes). Memory given
+/// back costs a page fault per 4 kB page when it is used again. Before rustdds was
+/// patched to release samples within its KEEP_LAST depths (issue 11), a steady stream
+/// of scans kept a few MB in flight in its caches (about 10 MB at 100 scans a second);
+/// trimming that every 5 s, as the node did, had the scans after each trim fault the
+/// released pages in again (+12.6..+14.1 % instead of +7.3..+8.2 % over the bare relay
+/// in 3000-round runs of `scripts/bench_latency.sh`). With the caches bounded by their
+/// depths the heap stays well under this at any scan rate; the trim is a backstop.
+const KEEP_FREE_HEAP: usize = 32 << 20;
+
+/// After a burst, give memory the allocator holds but no longer uses back to the OS.
+/// The DDS caches hold at most their QoS depths (and the samples a reliable reader has
+/// not acknowledged yet; `vendor/rustdds/PATCHES.md`), so a full-speed burst of normal
+/// scans leaves little free heap behind; a few huge messages (a 10^6-sample scan is
+/// 8 MB) can, and glibc would keep that resident for good. Up to [`KEEP_FREE_HEAP`] of
+/// free heap is kept: that memory is what the next scans will use.
+fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallinfo2 only reads the allocator's statistics and malloc_trim only
+    // releases free heap memory; neither takes pointers.
+    unsafe {
+        if libc::mallinfo2().fordblks > KEEP_FREE_HEAP {
+            libc::malloc_trim(0);
+        }
+    }
+}
+
+/// Every second: the QoS reports that are due, the cell's diagnostics published; every
+/// 5 s the freed memory released. Never ends.
+pub(super) async fn run(e: &Entities, shared: &Shared) {
+    let mut tick = 0u64;
+    loop {
+        shared.qos_reports.lock().expect("qos reports lock").flush(&e.node, Instant::now(), false);
+        let msg = shared.state.lock().expect("state lock").diagnostics(Time::now());
+        if let Err(err) = e.diagnostics.async_publish(msg).await {
+            debug!("cannot publish diagnostics: {err:?}");
+        }
+        tick += 1;
+        if tick.is_multiple_of(5) {
+            release_freed_memory();
+        }
+        smol::Timer::after(Duration::from_secs(1)).await;
+    }
+}

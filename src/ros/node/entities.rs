@@ -1,0 +1,184 @@
+//! The node's endpoints: their names (after namespace and remaps), their QoS (with the
+//! `qos_overrides.*` in force), and the DDS entities made from them.
+//!
+//! | kind | name | QoS |
+//! |---|---|---|
+//! | subscription | `raw_scan` | reliable, keep last 100, volatile |
+//! | publisher | `contour`, `contour_polygon` | reliable, keep last 10, volatile |
+//! | service | `calibrate` (Fast DDS "Enhanced" mapping) | reliable, keep last 1000 |
+//! | publisher | `/diagnostics`, 1 Hz | reliable, keep last 10 |
+//! | publisher | `calibration` (the calibration in force) | reliable, transient local, keep last 1 |
+//!
+//! Why: every scan is a measurement an edger acts on, so delivery is reliable (as the
+//! ROS default a tracer driver publishes with; a best-effort "sensor data" publisher
+//! does not match a reliable subscription: the node warns, and
+//! `qos_overrides./raw_scan.subscription.reliability: best_effort` serves it); the
+//! subscription keeps 100 scans so a bag replayed at full speed is not thinned out;
+//! contours are not latched (volatile): a late subscriber wants the next scan, not an
+//! old one. The calibration in force is latched: whoever joins later must know which
+//! calibration the contours it receives were corrected with.
+//!
+//! Memory is bounded by these depths at any scan rate: the patched rustdds
+//! (`vendor/rustdds/PATCHES.md`) releases a written contour once it is out of the
+//! depth and acknowledged by every reliable subscriber, and the `raw_scan` reader's
+//! cache keeps at most its depth (BENCHMARKS.md, "Throughput and memory").
+
+use std::time::Duration;
+
+use log::{info, warn};
+use ros2_client::{
+    Context, Name, NodeOptions, Publisher, QosProfile, Server, ServiceMapping, Subscription,
+    qos::{Durability, History, WhenFull},
+};
+
+use crate::interfaces::{
+    Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, PolygonStamped, RawScan, RosMsg,
+    RosService, tracer_calib_msgs as msgs,
+};
+use crate::rmw::RosEnv;
+use crate::ros::args::RosArgs;
+use crate::ros::names::{NodeIdentity, ros2_name};
+use crate::ros::qos_overrides::{QosOverrides, Side};
+
+/// Calibrate requests waiting for the one-at-a-time fit. The DDS reader drops the
+/// oldest unread sample past this depth, and a dropped request is a caller waiting
+/// forever: with ROS's service default of 10, eleven calls arriving during one fit
+/// would lose one. A request is a few bytes, so the bound is generous.
+const CALIBRATE_QUEUE: usize = 1000;
+
+fn reliable(depth: usize) -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+/// The `calibration` topic: reliable, transient local, depth 1, so a subscriber that
+/// joins later gets the calibration in force at once.
+fn latched() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 })
+}
+
+/// The node's endpoints, resolved: names and QoS.
+pub(super) struct Endpoints {
+    pub raw_scan: (Name, QosProfile),
+    pub contour: (Name, QosProfile),
+    pub polygon: (Name, QosProfile),
+    pub diagnostics: Name,
+    pub calibration: Name,
+    pub calibrate: Name,
+}
+
+impl Endpoints {
+    /// Names resolved for `identity` with the remaps of `args`; the QoS overrides applied
+    /// to the topics they are for (one warning for each that names no endpoint of the node;
+    /// `qos` keeps only those in force).
+    pub fn resolve(args: &RosArgs, identity: &NodeIdentity, qos: &mut QosOverrides) -> Result<Self, String> {
+        let topic = |name: &str| -> Result<Name, String> {
+            let resolved = args.resolve_topic(name, identity).map_err(|e| e.to_string())?;
+            ros2_name(&resolved).map_err(|e| e.to_string())
+        };
+        let (raw, contour, polygon) = (topic("raw_scan")?, topic("contour")?, topic("contour_polygon")?);
+        let (raw_fq, contour_fq, polygon_fq) = (raw.to_string(), contour.to_string(), polygon.to_string());
+        let overridable = [
+            (raw_fq.as_str(), Side::Subscription),
+            (contour_fq.as_str(), Side::Publisher),
+            (polygon_fq.as_str(), Side::Publisher),
+        ];
+        for w in qos.unused(&overridable) {
+            warn!("{w}");
+        }
+        qos.retain_for(&overridable);
+        let raw_qos = qos.apply(&raw_fq, Side::Subscription, reliable(100));
+        let contour_qos = qos.apply(&contour_fq, Side::Publisher, reliable(10));
+        let polygon_qos = qos.apply(&polygon_fq, Side::Publisher, reliable(10));
+        if !qos.is_empty() {
+            info!("QoS overrides: {:?}", qos.to_list());
+        }
+        let calibrate = {
+            let resolved = args.resolve_service("calibrate", identity).map_err(|e| e.to_string())?;
+            ros2_name(&resolved).map_err(|e| e.to_string())?
+        };
+        Ok(Endpoints {
+            raw_scan: (raw, raw_qos),
+            contour: (contour, contour_qos),
+            polygon: (polygon, polygon_qos),
+            diagnostics: topic("/diagnostics")?,
+            calibration: topic("calibration")?,
+            calibrate,
+        })
+    }
+}
+
+/// The node's DDS entities: what the loops read from and write to.
+pub(super) struct Entities {
+    pub ctx: Context,
+    pub node: ros2_client::Node,
+    pub raw_scans: Subscription<RawScan>,
+    pub contours: Publisher<Contour>,
+    pub polygons: Publisher<PolygonStamped>,
+    pub diagnostics: Publisher<DiagnosticArray>,
+    pub calibration: Publisher<msgs::Calibration>,
+    pub calibrate: Server<CalibrateRequest, CalibrateResponse>,
+    spinner: smol::Task<ros2_client::CreateResult<()>>,
+}
+
+impl Entities {
+    /// The DDS participant (`ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE` and
+    /// `ROS_STATIC_PEERS` as rmw_fastrtps reads them: [`crate::rmw::dds`]), the node with its
+    /// parameters (`options`), its endpoints, and its spinner running.
+    pub fn create(
+        env: &RosEnv,
+        identity: &NodeIdentity,
+        options: NodeOptions,
+        endpoints: &Endpoints,
+    ) -> Result<Self, String> {
+        let participant = crate::rmw::dds::participant_from_env(env)?;
+        let ctx = Context::from_domain_participant(participant)
+            .map_err(|e| format!("cannot create the ROS context: {e:?}"))?;
+        let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
+        let mut node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node: {e:?}"))?;
+        let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
+        let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate } = endpoints;
+        let raw_topic = node.create_topic(&raw_scan.0, RawScan::NAME.message_type_name(), &raw_scan.1).map_err(mk)?;
+        let contour_topic = node.create_topic(&contour.0, Contour::NAME.message_type_name(), &contour.1).map_err(mk)?;
+        let polygon_topic =
+            node.create_topic(&polygon.0, PolygonStamped::NAME.message_type_name(), &polygon.1).map_err(mk)?;
+        let diag_topic =
+            node.create_topic(diagnostics, DiagnosticArray::NAME.message_type_name(), &reliable(10)).map_err(mk)?;
+        let calibration_topic =
+            node.create_topic(calibration, msgs::Calibration::NAME.message_type_name(), &latched()).map_err(mk)?;
+        let raw_scans = node.create_subscription::<RawScan>(&raw_topic, None).map_err(mk)?;
+        let contours = node.create_publisher::<Contour>(&contour_topic, None).map_err(mk)?;
+        let polygons = node.create_publisher::<PolygonStamped>(&polygon_topic, None).map_err(mk)?;
+        let diagnostics = node.create_publisher::<DiagnosticArray>(&diag_topic, None).map_err(mk)?;
+        let calibration = node.create_publisher::<msgs::Calibration>(&calibration_topic, None).map_err(mk)?;
+        let calibrate = node
+            .create_server::<<Calibrate as RosService>::Request, <Calibrate as RosService>::Response>(
+                ServiceMapping::Enhanced,
+                calibrate,
+                &Calibrate::type_name(),
+                reliable(CALIBRATE_QUEUE),
+                reliable(CALIBRATE_QUEUE),
+            )
+            .map_err(mk)?;
+        let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
+        Ok(Entities { ctx, node, raw_scans, contours, polygons, diagnostics, calibration, calibrate, spinner })
+    }
+
+    /// Tear down in order: dropping each endpoint makes discovery announce it gone; the
+    /// participant's event loop must still be running to send that, so it goes last,
+    /// after a moment. Without this, peers keep the node's topics and services in their
+    /// graphs for the lease duration.
+    pub fn close(self) {
+        let Entities { ctx, node, raw_scans, contours, polygons, diagnostics, calibration, calibrate, spinner } = self;
+        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate));
+        drop(node);
+        std::thread::sleep(Duration::from_millis(150));
+        smol::block_on(spinner.cancel());
+        drop(ctx);
+    }
+}

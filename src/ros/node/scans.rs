@@ -1,0 +1,50 @@
+//! Raw scans in, contours (and polygons, when someone listens) out.
+
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use futures::StreamExt;
+use log::warn;
+
+use super::{Entities, RateLimit, Shared};
+
+/// Each raw scan through the cell ([`crate::cell::NodeState::on_raw_scan`]): the contour
+/// published, or the rejection counted and warned about (rate-limited). A message that does
+/// not even decode is counted like a malformed scan. Ends when the subscription's stream does.
+pub(super) async fn run(e: &Entities, shared: &Shared) {
+    let mut stream = std::pin::pin!(e.raw_scans.async_stream());
+    let mut limit = RateLimit::new(Duration::from_secs(1));
+    while let Some(item) = stream.next().await {
+        let msg = match item {
+            Ok((msg, _info)) => msg,
+            Err(err) => {
+                shared.state.lock().expect("state lock").reject_undecodable(&format!("{err:?}"));
+                if let Some(held) = limit.allow(Instant::now()) {
+                    warn!("rejected an undecodable raw scan: {err:?} ({held} more rejections not shown)");
+                }
+                continue;
+            }
+        };
+        // The polygon (for RViz) only when someone listens to it.
+        let with_polygon = shared.polygon_wanted.load(Ordering::Relaxed);
+        let outcome = shared.state.lock().expect("state lock").on_raw_scan(&msg, with_polygon);
+        match outcome {
+            Ok(out) => {
+                if let Err(err) = e.contours.async_publish(out.contour).await {
+                    warn!("cannot publish a contour: {err:?}");
+                }
+                if let Some(polygon) = out.polygon
+                    && let Err(err) = e.polygons.async_publish(polygon).await
+                {
+                    warn!("cannot publish a polygon: {err:?}");
+                }
+            }
+            Err(err) => {
+                if let Some(held) = limit.allow(Instant::now()) {
+                    let total = shared.state.lock().expect("state lock").stats.scans_rejected;
+                    warn!("rejected raw scan {}: {err} ({total} rejected so far, {held} not shown)", msg.scan_id);
+                }
+            }
+        }
+    }
+}
