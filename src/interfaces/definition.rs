@@ -1,14 +1,7 @@
 //! Interface definitions: the `.msg` / `.srv` texts, the one parser of them, and the
 //! *complete* definitions rosbag2 stores.
 //!
-//! # The text
-//!
-//! A line is `TYPE NAME` (a field), `TYPE NAME DEFAULT` (a field with a default value, not on
-//! the wire) or `TYPE NAME=VALUE` (a constant, not on the wire); `#` starts a comment; a
-//! `.srv` text is the request, a line `---`, the response. A field type is a primitive
-//! (`bool byte char float32 float64 int8 uint8 ... string wstring`, `string<=N`) or a message
-//! (`Header` in the own package, `pkg/Type`, `pkg/msg/Type`), possibly followed by `[]`,
-//! `[N]` or `[<=N]`.
+//! The syntax of the texts, and its one parser: [`super::syntax`].
 //!
 //! # Complete definitions (`ros2msg`)
 //!
@@ -38,6 +31,7 @@
 
 use std::collections::BTreeSet;
 
+pub use super::syntax::{Member, PRIMITIVES, Parsed, field_message_type, normalize_type, parse, split_srv};
 use super::{InterfaceName, KNOWN, RosMsg};
 
 /// Where a type's definition text is: a whole `.msg` file, or one half of a `.srv` file.
@@ -62,97 +56,13 @@ impl Definition {
     }
 }
 
-/// A `.srv` text's request and response parts (the response empty if there is no `---`).
-fn split_srv(srv: &'static str) -> (&'static str, &'static str) {
-    let mut at = 0;
-    for line in srv.split_inclusive('\n') {
-        if line.trim() == "---" {
-            return (&srv[..at], &srv[at + line.len()..]);
-        }
-        at += line.len();
-    }
-    (srv, "")
-}
-
 /// The line of 80 `=` that separates the definitions of a complete `ros2msg` definition.
 pub const SEPARATOR: &str = "================================================================================";
 
-/// The primitive types of the interface language.
-pub const PRIMITIVES: &[&str] = &[
-    "bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64",
-    "uint64", "string", "wstring",
-];
-
-/// One line of a definition that declares something: a field or a constant.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Member<'a> {
-    /// The type as written (`std_msgs/Header`, `uint32[]`, `Point32[]`).
-    pub ty: &'a str,
-    /// The field's or constant's name.
-    pub name: &'a str,
-    /// A constant's value (`Some`), or `None` for a field.
-    pub constant: Option<&'a str>,
-    /// A field's default value as written, if any (not on the wire).
-    pub default: Option<&'a str>,
-}
-
-/// The fields and constants of a definition text, in order; comments, blank lines and a
-/// `---` line skipped (give it one part of a `.srv`: [`Definition::text`]). A line that is
-/// not `TYPE NAME...` is an error naming it.
-pub fn members(text: &str) -> Result<Vec<Member<'_>>, String> {
-    let mut out = Vec::new();
-    for (number, raw) in text.lines().enumerate() {
-        let line = raw.split('#').next().unwrap_or("").trim();
-        if line.is_empty() || line == "---" {
-            continue;
-        }
-        let (ty, rest) = line
-            .split_once(char::is_whitespace)
-            .ok_or_else(|| format!("line {}: expected 'TYPE NAME', got '{line}'", number + 1))?;
-        let rest = rest.trim();
-        out.push(match rest.split_once('=') {
-            Some((name, value)) => Member { ty, name: name.trim(), constant: Some(value.trim()), default: None },
-            None => {
-                let (name, default) = match rest.split_once(char::is_whitespace) {
-                    Some((name, default)) => (name, Some(default.trim())),
-                    None => (rest, None),
-                };
-                Member { ty, name, constant: None, default }
-            }
-        });
-    }
-    Ok(out)
-}
-
-/// The message type a field type refers to, as `pkg/msg/Type`, or `None` for a primitive.
-/// `package` resolves bare names (`Point32[]` in geometry_msgs).
-pub fn field_message_type(field_type: &str, package: &str) -> Option<String> {
-    let base = field_type.split('[').next().unwrap_or(field_type);
-    let base = base.split("<=").next().unwrap_or(base);
-    if PRIMITIVES.contains(&base) {
-        return None;
-    }
-    let parts: Vec<&str> = base.split('/').collect();
-    Some(match parts.as_slice() {
-        [name] => format!("{package}/msg/{name}"),
-        [pkg, name] | [pkg, _, name] => format!("{pkg}/msg/{name}"),
-        _ => base.to_string(),
-    })
-}
-
-/// A field type with a message type written in full (`Point32[]` in geometry_msgs ->
-/// `geometry_msgs/msg/Point32[]`); primitives as they are.
-pub fn normalize_type(field_type: &str, package: &str) -> String {
-    let suffix = field_type.find('[').map(|i| &field_type[i..]).unwrap_or("");
-    match field_message_type(field_type, package) {
-        Some(message) => format!("{message}{suffix}"),
-        None => field_type.to_string(),
-    }
-}
-
 /// The fields of a definition text, `(type, name)`, types normalized ([`normalize_type`]).
 pub fn fields(text: &str, package: &str) -> Result<Vec<(String, String)>, String> {
-    Ok(members(text)?
+    Ok(parse(text)?
+        .members
         .into_iter()
         .filter(|m| m.constant.is_none())
         .map(|m| (normalize_type(m.ty, package), m.name.to_string()))
@@ -161,7 +71,8 @@ pub fn fields(text: &str, package: &str) -> Result<Vec<(String, String)>, String
 
 /// The constants of a definition text, `(type, name, value as written)`.
 pub fn constants(text: &str) -> Result<Vec<(String, String, String)>, String> {
-    Ok(members(text)?
+    Ok(parse(text)?
+        .members
         .into_iter()
         .filter_map(|m| m.constant.map(|v| (m.ty.to_string(), m.name.to_string(), v.to_string())))
         .collect())
@@ -211,8 +122,15 @@ fn complete(name: InterfaceName, text: &str) -> Option<String> {
 
 /// The message types a definition text refers to, sorted, each once.
 fn dependencies(text: &str, package: &str) -> Option<BTreeSet<String>> {
-    let members = members(text).ok()?;
-    Some(members.iter().filter(|m| m.constant.is_none()).filter_map(|m| field_message_type(m.ty, package)).collect())
+    let parsed = parse(text).ok()?;
+    Some(
+        parsed
+            .members
+            .iter()
+            .filter(|m| m.constant.is_none())
+            .filter_map(|m| field_message_type(m.ty, package))
+            .collect(),
+    )
 }
 
 #[cfg(test)]
@@ -268,12 +186,21 @@ mod tests {
     }
 
     #[test]
-    fn members_read_fields_defaults_and_constants() {
-        let m = members("uint8 A=1 # c\nstring<=8 s \"x\"\nPoint32[<=3] p\n\n# only a comment\n").unwrap();
-        assert_eq!(m[0], Member { ty: "uint8", name: "A", constant: Some("1"), default: None });
-        assert_eq!(m[1], Member { ty: "string<=8", name: "s", constant: None, default: Some("\"x\"") });
-        assert_eq!(m[2], Member { ty: "Point32[<=3]", name: "p", constant: None, default: None });
-        assert!(members("justoneword\n").unwrap_err().contains("line 1"));
+    fn members_read_fields_defaults_constants_and_comments() {
+        let text = "# A header\n# block\n\n# above a\nuint8 A=1 # c\nstring<=8 s \"x\"\nPoint32[<=3] p # first\n  # continued\n";
+        let parsed = parse(text).unwrap();
+        assert_eq!(parsed.header, ["A header", "block"]);
+        let m = parsed.members;
+        assert_eq!(
+            m[0],
+            Member { ty: "uint8", name: "A", constant: Some("1"), default: None, comments: vec!["above a", "c"] }
+        );
+        assert_eq!(
+            m[1],
+            Member { ty: "string<=8", name: "s", constant: None, default: Some("\"x\""), comments: vec![] }
+        );
+        assert_eq!(m[2].comments, ["first", "continued"]);
+        assert!(parse("justoneword\n").unwrap_err().contains("line 1"));
         assert_eq!(normalize_type("Point32[<=3]", "geometry_msgs"), "geometry_msgs/msg/Point32[<=3]");
         assert_eq!(normalize_type("std_msgs/msg/Header", "x"), "std_msgs/msg/Header");
         assert_eq!(normalize_type("string<=8", "x"), "string<=8");

@@ -11,16 +11,20 @@
 //!   (`standard/msg/<package>/<Type>.msg`);
 //! - [`tracer_calib_msgs`]: the node's own package, its texts read from `msg/` at compile
 //!   time (the files colcon builds the package from);
-//! - [`definition`]: the `.msg` / `.srv` parser (the one checker), and the complete
-//!   definitions rosbag2 stores;
+//! - [`syntax`]: the `.msg` / `.srv` parser, the one reader of the texts (the build script
+//!   uses it too);
+//! - [`definition`]: where each type's text is, and the complete definitions rosbag2 stores;
 //! - [`cdr`]: plain CDR with its encapsulation header, as DDS sends and rosbag2 stores it.
 //!
 //! # One declaration per type
 //!
-//! Each mirror is declared once, with [`ros_message!`]: the struct (field order = `.msg`
-//! order = wire order), its ROS name and its definition text ([`RosMsg::DEFINITION`]). The
-//! tests check every struct against its text (field names, order and kinds, through serde:
-//! what CDR sees), so a struct and its `.msg` cannot drift apart unnoticed.
+//! Each type is declared once, by its `.msg` / `.srv` file: the build script (`build.rs`)
+//! generates the struct (field order = `.msg` order = wire order, the comments as docs), the
+//! constants as associated consts, and [`RosMsg`] with the ROS name and the definition text
+//! ([`RosMsg::DEFINITION`]). Hand-written beside them: what a text cannot say (`Default` of
+//! `Header` and `CalibrateResponse`, the `Time` type ros2-client brings). The tests check
+//! every struct against its text anyway (field names, order and kinds, through serde: what CDR
+//! sees), and the texts against `msg/`.
 //!
 //! # Wire layout
 //!
@@ -37,6 +41,7 @@ pub mod cdr;
 pub mod definition;
 mod name;
 pub mod standard;
+pub mod syntax;
 pub mod tracer_calib_msgs;
 
 #[cfg(test)]
@@ -101,44 +106,3 @@ pub const KNOWN: &[(InterfaceName, Definition)] = &[
     (CalibrateRequest::NAME, CalibrateRequest::DEFINITION),
     (CalibrateResponse::NAME, CalibrateResponse::DEFINITION),
 ];
-
-/// Declares the Rust mirror of a ROS 2 message (or service half): the struct, with serde's
-/// derives (field order = `.msg` order = CDR order), ros2-client's `Message` marker, and
-/// [`RosMsg`] with the ROS name and the definition text.
-///
-/// ```ignore
-/// ros_message! {
-///     /// `std_msgs/msg/Header`: a timestamp and a coordinate frame id.
-///     #[derive(Debug, Clone, PartialEq)]
-///     pub struct Header(std_msgs/msg/Header, Definition::Msg(HEADER_TEXT)) {
-///         pub stamp: Time,
-///         pub frame_id: String,
-///     }
-/// }
-/// ```
-macro_rules! ros_message {
-    (
-        $(#[$meta:meta])*
-        $vis:vis struct $ty:ident ($package:ident / $kind:ident / $name:ident, $definition:expr) {
-            $( $(#[$field_meta:meta])* $field_vis:vis $field:ident : $field_ty:ty ),* $(,)?
-        }
-    ) => {
-        $(#[$meta])*
-        #[derive(serde::Serialize, serde::Deserialize)]
-        $vis struct $ty {
-            $( $(#[$field_meta])* $field_vis $field: $field_ty, )*
-        }
-
-        impl ros2_client::Message for $ty {}
-
-        impl $crate::interfaces::RosMsg for $ty {
-            const NAME: $crate::interfaces::InterfaceName = $crate::interfaces::InterfaceName::new(
-                stringify!($package),
-                $crate::interfaces::InterfaceKind::from_segment(stringify!($kind)),
-                stringify!($name),
-            );
-            const DEFINITION: $crate::interfaces::Definition = $definition;
-        }
-    };
-}
-pub(crate) use ros_message;

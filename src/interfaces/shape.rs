@@ -56,6 +56,15 @@ fn unsupported<T>(what: &str) -> Result<T, RecordError> {
     Err(RecordError(format!("{what} has no ROS 2 message equivalent")))
 }
 
+/// `fn serialize_x(self, _: x) -> Result<Shape, _> { Ok(Shape::Prim("x")) }` for each primitive.
+macro_rules! primitives {
+    ($($method:ident($ty:ty) => $kind:literal),* $(,)?) => {
+        $(fn $method(self, _: $ty) -> Result<Shape, RecordError> {
+            Ok(Shape::Prim($kind))
+        })*
+    };
+}
+
 impl ser::Serializer for Recorder {
     type Ok = Shape;
     type Error = RecordError;
@@ -67,38 +76,11 @@ impl ser::Serializer for Recorder {
     type SerializeStruct = StructRecorder;
     type SerializeStructVariant = Impossible<Shape, RecordError>;
 
-    fn serialize_bool(self, _: bool) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("bool"))
-    }
-    fn serialize_i8(self, _: i8) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("i8"))
-    }
-    fn serialize_i16(self, _: i16) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("i16"))
-    }
-    fn serialize_i32(self, _: i32) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("i32"))
-    }
-    fn serialize_i64(self, _: i64) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("i64"))
-    }
-    fn serialize_u8(self, _: u8) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("u8"))
-    }
-    fn serialize_u16(self, _: u16) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("u16"))
-    }
-    fn serialize_u32(self, _: u32) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("u32"))
-    }
-    fn serialize_u64(self, _: u64) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("u64"))
-    }
-    fn serialize_f32(self, _: f32) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("f32"))
-    }
-    fn serialize_f64(self, _: f64) -> Result<Shape, RecordError> {
-        Ok(Shape::Prim("f64"))
+    primitives! {
+        serialize_bool(bool) => "bool", serialize_i8(i8) => "i8", serialize_i16(i16) => "i16",
+        serialize_i32(i32) => "i32", serialize_i64(i64) => "i64", serialize_u8(u8) => "u8",
+        serialize_u16(u16) => "u16", serialize_u32(u32) => "u32", serialize_u64(u64) => "u64",
+        serialize_f32(f32) => "f32", serialize_f64(f64) => "f64"
     }
     fn serialize_char(self, _: char) -> Result<Shape, RecordError> {
         unsupported("a Rust char (4 bytes in CDR)")

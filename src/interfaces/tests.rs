@@ -11,6 +11,26 @@ use super::shape::{check_struct_against_definition, check_struct_against_fields}
 use super::*;
 use crate::interfaces::definition;
 
+/// `$f::<T>()` for every mirrored type.
+macro_rules! for_every_type {
+    ($f:ident) => {
+        $f::<Time>();
+        $f::<Header>();
+        $f::<RawScan>();
+        $f::<Contour>();
+        $f::<Point>();
+        $f::<Point32>();
+        $f::<Polygon>();
+        $f::<PolygonStamped>();
+        $f::<KeyValue>();
+        $f::<DiagnosticStatus>();
+        $f::<DiagnosticArray>();
+        $f::<CalibrateRequest>();
+        $f::<CalibrateResponse>();
+        $f::<Calibration>();
+    };
+}
+
 /// A value of the type with distinct field values and non-empty sequences.
 trait Sample: Sized {
     fn sample() -> Self;
@@ -161,20 +181,7 @@ fn round_trip<T: RosMsg + Sample + PartialEq + fmt::Debug>() {
 
 #[test]
 fn cdr_round_trip_of_every_type() {
-    round_trip::<Time>();
-    round_trip::<Header>();
-    round_trip::<RawScan>();
-    round_trip::<Contour>();
-    round_trip::<Point>();
-    round_trip::<Point32>();
-    round_trip::<Polygon>();
-    round_trip::<PolygonStamped>();
-    round_trip::<KeyValue>();
-    round_trip::<DiagnosticStatus>();
-    round_trip::<DiagnosticArray>();
-    round_trip::<CalibrateRequest>();
-    round_trip::<CalibrateResponse>();
-    round_trip::<Calibration>();
+    for_every_type!(round_trip);
 }
 
 #[test]
@@ -358,20 +365,7 @@ fn check_type<T: RosMsg + Sample>() {
 
 #[test]
 fn every_struct_serializes_as_its_definition() {
-    check_type::<Time>();
-    check_type::<Header>();
-    check_type::<RawScan>();
-    check_type::<Contour>();
-    check_type::<Point>();
-    check_type::<Point32>();
-    check_type::<Polygon>();
-    check_type::<PolygonStamped>();
-    check_type::<KeyValue>();
-    check_type::<DiagnosticStatus>();
-    check_type::<DiagnosticArray>();
-    check_type::<CalibrateRequest>();
-    check_type::<CalibrateResponse>();
-    check_type::<Calibration>();
+    for_every_type!(check_type);
 }
 
 #[test]
@@ -382,20 +376,7 @@ fn every_type_is_known_with_its_complete_definition() {
             assert!(definition::full_definition_of::<T>().is_some(), "{}: dependencies", T::NAME.ros_name());
         }
     }
-    known::<Time>();
-    known::<Header>();
-    known::<RawScan>();
-    known::<Contour>();
-    known::<Point>();
-    known::<Point32>();
-    known::<Polygon>();
-    known::<PolygonStamped>();
-    known::<KeyValue>();
-    known::<DiagnosticStatus>();
-    known::<DiagnosticArray>();
-    known::<CalibrateRequest>();
-    known::<CalibrateResponse>();
-    known::<Calibration>();
+    for_every_type!(known);
     assert_eq!(KNOWN.len(), 14);
 }
 

@@ -426,7 +426,7 @@ fn param_override_parsing() {
 
 #[test]
 fn node_targeted_rules_apply_only_to_their_node() {
-    let args = parse(&[
+    let rules = [
         "p",
         "--ros-args",
         "-r",
@@ -441,28 +441,10 @@ fn node_targeted_rules_apply_only_to_their_node() {
         "other:model:=paper",
         "-p",
         "tracer_calibrator:model:=full",
-        "-p",
-        "cell2/tracer_calibrator:model:=bad",
-    ]);
+    ];
     // a '/' is not allowed in a node prefix
-    assert!(args.is_err());
-    let args = parse(&[
-        "p",
-        "--ros-args",
-        "-r",
-        "other:__node:=wrong",
-        "-r",
-        "tracer_calibrator:__ns:=/cell2",
-        "-r",
-        "other:raw_scan:=/not_mine",
-        "-r",
-        "tracer_calibrator:raw_scan:=/mine",
-        "-p",
-        "other:model:=paper",
-        "-p",
-        "tracer_calibrator:model:=full",
-    ])
-    .unwrap();
+    assert!(parse(&[&rules[..], &["-p", "cell2/tracer_calibrator:model:=bad"]].concat()).is_err());
+    let args = parse(&rules).unwrap();
     let node = args.node_identity("tracer_calibrator", "/").unwrap();
     assert_eq!(node.fully_qualified_name(), "/cell2/tracer_calibrator");
     assert_eq!(args.resolve_topic("raw_scan", &node).unwrap(), "/mine");

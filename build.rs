@@ -1,0 +1,324 @@
+//! Generates the Rust mirrors of the ROS 2 interfaces from their texts: one declaration per
+//! type, the `.msg` / `.srv` file itself.
+//!
+//! - `msg/msg/*.msg`, `msg/srv/*.srv`: the node's own package, `tracer_calib_msgs` (the files
+//!   colcon builds it from) -> `$OUT_DIR/tracer_calib_msgs.rs`;
+//! - `src/interfaces/standard/msg/<package>/*.msg`: the standard types used, copied verbatim
+//!   from ROS 2 -> `$OUT_DIR/standard.rs` (`builtin_interfaces/Time` is ros2-client's type
+//!   and is not generated).
+//!
+//! Each type becomes a struct (fields in `.msg` order, which is the CDR order; comments as
+//! docs), its constants associated consts, `ros2_client::Message` and `RosMsg` (name and
+//! definition text); a service becomes its two halves and a unit struct implementing
+//! `RosService`. The text is parsed by `src/interfaces/syntax.rs`, the crate's own parser.
+//! `src/interfaces/mod.rs` says how the generated code is checked against the texts.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+#[allow(dead_code)]
+#[path = "src/interfaces/syntax.rs"]
+mod syntax;
+
+/// Types whose `Default` is written by hand beside the generated code (`Default` is derived
+/// for the others): a header's stamp is ros2-client's `Time`, which has no `Default`; the
+/// Calibrate response's default is a failure with scale 1.0, the scale of no fit, not 0.
+const DEFAULT_BY_HAND: &[&str] = &["std_msgs/msg/Header", "tracer_calib_msgs/srv/Calibrate_Response"];
+
+/// The Rust type of a primitive, if `ty` is one.
+fn primitive(ty: &str) -> Option<&'static str> {
+    Some(match ty {
+        "bool" => "bool",
+        "byte" | "char" | "uint8" => "u8",
+        "int8" => "i8",
+        "int16" => "i16",
+        "uint16" => "u16",
+        "int32" => "i32",
+        "uint32" => "u32",
+        "int64" => "i64",
+        "uint64" => "u64",
+        "float32" => "f32",
+        "float64" => "f64",
+        t if t == "string" || t.starts_with("string<=") => "String",
+        _ => return None,
+    })
+}
+
+/// One interface type to generate.
+struct Type {
+    /// `pkg/msg/Name` or `pkg/srv/Name_Request`.
+    ros_name: String,
+    package: String,
+    kind: &'static str,
+    /// The ROS type name (`Calibrate_Request`).
+    name: String,
+    /// The Rust struct name (`CalibrateRequest`).
+    rust: String,
+    /// The text.
+    text: String,
+    /// How the generated code gets the text: a `Definition` expression.
+    definition: String,
+}
+
+/// What is known of each generated type, for derives: (has floats, is plain-old-data, is `Default`).
+type Traits = BTreeMap<String, (bool, bool, bool)>;
+
+fn rust_field_type(ty: &str, package: &str) -> String {
+    let (base, suffix) = syntax::split_array(ty);
+    let elem = match primitive(base) {
+        Some(p) => p.to_string(),
+        None => match syntax::field_message_type(base, package).as_deref() {
+            Some("builtin_interfaces/msg/Time") => "crate::interfaces::Time".to_string(),
+            Some(m) => format!("crate::interfaces::{}", m.rsplit('/').next().unwrap_or(m)),
+            None => panic!("unsupported field type {ty}"),
+        },
+    };
+    let inner = suffix.trim_start_matches('[').trim_end_matches(']');
+    if suffix.is_empty() {
+        elem
+    } else if inner.is_empty() || inner.starts_with("<=") {
+        format!("Vec<{elem}>")
+    } else {
+        format!("[{elem}; {inner}]")
+    }
+}
+
+/// (has floats, plain-old-data, Default) of a field type, given those of the types before.
+fn field_traits(ty: &str, package: &str, known: &Traits) -> (bool, bool, bool) {
+    let (base, suffix) = syntax::split_array(ty);
+    let sequence = suffix.contains("[]") || suffix.contains("<=");
+    match primitive(base) {
+        Some(p) => (p.starts_with('f'), p != "String" && !sequence, true),
+        None => match syntax::field_message_type(base, package).as_deref() {
+            // ros2-client's Time: no floats, Copy, no Default.
+            Some("builtin_interfaces/msg/Time") => (false, false, false),
+            Some(m) => {
+                let (floats, _, default) =
+                    *known.get(m).unwrap_or_else(|| panic!("{m} is used before it is generated"));
+                (floats, false, default)
+            }
+            None => unreachable!(),
+        },
+    }
+}
+
+fn doc(out: &mut String, indent: &str, lines: &[&str]) {
+    for line in lines {
+        writeln!(out, "{indent}#[doc = {:?}]", format!(" {line}")).unwrap();
+    }
+}
+
+fn generate(t: &Type, known: &mut Traits, out: &mut String) {
+    let parsed = syntax::parse(&t.text).unwrap_or_else(|e| panic!("{}: {e}", t.ros_name));
+    let fields: Vec<&syntax::Member> = parsed.members.iter().filter(|m| m.constant.is_none()).collect();
+    let (mut floats, mut pod, mut default) = (false, !fields.is_empty(), true);
+    for f in &fields {
+        let (fl, p, d) = field_traits(f.ty, &t.package, known);
+        (floats, pod, default) = (floats || fl, pod && p, default && d);
+    }
+    let by_hand = DEFAULT_BY_HAND.contains(&t.ros_name.as_str());
+    known.insert(t.ros_name.clone(), (floats, pod, default || by_hand));
+    let mut derives = vec!["Debug", "Clone"];
+    if pod {
+        derives.push("Copy");
+    }
+    if default && !by_hand {
+        derives.push("Default");
+    }
+    derives.push("PartialEq");
+    if !floats {
+        derives.push("Eq");
+    }
+    derives.extend(["serde::Serialize", "serde::Deserialize"]);
+
+    writeln!(out, "#[doc = \" `{}`.\"]", t.ros_name).unwrap();
+    if !parsed.header.is_empty() {
+        writeln!(out, "#[doc = \"\"]").unwrap();
+        doc(out, "", &parsed.header);
+    }
+    writeln!(out, "#[derive({})]\npub struct {} {{", derives.join(", "), t.rust).unwrap();
+    for f in &fields {
+        doc(out, "    ", &f.comments);
+        writeln!(out, "    pub {}: {},", f.name, rust_field_type(f.ty, &t.package)).unwrap();
+    }
+    writeln!(out, "}}\n").unwrap();
+    let constants: Vec<&syntax::Member> = parsed.members.iter().filter(|m| m.constant.is_some()).collect();
+    if !constants.is_empty() {
+        writeln!(out, "impl {} {{", t.rust).unwrap();
+        for c in constants {
+            let ty = primitive(c.ty).unwrap_or_else(|| panic!("{}: constant {} of type {}", t.ros_name, c.name, c.ty));
+            let value = c.constant.unwrap_or_default();
+            let value = if ty == "String" { format!("{value:?}") } else { value.to_string() };
+            let ty = if ty == "String" { "&str" } else { ty };
+            doc(out, "    ", &c.comments);
+            writeln!(out, "    pub const {}: {ty} = {value};", c.name).unwrap();
+        }
+        writeln!(out, "}}\n").unwrap();
+    }
+    writeln!(
+        out,
+        "impl ros2_client::Message for {rust} {{}}\n\n\
+         impl crate::interfaces::RosMsg for {rust} {{\n    \
+             const NAME: crate::interfaces::InterfaceName = crate::interfaces::InterfaceName::{kind}({package:?}, {name:?});\n    \
+             const DEFINITION: crate::interfaces::Definition = {definition};\n\
+         }}\n",
+        rust = t.rust,
+        kind = t.kind,
+        package = t.package,
+        name = t.name,
+        definition = t.definition,
+    )
+    .unwrap();
+}
+
+/// The `.msg` / `.srv` files of a folder, sorted.
+fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == ext))
+        .collect();
+    out.sort();
+    out
+}
+
+fn read(path: &Path) -> String {
+    println!("cargo::rerun-if-changed={}", path.display());
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn stem(path: &Path) -> String {
+    path.file_stem().unwrap().to_string_lossy().into_owned()
+}
+
+/// `include_str!` of a file of this package, relative to its root.
+fn include(relative: &str) -> String {
+    format!("include_str!(concat!(env!(\"CARGO_MANIFEST_DIR\"), {:?}))", format!("/{relative}"))
+}
+
+/// Messages in dependency order (a type after the types it uses), so derives can follow.
+fn in_dependency_order(mut types: Vec<Type>) -> Vec<Type> {
+    let mut ordered: Vec<Type> = Vec::new();
+    while !types.is_empty() {
+        let ready = types
+            .iter()
+            .position(|t| {
+                syntax::parse(&t.text).unwrap().members.iter().filter(|m| m.constant.is_none()).all(|m| {
+                    match syntax::field_message_type(m.ty, &t.package) {
+                        None => true,
+                        Some(dep) => {
+                            dep == "builtin_interfaces/msg/Time"
+                                || ordered.iter().any(|o| o.ros_name == dep)
+                                || !types.iter().any(|o| o.ros_name == dep)
+                        }
+                    }
+                })
+            })
+            .expect("a dependency cycle among the interface texts");
+        ordered.push(types.remove(ready));
+    }
+    ordered
+}
+
+fn main() {
+    let root = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap());
+    let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap());
+    println!("cargo::rerun-if-changed=src/interfaces/syntax.rs");
+    println!("cargo::rerun-if-changed=msg/msg");
+    println!("cargo::rerun-if-changed=msg/srv");
+    let mut known = Traits::new();
+
+    // The standard types, in dependency order across packages.
+    let standard_root = root.join("src/interfaces/standard/msg");
+    let mut standard = Vec::new();
+    for package_dir in files_dirs(&standard_root) {
+        let package = package_dir.file_name().unwrap().to_string_lossy().into_owned();
+        for path in files(&package_dir, "msg") {
+            let name = stem(&path);
+            if package == "builtin_interfaces" && name == "Time" {
+                continue;
+            }
+            let relative = format!("src/interfaces/standard/msg/{package}/{name}.msg");
+            standard.push(Type {
+                ros_name: format!("{package}/msg/{name}"),
+                package: package.clone(),
+                kind: "msg",
+                rust: name.clone(),
+                text: read(&path),
+                definition: format!("crate::interfaces::Definition::Msg({})", include(&relative)),
+                name,
+            });
+        }
+    }
+    let mut code = String::from("// Generated by build.rs from src/interfaces/standard/msg/: do not edit.\n\n");
+    for t in in_dependency_order(standard) {
+        generate(&t, &mut known, &mut code);
+    }
+    std::fs::write(out_dir.join("standard.rs"), code).unwrap();
+
+    // tracer_calib_msgs: messages, then services.
+    let package = "tracer_calib_msgs".to_string();
+    let mut own = Vec::new();
+    for path in files(&root.join("msg/msg"), "msg") {
+        let name = stem(&path);
+        own.push(Type {
+            ros_name: format!("{package}/msg/{name}"),
+            package: package.clone(),
+            kind: "msg",
+            rust: name.clone(),
+            text: read(&path),
+            definition: format!("crate::interfaces::Definition::Msg({})", include(&format!("msg/msg/{name}.msg"))),
+            name,
+        });
+    }
+    let mut code = String::from("// Generated by build.rs from msg/: do not edit.\n\n");
+    for t in in_dependency_order(own) {
+        generate(&t, &mut known, &mut code);
+    }
+    for path in files(&root.join("msg/srv"), "srv") {
+        let service = stem(&path);
+        let text = read(&path);
+        let (request, response) = syntax::split_srv(&text);
+        for (half, part) in [("Request", request), ("Response", response)] {
+            let t = Type {
+                ros_name: format!("{package}/srv/{service}_{half}"),
+                package: package.clone(),
+                kind: "srv",
+                name: format!("{service}_{half}"),
+                rust: format!("{service}{half}"),
+                text: part.to_string(),
+                definition: format!(
+                    "crate::interfaces::Definition::{half}({})",
+                    include(&format!("msg/srv/{service}.srv"))
+                ),
+            };
+            generate(&t, &mut known, &mut code);
+        }
+        writeln!(
+            code,
+            "#[doc = \" The `{package}/srv/{service}` service type: give `RosService::type_name` to ros2-client.\"]\n\
+             #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]\n\
+             pub struct {service};\n\n\
+             impl crate::interfaces::RosService for {service} {{\n    \
+                 type Request = {service}Request;\n    \
+                 type Response = {service}Response;\n    \
+                 const NAME: crate::interfaces::InterfaceName = crate::interfaces::InterfaceName::srv({package:?}, {service:?});\n\
+             }}\n"
+        )
+        .unwrap();
+    }
+    std::fs::write(out_dir.join("tracer_calib_msgs.rs"), code).unwrap();
+}
+
+/// The sub-folders of a folder, sorted.
+fn files_dirs(dir: &Path) -> Vec<PathBuf> {
+    println!("cargo::rerun-if-changed={}", dir.display());
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_dir())
+        .collect();
+    out.sort();
+    out
+}
