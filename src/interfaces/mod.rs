@@ -14,6 +14,7 @@
 //! - [`syntax`]: the `.msg` / `.srv` parser, the one reader of the texts (the build script
 //!   uses it too);
 //! - [`definition`]: where each type's text is, and the complete definitions rosbag2 stores;
+//! - [`type_hash`]: type descriptions and RIHS01 hashes (REP-2016), from the same texts;
 //! - [`cdr`]: plain CDR with its encapsulation header, as DDS sends and rosbag2 stores it.
 //!
 //! # One declaration per type
@@ -43,6 +44,7 @@ mod name;
 pub mod standard;
 pub mod syntax;
 pub mod tracer_calib_msgs;
+pub mod type_hash;
 
 #[cfg(test)]
 mod shape;
@@ -53,7 +55,8 @@ pub use cdr::{CDR_LE_HEADER, CdrError, from_cdr, to_cdr};
 pub use definition::Definition;
 pub use name::{InterfaceKind, InterfaceName};
 pub use standard::{
-    DiagnosticArray, DiagnosticStatus, Header, KeyValue, Point, Point32, Polygon, PolygonStamped, Time,
+    DiagnosticArray, DiagnosticStatus, Header, KeyValue, Point, Point32, Polygon, PolygonStamped, ServiceEventInfo,
+    Time,
 };
 pub use tracer_calib_msgs::{Calibrate, CalibrateRequest, CalibrateResponse, Calibration, Contour, RawScan};
 
@@ -100,6 +103,7 @@ pub const KNOWN: &[(InterfaceName, Definition)] = &[
     (KeyValue::NAME, KeyValue::DEFINITION),
     (DiagnosticStatus::NAME, DiagnosticStatus::DEFINITION),
     (DiagnosticArray::NAME, DiagnosticArray::DEFINITION),
+    (ServiceEventInfo::NAME, ServiceEventInfo::DEFINITION),
     (RawScan::NAME, RawScan::DEFINITION),
     (Contour::NAME, Contour::DEFINITION),
     (Calibration::NAME, Calibration::DEFINITION),

@@ -377,7 +377,8 @@ fn every_type_is_known_with_its_complete_definition() {
         }
     }
     for_every_type!(known);
-    assert_eq!(KNOWN.len(), 14);
+    known::<ServiceEventInfo>();
+    assert_eq!(KNOWN.len(), 15);
 }
 
 #[test]
