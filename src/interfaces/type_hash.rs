@@ -30,7 +30,7 @@ use sha2::{Digest, Sha256};
 
 use super::definition::parse;
 use super::syntax::{field_message_type, split_array};
-use super::{InterfaceKind, KNOWN, RosMsg};
+use super::{KNOWN, RosMsg};
 
 /// `type_description_interfaces/msg/FieldType`: the type of one field.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -302,7 +302,7 @@ pub fn type_hash(type_name: &str) -> Result<String, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::interfaces::InterfaceName;
+    use crate::interfaces::{InterfaceKind, InterfaceName};
 
     #[test]
     fn field_types_follow_rosidl() {
