@@ -3,8 +3,9 @@ the node under test as a process, the rclpy peer, scans, ellipse geometry, param
 and their read-back by a stock rclpy node, and the test runner with the node logs.
 
 Imported by the test scripts (test_node.py, test_records.py, test_graph.py,
-test_launch.py, cell_graph.py, and test_two_hosts.py's peer process). What needs no ROS
-is in runner.py (test_two_hosts.py's controller imports only that).
+test_launch.py, cell_graph.py, and test_two_hosts.py's peer process); none of them
+imports another test script. What needs no ROS is in runner.py (test_two_hosts.py's
+controller imports only that).
 
 At import: NODE_BIN and TOOL_BIN from $TRACER_CALIB_NODE and $TRACER_CALIB (run.sh sets
 them to the release binaries in cargo's target directory); WORK, a fresh temporary

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """tracer_calib_node against a real ROS 2 peer: rclpy (ROS 2 Kilted, Fast DDS, PyPI wheels)
 with the tracer_calib_msgs package built from msg/ by rosidl.
 
@@ -8,10 +7,9 @@ with the generated Calibrate type, receive Contour, PolygonStamped and Diagnosti
 list/get/set parameters with rclpy's parameter client, and load the YAML the node
 persisted into an rclpy node with --params-file.
 
-Run by tests/interop/run.sh inside a private network namespace, with the helpers of
-harness.py (test_records.py's tests run here too). Each test starts its own node processes
-and stops them with SIGTERM (checking they exit promptly). Prints one line per test and a
-closing 'N passed, N failed'.
+Run by node_suite.py (tests/interop/run.sh) inside a private network namespace, with the
+helpers of harness.py. Each test starts its own node processes and stops them with
+SIGTERM (checking they exit promptly).
 """
 
 import json
@@ -22,7 +20,6 @@ import subprocess
 import sys
 import time
 
-import rclpy
 from rclpy.parameter import Parameter
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -31,14 +28,12 @@ from tracer_calib_msgs.msg import Contour, RawScan
 from tracer_calib_msgs.srv import Calibrate
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import test_records  # noqa: E402
 from harness import (  # noqa: E402
     NODE_BIN,
     TOOL_BIN,
     TRUTH,
     WORK,
     NodeProcess,
-    Peer,
     calibrate_then_lens,
     ellipse_distance,
     ellipse_radius,
@@ -46,7 +41,6 @@ from harness import (  # noqa: E402
     params_file,
     raw_scan,
     read_back_with_rclpy,
-    run_tests,
     simulate,
 )
 
@@ -574,10 +568,10 @@ def test_encoder_scale(peer):
     assert back["calibration.scale"] == r.scale and back["model"] == "full_scale", back
 
 
-def main():
-    rclpy.init()
-    peer = Peer()
-    tests = [
+def tests(peer):
+    """This file's tests as `(name, fn)` pairs, in order, against the rclpy `peer`
+    (node_suite.py runs them)."""
+    return [
         ("calibrate_and_correct", lambda: test_calibrate_and_correct(peer)),
         ("parameters", lambda: test_parameters(peer)),
         ("two_cells", lambda: test_two_cells(peer)),
@@ -589,25 +583,4 @@ def main():
         ("kill_during_writes", test_kill_during_writes),
         ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
         ("encoder_scale", lambda: test_encoder_scale(peer)),
-        ("history_and_latched_calibration", lambda: test_records.test_history_and_latched_calibration(peer)),
-        ("max_age_and_drift_on_diagnostics", lambda: test_records.test_max_age_and_drift_on_diagnostics(peer)),
-        ("read_only_history", lambda: test_records.test_read_only_history(peer)),
-        ("full_disk_history", lambda: test_records.test_full_disk_history(peer)),
     ]
-    only = [a.removeprefix("test_") for a in sys.argv[1:]]
-    unknown = sorted(set(only) - {name for name, _ in tests})
-    if unknown:
-        print(f"interop: no such test: {', '.join(unknown)} (have: {', '.join(n for n, _ in tests)})", flush=True)
-        os._exit(2)
-    failed = run_tests(tests, only, "interop::", "interop")
-    if failed == 0:
-        import shutil
-
-        shutil.rmtree(WORK, ignore_errors=True)
-    sys.stdout.flush()
-    # rclpy's shutdown can hang (notes/ros2-peer.md): leave without it.
-    os._exit(0 if failed == 0 else 1)
-
-
-if __name__ == "__main__":
-    main()
