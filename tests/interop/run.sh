@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The real-ROS-2-peer tests, once per ROS 2 distribution (Kilted, then Jazzy, the LTS):
 #   1. tests/interop/setup.sh DISTRO: rclpy + tracer_calib_msgs (quick when up to date);
-#   2. against the release binaries (target/release), with the peer's environment
-#      target/ros/DISTRO/env.sh:
+#   2. against the release binaries (in cargo's target directory: scripts/target_dir.sh),
+#      with the peer's environment target/ros/DISTRO/env.sh:
 #      - node_suite.py (test_node.py's tests, then test_records.py's) in a private network
 #        namespace;
 #      - test_graph.py, the node in the ROS graph (leaving it, matching, QoS), in a private
@@ -24,8 +24,9 @@ HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 DISTROS=${TRACER_ROS_DISTROS:-kilted jazzy}
 trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
-export TRACER_CALIB_NODE="$ROOT/target/release/tracer_calib_node"
-export TRACER_CALIB="$ROOT/target/release/tracer_calib"
+. "$ROOT/scripts/target_dir.sh"
+export TRACER_CALIB_NODE="$TRACER_RELEASE_DIR/tracer_calib_node"
+export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
