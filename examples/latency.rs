@@ -181,7 +181,11 @@ fn main() {
         return relay(&argv[2]);
     }
     let iterations: usize = std::env::args().nth(1).map_or(2000, |s| s.parse().expect("ITERATIONS"));
-    let node_bin = std::env::var("TRACER_CALIB_NODE").unwrap_or_else(|_| "target/release/tracer_calib_node".into());
+    // By default the node built beside this example: <target>/release/examples/ -> <target>/release/.
+    let node_bin = std::env::var("TRACER_CALIB_NODE").unwrap_or_else(|_| {
+        let exe = std::env::current_exe().unwrap();
+        exe.parent().and_then(std::path::Path::parent).unwrap().join("tracer_calib_node").display().to_string()
+    });
     let me = std::env::current_exe().unwrap();
     let node = Command::new(&node_bin)
         .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

@@ -80,7 +80,11 @@ fn main() {
     let total: u32 = std::env::args().nth(1).map_or(100_000, |s| s.parse().expect("SCANS"));
     let window: u32 = std::env::args().nth(2).map_or(16, |s| s.parse().expect("WINDOW"));
     let rate: f64 = std::env::args().nth(3).map_or(0.0, |s| s.parse().expect("RATE"));
-    let node_bin = std::env::var("TRACER_CALIB_NODE").unwrap_or_else(|_| "target/release/tracer_calib_node".into());
+    // By default the node built beside this example: <target>/release/examples/ -> <target>/release/.
+    let node_bin = std::env::var("TRACER_CALIB_NODE").unwrap_or_else(|_| {
+        let exe = std::env::current_exe().unwrap();
+        exe.parent().and_then(std::path::Path::parent).unwrap().join("tracer_calib_node").display().to_string()
+    });
     let node = Node(
         Command::new(&node_bin)
             .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

@@ -5,4 +5,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --bins --example latency
-TRACER_CALIB_NODE=target/release/tracer_calib_node tests/interop/netns.sh target/release/examples/latency "$@"
+. scripts/target_dir.sh
+TRACER_CALIB_NODE=$TRACER_RELEASE_DIR/tracer_calib_node tests/interop/netns.sh "$TRACER_RELEASE_DIR/examples/latency" "$@"

@@ -10,9 +10,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --bins
+. scripts/target_dir.sh
 tests/interop/setup.sh >/dev/null
 trap 'tests/interop/shm_clean.sh >/dev/null 2>&1 || true' EXIT
-export TRACER_CALIB_NODE="$PWD/target/release/tracer_calib_node" TRACER_CALIB="$PWD/target/release/tracer_calib"
+export TRACER_CALIB_NODE="$TRACER_RELEASE_DIR/tracer_calib_node" TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 status=0
 for n in "${@:-1 5 10}"; do
     for k in $n; do

@@ -5,4 +5,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --bins --quiet
-exec target/release/tracer_calib demo "$@"
+. scripts/target_dir.sh
+exec "$TRACER_RELEASE_DIR/tracer_calib" demo "$@"

@@ -7,4 +7,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --bins --example soak
-TRACER_CALIB_NODE=target/release/tracer_calib_node timeout -s KILL 1200 tests/interop/netns.sh target/release/examples/soak "$@"
+. scripts/target_dir.sh
+TRACER_CALIB_NODE=$TRACER_RELEASE_DIR/tracer_calib_node timeout -s KILL 1200 tests/interop/netns.sh "$TRACER_RELEASE_DIR/examples/soak" "$@"

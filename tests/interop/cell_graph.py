@@ -26,7 +26,7 @@ import rclpy
 from rclpy.qos import QoSProfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import test_node as t  # noqa: E402
+import harness as h  # noqa: E402
 from tracer_calib_msgs.msg import Contour, RawScan  # noqa: E402
 from tracer_calib_msgs.srv import Calibrate  # noqa: E402
 
@@ -60,8 +60,8 @@ def cell_graph(peer, n, scans=50, rate=5.0, stagger=0.0, head_start=1.0, discove
         peer.node.create_subscription(Contour, f"{c}/contour", box.append, QoSProfile(depth=100))
         boxes[c] = box
         clients[c] = peer.node.create_client(Calibrate, f"{c}/calibrate")
-    plate = t.simulate("cell_plate", "plate", seed=2)
-    lens = t.simulate("cell_lens", "ellipse", seed=3)
+    plate = h.simulate("cell_plate", "plate", seed=2)
+    lens = h.simulate("cell_lens", "ellipse", seed=3)
 
     end = time.monotonic() + head_start
     while time.monotonic() < end:
@@ -69,7 +69,7 @@ def cell_graph(peer, n, scans=50, rate=5.0, stagger=0.0, head_start=1.0, discove
     t0 = time.monotonic()
     nodes = []
     for k in range(1, n + 1):
-        nodes.append(t.NodeProcess(f"cell{k}", ["-r", f"__ns:=/cell{k}", "-r", "__node:=tracer"]))
+        nodes.append(h.NodeProcess(f"cell{k}", ["-r", f"__ns:=/cell{k}", "-r", "__node:=tracer"]))
         end = time.monotonic() + stagger
         while time.monotonic() < end:
             peer.executor.spin_once(timeout_sec=0.02)
@@ -99,7 +99,7 @@ def cell_graph(peer, n, scans=50, rate=5.0, stagger=0.0, head_start=1.0, discove
         load0 = {x.proc.pid: cpu_s(x.proc.pid) for x in nodes}
         tl = time.monotonic()
         for c in cells:
-            peer.send_scan(pubs[c], t.raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *plate), boxes[c], timeout=60)
+            peer.send_scan(pubs[c], h.raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *plate), boxes[c], timeout=60)
         futures = {c: clients[c].call_async(Calibrate.Request()) for c in cells}
         peer.spin_until(lambda: all(f.done() for f in futures.values()), 60, "every calibrate answered")
         calls_ok = sum(1 for f in futures.values() if f.result().success)
@@ -107,7 +107,7 @@ def cell_graph(peer, n, scans=50, rate=5.0, stagger=0.0, head_start=1.0, discove
         next_at = time.monotonic()
         for i in range(scans):
             for c in cells:
-                pubs[c].publish(t.raw_scan(1000 + i, RawScan.TARGET_LENS, *lens))
+                pubs[c].publish(h.raw_scan(1000 + i, RawScan.TARGET_LENS, *lens))
             sent += n
             next_at += 1.0 / rate
             while time.monotonic() < next_at:
@@ -156,7 +156,7 @@ def main():
     rate = float(sys.argv[3]) if len(sys.argv) > 3 else 5.0
     rclpy.init()
     out = cell_graph(
-        t.Peer("planner"),
+        h.Peer("planner"),
         n,
         scans,
         rate,

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The real-ROS-2-peer tests, once per ROS 2 distribution (Kilted, then Jazzy, the LTS):
 #   1. tests/interop/setup.sh DISTRO: rclpy + tracer_calib_msgs (quick when up to date);
-#   2. against the release binaries (target/release), with the peer's environment
-#      target/ros/DISTRO/env.sh:
-#      - test_node.py (and test_records.py, which it runs) in a private network namespace;
+#   2. against the release binaries (in cargo's target directory: scripts/target_dir.sh),
+#      with the peer's environment target/ros/DISTRO/env.sh:
+#      - node_suite.py (test_node.py's tests, then test_records.py's) in a private network
+#        namespace;
 #      - test_graph.py, the node in the ROS graph (leaving it, matching, QoS), in a private
 #        network namespace too;
 #      - test_two_hosts.py on two "hosts", network namespaces joined by a veth pair with
@@ -15,7 +16,7 @@
 # Nothing leaves the machine. Prints each part's time.
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), two_hosts
-# test_two_hosts.py's scenarios (two_hosts: all); the others, test_node.py's tests; with
+# test_two_hosts.py's scenarios (two_hosts: all); the others, node_suite.py's tests; with
 # names, 3 and 4 are skipped. No names: everything.
 #   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
@@ -23,8 +24,9 @@ HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 DISTROS=${TRACER_ROS_DISTROS:-kilted jazzy}
 trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
-export TRACER_CALIB_NODE="$ROOT/target/release/tracer_calib_node"
-export TRACER_CALIB="$ROOT/target/release/tracer_calib"
+. "$ROOT/scripts/target_dir.sh"
+export TRACER_CALIB_NODE="$TRACER_RELEASE_DIR/tracer_calib_node"
+export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
@@ -39,7 +41,7 @@ done
 now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
 # A test script with the distribution's peer environment: SCRIPT DISTRO [NAME...]
-# (test_node.py, test_graph.py), through WRAPPER (netns.sh or two_hosts.sh).
+# (node_suite.py, test_graph.py), through WRAPPER (netns.sh or two_hosts.sh).
 peer_run() {
     local wrapper=$1 script=$2 d=$3
     shift 3
@@ -57,9 +59,9 @@ for d in $DISTROS; do
     echo "run.sh: $d: setup $(took "$t0")"
     if [ "$#" -eq 0 ] || [ "${#node_tests[@]}" -gt 0 ]; then
         t0=$(now_ms)
-        echo "run.sh: $d: test_node.py (ROS 2 $d rclpy, release binaries)"
-        peer_run netns.sh test_node.py "$d" ${node_tests[@]+"${node_tests[@]}"} || failed+=("$d:test_node")
-        echo "run.sh: $d: test_node.py $(took "$t0")"
+        echo "run.sh: $d: node_suite.py (test_node.py, test_records.py; ROS 2 $d rclpy, release binaries)"
+        peer_run netns.sh node_suite.py "$d" ${node_tests[@]+"${node_tests[@]}"} || failed+=("$d:node_suite")
+        echo "run.sh: $d: node_suite.py $(took "$t0")"
     fi
     if [ "$#" -eq 0 ] || [ "${#graph[@]}" -gt 0 ]; then
         t0=$(now_ms)

@@ -1,6 +1,7 @@
 """What every interop script shares and that needs no ROS: running a list of tests as
 cargo test prints them, and stopping a process. (test_two_hosts.py's controller runs
-outside the namespaces' ROS set-up and imports only this; test_node.py re-exports it.)"""
+outside the namespaces' ROS set-up and imports only this; harness.py, the helpers with
+ROS, builds on it.)"""
 
 import os
 import signal

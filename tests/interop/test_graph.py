@@ -13,7 +13,7 @@
   every cell, every call and scan is answered (tests/interop/cell_graph.py).
 
 Run by tests/interop/run.sh inside a private network namespace, with the helpers of
-test_node.py. Prints one line per test.
+harness.py. Prints one line per test.
 """
 
 import os
@@ -22,9 +22,10 @@ import sys
 import time
 
 import rclpy
+from rclpy.qos import QoSProfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import test_node as t  # noqa: E402
+import harness as h  # noqa: E402
 from geometry_msgs.msg import PolygonStamped  # noqa: E402
 from tracer_calib_msgs.msg import Contour, RawScan  # noqa: E402
 
@@ -41,13 +42,13 @@ def test_clean_leave(peer):
     """SIGINT and SIGTERM: gone from the peer's node and service lists within 1 s;
     SIGKILL: gone when its lease runs out (10 s); a restarted node is listed once."""
     for sig in (signal.SIGINT, signal.SIGTERM):
-        node = t.NodeProcess(f"leave_{sig.name}", [])
+        node = h.NodeProcess(f"leave_{sig.name}", [])
         try:
             peer.spin_until(lambda: graph_has_node(peer) == 1 and graph_has_service(peer), 20, "the node in the graph")
         except Exception:
             node.stop()
             raise
-        t.RUNNING.remove(node)
+        h.RUNNING.remove(node)
         t0 = time.monotonic()
         node.proc.send_signal(sig)
         deadline = t0 + 5
@@ -59,9 +60,9 @@ def test_clean_leave(peer):
         print(f"  {sig.name}: gone from the node and service lists in {gone:.3f} s", flush=True)
     # Killed (SIGKILL): nothing is said; peers drop the node when its lease (10 s)
     # runs out without an announcement.
-    node = t.NodeProcess("leave_SIGKILL", [])
+    node = h.NodeProcess("leave_SIGKILL", [])
     peer.spin_until(lambda: graph_has_node(peer) == 1 and graph_has_service(peer), 20, "the node in the graph")
-    t.RUNNING.remove(node)
+    h.RUNNING.remove(node)
     t0 = time.monotonic()
     node.proc.kill()
     node.proc.wait(timeout=5)
@@ -71,7 +72,7 @@ def test_clean_leave(peer):
     assert gone < 15, f"SIGKILL: still in the graph {gone:.1f} s after"
     print(f"  SIGKILL: gone from the node and service lists in {gone:.1f} s (the lease)", flush=True)
     # Restarted: listed once, and stays so.
-    node = t.NodeProcess("leave_restart", [])
+    node = h.NodeProcess("leave_restart", [])
     try:
         peer.spin_until(lambda: graph_has_node(peer) >= 1, 20, "the restarted node")
         end = time.monotonic() + 2
@@ -85,12 +86,12 @@ def test_clean_leave(peer):
 def test_polygon_at_once(peer):
     """Five times: a new contour_polygon subscriber, then one scan (no resend) once it
     has matched: its polygon arrives."""
-    node = t.NodeProcess("polygon", [])
+    node = h.NodeProcess("polygon", [])
     try:
         pub = peer.publisher("/raw_scan")
         contours = peer.subscribe(Contour, "/contour")
-        lens = t.simulate("lens_poly", "ellipse", seed=3)
-        peer.send_scan(pub, t.raw_scan(1, RawScan.TARGET_LENS, *lens), contours)
+        lens = h.simulate("lens_poly", "ellipse", seed=3)
+        peer.send_scan(pub, h.raw_scan(1, RawScan.TARGET_LENS, *lens), contours)
         for k in range(5):
             box = []
             matched = []
@@ -98,7 +99,7 @@ def test_polygon_at_once(peer):
 
             cb = SubscriptionEventCallbacks(matched=lambda e: matched.append(e.current_count))
             sub = peer.node.create_subscription(
-                PolygonStamped, "/contour_polygon", box.append, t.QoSProfile(depth=10), event_callbacks=cb
+                PolygonStamped, "/contour_polygon", box.append, QoSProfile(depth=10), event_callbacks=cb
             )
             peer.spin_until(lambda: matched and matched[-1] > 0, 10, "the polygon subscription matched")
             # The node hears of the subscriber at about the time the subscriber hears of
@@ -107,7 +108,7 @@ def test_polygon_at_once(peer):
             while time.monotonic() < end:
                 peer.executor.spin_once(timeout_sec=0.02)
             scan_id = 100 + k
-            pub.publish(t.raw_scan(scan_id, RawScan.TARGET_LENS, *lens))
+            pub.publish(h.raw_scan(scan_id, RawScan.TARGET_LENS, *lens))
             peer.spin_until(
                 lambda: any(p.header.stamp.sec == 1700000000 + scan_id for p in box), 5, f"the polygon of scan {scan_id}"
             )
@@ -128,10 +129,10 @@ def test_qos_best_effort_driver(peer):
     from rclpy.parameter import Parameter
     from rclpy.qos import qos_profile_sensor_data
 
-    lens = t.simulate("lens_qos", "ellipse", seed=3)
+    lens = h.simulate("lens_qos", "ellipse", seed=3)
     contours = peer.subscribe(Contour, "/contour")
     diags = peer.subscribe(DiagnosticArray, "/diagnostics")
-    node = t.NodeProcess("qos_default", [])
+    node = h.NodeProcess("qos_default", [])
     driver = peer.node.create_publisher(RawScan, "/raw_scan", qos_profile_sensor_data)
     try:
         peer.spin_until(lambda: peer.node.count_subscribers("/raw_scan") > 0, 20, "the node's raw_scan subscription")
@@ -146,7 +147,7 @@ def test_qos_best_effort_driver(peer):
 
         peer.spin_until(lambda: diag_count()[0] >= 1, 10, lambda: f"qos_incompatible on /diagnostics ({diag_count()})")
         for k in range(3):
-            driver.publish(t.raw_scan(200 + k, RawScan.TARGET_LENS, *lens))
+            driver.publish(h.raw_scan(200 + k, RawScan.TARGET_LENS, *lens))
             end = time.monotonic() + 0.5
             while time.monotonic() < end:
                 peer.executor.spin_once(timeout_sec=0.05)
@@ -167,13 +168,13 @@ def test_qos_best_effort_driver(peer):
         assert part in w, f"{part!r} not in {w!r}"
     print(f"  {w.split('] ', 1)[-1]}", flush=True)
 
-    pf = t.params_file(
+    pf = h.params_file(
         "qos_override.yaml",
         "tracer_calibrator:\n  ros__parameters:\n    qos_overrides./raw_scan.subscription.reliability: best_effort\n",
     )
-    node = t.NodeProcess("qos_override", ["--params-file", pf])
+    node = h.NodeProcess("qos_override", ["--params-file", pf])
     try:
-        c = peer.send_scan(driver, t.raw_scan(300, RawScan.TARGET_LENS, *lens), contours)
+        c = peer.send_scan(driver, h.raw_scan(300, RawScan.TARGET_LENS, *lens), contours)
         assert c.scan_id == 300 and len(c.points) == 400
         client = peer.param_client("/tracer_calibrator")
         name = "qos_overrides./raw_scan.subscription.reliability"
@@ -196,7 +197,7 @@ def test_cells_started_at_once():
 
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
-    planner = t.Peer("planner", context=ctx)
+    planner = h.Peer("planner", context=ctx)
     try:
         out = cell_graph.cell_graph(planner, 10, scans=3, head_start=0.0, discovery_timeout=30.0)
     finally:
@@ -209,7 +210,7 @@ def test_cells_started_at_once():
 
 def main():
     rclpy.init()
-    peer = t.Peer("graph_peer")
+    peer = h.Peer("graph_peer")
     tests = [
         ("clean_leave", lambda: test_clean_leave(peer)),
         ("polygon_at_once", lambda: test_polygon_at_once(peer)),
@@ -219,10 +220,10 @@ def main():
     only = [a.removeprefix("graph_") for a in sys.argv[1:] if a != "graph"]
 
     def stop_nodes():
-        for n in list(t.RUNNING):
+        for n in list(h.RUNNING):
             n.stop()
 
-    failed = t.run_tests(tests, only, "interop::graph_", "graph", after_each=stop_nodes)
+    failed = h.run_tests(tests, only, "interop::graph_", "graph", after_each=stop_nodes)
     os._exit(0 if failed == 0 else 1)
 
 

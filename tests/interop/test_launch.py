@@ -43,11 +43,11 @@ sys.path.insert(0, HERE)
 
 import rclpy  # noqa: E402
 
-import test_node as tn  # noqa: E402  (helpers: Peer, raw_scan, ellipse geometry, read-back)
+import harness as h  # noqa: E402  (Peer, raw_scan, ellipse geometry, read-back; reads TRACER_CALIB* set above)
 from tracer_calib_msgs.msg import Contour, RawScan  # noqa: E402
 from tracer_calib_msgs.srv import Calibrate  # noqa: E402
 
-WORK = tn.WORK
+WORK = h.WORK
 
 
 # ---------------------------------------------------------------------------------------
@@ -216,15 +216,15 @@ class Launched:
         self.log_path = os.path.join(WORK, label + ".log")
         self.log = open(self.log_path, "w")
         self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT)
-        tn.RUNNING.append(self)
+        h.RUNNING.append(self)
 
     def check_alive(self):
         if self.proc.poll() is not None:
             raise AssertionError(f"{self.label}: exited with {self.proc.returncode}:\n{self.output()}")
 
     def stop(self):
-        if self in tn.RUNNING:
-            tn.RUNNING.remove(self)
+        if self in h.RUNNING:
+            h.RUNNING.remove(self)
         if self.proc.poll() is None:
             self.proc.terminate()
             try:
@@ -249,7 +249,7 @@ def simulate(name, shape, truth, meters_per_count, seed):
         f"--meters-per-count={meters_per_count}", f"--out={path}",
     ]
     if shape == "ellipse":
-        e = tn.ELLIPSE
+        e = h.ELLIPSE
         cmd += [f"--width={2 * e['a']}", f"--height={2 * e['b']}", f"--center-x={e['cx']}", f"--center-y={e['cy']}"]
     subprocess.run(cmd, check=True)
     with open(path) as f:
@@ -309,7 +309,7 @@ def test_edging_cell(peer):
         contours = {c: peer.subscribe(Contour, f"/{c}/contour") for c in cells}
         for i, (c, cell) in enumerate(cells.items()):
             plate = simulate(f"plate_{c}", "plate", cell["truth"], cell["mpc"], seed=20 + i)
-            got = peer.send_scan(pubs[c], tn.raw_scan(cell["first_id"], RawScan.TARGET_CALIBRATION_PLATE, *plate), contours[c])
+            got = peer.send_scan(pubs[c], h.raw_scan(cell["first_id"], RawScan.TARGET_CALIBRATION_PLATE, *plate), contours[c])
             assert not got.calibrated
         for c, cell in cells.items():
             r = peer.call(f"/{c}/calibrate", Calibrate.Request())
@@ -319,9 +319,9 @@ def test_edging_cell(peer):
             assert abs(r.offset - t["offset"]) < 5e-5 and abs(r.delta_l - t["delta_l"]) < 2e-5, (c, r)
         for i, (c, cell) in enumerate(cells.items()):
             lens = simulate(f"lens_{c}", "ellipse", cell["truth"], cell["mpc"], seed=30 + i)
-            got = peer.send_scan(pubs[c], tn.raw_scan(cell["first_id"] + 1, RawScan.TARGET_LENS, *lens), contours[c])
+            got = peer.send_scan(pubs[c], h.raw_scan(cell["first_id"] + 1, RawScan.TARGET_LENS, *lens), contours[c])
             assert got.calibrated and got.header.frame_id == f"{c}_tracer_axis", (c, got.header)
-            worst = max(tn.ellipse_distance(p.x, p.y) for p in got.points)
+            worst = max(h.ellipse_distance(p.x, p.y) for p in got.points)
             assert worst < 1e-4, (c, worst)
         # Each cell's contours carry its own scans only.
         for c, cell in cells.items():
@@ -330,7 +330,7 @@ def test_edging_cell(peer):
         # Each node persisted its calibration into its own params file; a stock rclpy node
         # reads it back under the node's fully qualified name.
         for c, cell in cells.items():
-            back = tn.read_back_with_rclpy(files[c], "tracer", f"/{c}")
+            back = h.read_back_with_rclpy(files[c], "tracer", f"/{c}")
             assert back["calibration.valid"] is True, (c, back)
             assert abs(back["encoder.meters_per_count"] - cell["mpc"]) < 1e-15, (c, back)
             assert abs(back["calibration.offset"] - cell["truth"]["offset"]) < 5e-5, (c, back)
@@ -366,7 +366,7 @@ def test_ros2_run(peer):
         truth = dict(alpha0_deg=2.0, offset=0.005, delta_l=0.002)
         contours = peer.subscribe(Contour, "/run/contour")
         plate = simulate("plate_run", "plate", truth, 1e-6, seed=40)
-        peer.send_scan(peer.publisher("/run/raw_scan"), tn.raw_scan(7, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+        peer.send_scan(peer.publisher("/run/raw_scan"), h.raw_scan(7, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
         r = peer.call("/run/calibrate", Calibrate.Request())
         assert r.success and abs(r.offset - truth["offset"]) < 5e-5, r
         # ros2_run.py exec'd the node: the process is the installed node itself.
@@ -396,7 +396,7 @@ def test_reader_refuses_what_it_does_not_know():
 
 def main():
     rclpy.init()
-    peer = tn.Peer("launch_peer")
+    peer = h.Peer("launch_peer")
     tests = [
         ("reader_refuses_what_it_does_not_know", test_reader_refuses_what_it_does_not_know),
         ("default_launch", lambda: test_default_launch(peer)),
@@ -405,7 +405,7 @@ def main():
         ("ros2_run", lambda: test_ros2_run(peer)),
     ]
     only = [a.removeprefix("test_") for a in sys.argv[1:]]
-    failed = tn.run_tests(tests, only, "launch::", "launch")
+    failed = h.run_tests(tests, only, "launch::", "launch")
     if failed == 0:
         shutil.rmtree(WORK, ignore_errors=True)
     sys.stdout.flush()

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """tracer_calib_node against a real ROS 2 peer: rclpy (ROS 2 Kilted, Fast DDS, PyPI wheels)
 with the tracer_calib_msgs package built from msg/ by rosidl.
 
@@ -8,9 +7,9 @@ with the generated Calibrate type, receive Contour, PolygonStamped and Diagnosti
 list/get/set parameters with rclpy's parameter client, and load the YAML the node
 persisted into an rclpy node with --params-file.
 
-Run by tests/interop/run.sh inside a private network namespace. Each test starts its own
-node processes and stops them with SIGTERM (checking they exit promptly). Prints one line
-per test and a closing 'N passed, N failed'.
+Run by node_suite.py (tests/interop/run.sh) inside a private network namespace, with the
+helpers of harness.py. Each test starts its own node processes and stops them with
+SIGTERM (checking they exit promptly).
 """
 
 import json
@@ -19,15 +18,9 @@ import os
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import QoSProfile
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PolygonStamped
@@ -35,218 +28,21 @@ from tracer_calib_msgs.msg import Contour, RawScan
 from tracer_calib_msgs.srv import Calibrate
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import runner  # noqa: E402
-
-NODE_BIN = os.environ["TRACER_CALIB_NODE"]
-TOOL_BIN = os.environ["TRACER_CALIB"]
-WORK = tempfile.mkdtemp(prefix="tracer_calib_interop_")
-TRUTH = dict(alpha0_deg=2.0, offset=0.005, delta_l=0.002)
-ELLIPSE = dict(cx=0.0008, cy=-0.0005, a=0.025, b=0.015)
-
-
-# ---------------------------------------------------------------------------------------
-# Helpers
-
-
-def simulate(name, shape, noise=5e-6, seed=1, **kw):
-    """A scan from `tracer_calib simulate`, as (steps, counts)."""
-    path = os.path.join(WORK, name + ".csv")
-    args = dict(
-        shape=shape,
-        alpha0_deg=kw.get("alpha0_deg", TRUTH["alpha0_deg"]),
-        offset=kw.get("offset", TRUTH["offset"]),
-        delta_l=kw.get("delta_l", TRUTH["delta_l"]),
-        scale=kw.get("scale", 1.0),
-        noise=noise,
-        seed=seed,
-        out=path,
-    )
-    if shape == "ellipse":
-        args.update(width=2 * ELLIPSE["a"], height=2 * ELLIPSE["b"], center_x=ELLIPSE["cx"], center_y=ELLIPSE["cy"])
-    cmd = [TOOL_BIN, "simulate"] + [f"--{k.replace('_', '-')}={v}" for k, v in args.items()]
-    subprocess.run(cmd, check=True)
-    steps, counts = [], []
-    with open(path) as f:
-        next(f)
-        for line in f:
-            s, c = line.strip().split(",")
-            steps.append(int(s))
-            counts.append(int(c))
-    return steps, counts
-
-
-def raw_scan(scan_id, target, steps, counts, n=400):
-    msg = RawScan()
-    msg.header.frame_id = "tracer"
-    msg.header.stamp.sec = 1700000000 + scan_id
-    msg.scan_id = scan_id
-    msg.target = target
-    msg.steps_per_revolution = n
-    msg.step = steps
-    msg.counts = counts
-    return msg
-
-
-RUNNING = []
-
-
-class NodeProcess:
-    """tracer_calib_node in a subprocess, stopped with SIGTERM. `argv`, if given, is the
-    command that runs the node instead of `NODE_BIN --ros-args ROS_ARGS`."""
-
-    def __init__(self, label, ros_args=(), argv=None):
-        self.label = label
-        self.log_path = os.path.join(WORK, label + ".log")
-        self.log = open(self.log_path, "w")
-        argv = argv or [NODE_BIN, "--ros-args", *ros_args]
-        self.proc = subprocess.Popen(argv, stdout=self.log, stderr=subprocess.STDOUT)
-        RUNNING.append(self)
-
-    def check_alive(self):
-        if self.proc.poll() is not None:
-            raise AssertionError(f"{self.label}: the node exited with {self.proc.returncode}:\n{self.output()}")
-
-    def stop(self, timeout=5):
-        """SIGTERM, then the seconds it took to exit."""
-        if self in RUNNING:
-            RUNNING.remove(self)
-        took = runner.terminate(self.proc, timeout)
-        if took is None:
-            raise AssertionError(f"{self.label}: did not exit within {timeout} s of SIGTERM")
-        return took
-
-    def output(self):
-        self.log.flush()
-        with open(self.log_path) as f:
-            return f.read()
-
-
-def node_in_mount_namespace(label, script):
-    """`script` (sh, starting the node) as a NodeProcess in a mount namespace of its own,
-    so that what it mounts (a tmpfs, a read-only bind) is the node's alone."""
-    return NodeProcess(label, argv=["unshare", "--mount", "--propagation", "private", "sh", "-c", script])
-
-
-class Peer:
-    """An rclpy node with helpers that wait with deadlines."""
-
-    def __init__(self, name="interop_peer", context=None):
-        """`context`: an rclpy Context of its own (a DDS participant of its own), or the
-        default one."""
-        self.node = Node(name, context=context)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
-        self.received = {}
-
-    def spin_until(self, cond, timeout, what):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if cond():
-                return
-            for n in RUNNING:
-                n.check_alive()
-            self.executor.spin_once(timeout_sec=0.05)
-        raise AssertionError(f"timed out after {timeout} s waiting for {what() if callable(what) else what}")
-
-    def subscribe(self, msg_type, topic):
-        box = []
-        self.node.create_subscription(msg_type, topic, box.append, QoSProfile(depth=50))
-        return box
-
-    def publisher(self, topic):
-        return self.node.create_publisher(RawScan, topic, QoSProfile(depth=50))
-
-    def wait_matched(self, pub, timeout=15):
-        self.spin_until(lambda: pub.get_subscription_count() > 0, timeout, f"a subscriber on {pub.topic_name}")
-
-    def retry(self, start, what, timeout=20, attempt=3.0):
-        """Start a request (a future) and wait for it; if discovery was not complete in
-        both directions yet (DDS matches each side on its own), ask again."""
-        deadline = time.monotonic() + timeout
-        while True:
-            future = start()
-            try:
-                self.spin_until(future.done, min(attempt, max(0.1, deadline - time.monotonic())), what)
-                return future.result()
-            except AssertionError:
-                if time.monotonic() >= deadline:
-                    raise
-
-    def call(self, service, request, timeout=20):
-        client = self.node.create_client(Calibrate, service)
-        self.spin_until(client.service_is_ready, timeout, f"service {service}")
-        return self.retry(lambda: client.call_async(request), f"the response of {service}", timeout)
-
-    def send_scan(self, pub, msg, contours, timeout=20):
-        """Publish a scan until its contour comes back (a volatile topic drops what is
-        sent before both sides have matched)."""
-        self.wait_matched(pub)
-        deadline = time.monotonic() + timeout
-        while True:
-            pub.publish(msg)
-            try:
-                self.spin_until(lambda: any(c.scan_id == msg.scan_id for c in contours), 1.0, "a contour")
-                return next(c for c in contours if c.scan_id == msg.scan_id)
-            except AssertionError:
-                if time.monotonic() >= deadline:
-                    raise AssertionError(f"no contour for scan {msg.scan_id} within {timeout} s")
-
-    def param_client(self, node_fqn, timeout=20):
-        client = AsyncParameterClient(self.node, node_fqn)
-        self.spin_until(lambda: client.services_are_ready(), timeout, f"parameter services of {node_fqn}")
-        return client
-
-    def param(self, start, what="a parameter call"):
-        return self.retry(start, what)
-
-    def close(self):
-        self.executor.remove_node(self.node)
-        self.node.destroy_node()
-
-
-def ellipse_distance(x, y, e=ELLIPSE):
-    """First-order distance of (x, y) from an ellipse (default: the simulated one), metres."""
-    u, v = x - e["cx"], y - e["cy"]
-    a2, b2 = e["a"] ** 2, e["b"] ** 2
-    f = u * u / a2 + v * v / b2 - 1.0
-    g = math.hypot(2 * u / a2, 2 * v / b2)
-    return abs(f) / g
-
-
-def ellipse_radius(phi, e=ELLIPSE):
-    """Where the ray from the rotation axis at angle phi leaves an ellipse."""
-    ux, uy = math.cos(phi), math.sin(phi)
-    px, py = -e["cx"], -e["cy"]
-    a2, b2 = e["a"] ** 2, e["b"] ** 2
-    qa = ux * ux / a2 + uy * uy / b2
-    qb = px * ux / a2 + py * uy / b2
-    qc = px * px / a2 + py * py / b2 - 1.0
-    return (-qb + math.sqrt(qb * qb - qa * qc)) / qa
-
-
-def params_file(name, body):
-    path = os.path.join(WORK, name)
-    with open(path, "w") as f:
-        f.write(body)
-    return path
-
-
-def read_back_with_rclpy(path, node_name, namespace):
-    """Load a params file into a stock rclpy node with --params-file (a fresh process,
-    as `ros2 run ... --ros-args --params-file` would) and return its parameters."""
-    code = f"""
-import json, rclpy
-from rclpy.node import Node
-rclpy.init(args=['--ros-args', '--params-file', {path!r}])
-n = Node({node_name!r}, namespace={namespace!r}, automatically_declare_parameters_from_overrides=True)
-print(json.dumps({{p.name: p.value for p in n._parameters.values()}}))
-n.destroy_node()
-rclpy.shutdown()
-"""
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    if out.returncode != 0:
-        raise AssertionError(f"rclpy could not load {path}:\n{out.stderr}")
-    return json.loads(out.stdout.strip().splitlines()[-1])
+from harness import (  # noqa: E402
+    NODE_BIN,
+    TOOL_BIN,
+    TRUTH,
+    WORK,
+    NodeProcess,
+    calibrate_then_lens,
+    ellipse_distance,
+    ellipse_radius,
+    node_in_mount_namespace,
+    params_file,
+    raw_scan,
+    read_back_with_rclpy,
+    simulate,
+)
 
 
 # ---------------------------------------------------------------------------------------
@@ -638,19 +434,6 @@ while True:
     print(f"    12 kills, the file was whole every time ({len(seen)} different versions seen)", flush=True)
 
 
-def calibrate_then_lens(peer, scan_id, name, seed, calibrate):
-    """A plate scan `scan_id` to /raw_scan, `calibrate(scan_id)`, then a lens scan
-    `scan_id + 1` (simulated with seeds `seed` and `seed + 1`): the calibrate response and
-    the lens's Contour."""
-    pub = peer.publisher("/raw_scan")
-    contours = peer.subscribe(Contour, "/contour")
-    plate = simulate(f"{name}_plate", "plate", seed=seed)
-    peer.send_scan(pub, raw_scan(scan_id, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
-    r = calibrate(scan_id)
-    lens = simulate(f"{name}_lens", "ellipse", seed=seed + 1)
-    return r, peer.send_scan(pub, raw_scan(scan_id + 1, RawScan.TARGET_LENS, *lens), contours)
-
-
 def test_read_only_and_full_disk(peer):
     """A params file on a read-only or a full file system: calibrate answers
     success: false with the reason, and the calibration stays in force in memory."""
@@ -785,18 +568,10 @@ def test_encoder_scale(peer):
     assert back["calibration.scale"] == r.scale and back["model"] == "full_scale", back
 
 
-def run_tests(tests, only, label, summary, after_each=None):
-    """runner.run_tests, with the tail of every node log in WORK after a failure."""
-    return runner.run_tests(tests, only, label, summary, after_each, log_dir=WORK)
-
-
-def main():
-    rclpy.init()
-    peer = Peer()
-    sys.modules.setdefault("test_node", sys.modules[__name__])  # test_records uses these helpers
-    import test_records
-
-    tests = [
+def tests(peer):
+    """This file's tests as `(name, fn)` pairs, in order, against the rclpy `peer`
+    (node_suite.py runs them)."""
+    return [
         ("calibrate_and_correct", lambda: test_calibrate_and_correct(peer)),
         ("parameters", lambda: test_parameters(peer)),
         ("two_cells", lambda: test_two_cells(peer)),
@@ -808,25 +583,4 @@ def main():
         ("kill_during_writes", test_kill_during_writes),
         ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
         ("encoder_scale", lambda: test_encoder_scale(peer)),
-        ("history_and_latched_calibration", lambda: test_records.test_history_and_latched_calibration(peer)),
-        ("max_age_and_drift_on_diagnostics", lambda: test_records.test_max_age_and_drift_on_diagnostics(peer)),
-        ("read_only_history", lambda: test_records.test_read_only_history(peer)),
-        ("full_disk_history", lambda: test_records.test_full_disk_history(peer)),
     ]
-    only = [a.removeprefix("test_") for a in sys.argv[1:]]
-    unknown = sorted(set(only) - {name for name, _ in tests})
-    if unknown:
-        print(f"interop: no such test: {', '.join(unknown)} (have: {', '.join(n for n, _ in tests)})", flush=True)
-        os._exit(2)
-    failed = run_tests(tests, only, "interop::", "interop")
-    if failed == 0:
-        import shutil
-
-        shutil.rmtree(WORK, ignore_errors=True)
-    sys.stdout.flush()
-    # rclpy's shutdown can hang (notes/ros2-peer.md): leave without it.
-    os._exit(0 if failed == 0 else 1)
-
-
-if __name__ == "__main__":
-    main()

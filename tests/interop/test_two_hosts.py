@@ -46,13 +46,13 @@ def peer_env(range_, peers):
 def peer_main(mode):
     import rclpy
 
-    import test_node as t
+    import harness as h
     from geometry_msgs.msg import PolygonStamped
     from tracer_calib_msgs.msg import Contour, RawScan
     from tracer_calib_msgs.srv import Calibrate
 
     rclpy.init()
-    peer = t.Peer("host_b_peer")
+    peer = h.Peer("host_b_peer")
     if mode == "isolated":
         deadline = time.monotonic() + 8
         while time.monotonic() < deadline:
@@ -71,19 +71,19 @@ def peer_main(mode):
     polygons = peer.subscribe(PolygonStamped, "/contour_polygon")
     peer.wait_matched(pub, timeout=60)
     found = time.monotonic() - t0
-    plate = t.simulate("plate_b", "plate", seed=2)
-    peer.send_scan(pub, t.raw_scan(10, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours, timeout=40)
+    plate = h.simulate("plate_b", "plate", seed=2)
+    peer.send_scan(pub, h.raw_scan(10, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours, timeout=40)
     r = peer.call("/calibrate", Calibrate.Request(), timeout=40)
     assert r.success, r.message
-    lens = t.simulate("lens_b", "ellipse", seed=3)
-    c = peer.send_scan(pub, t.raw_scan(11, RawScan.TARGET_LENS, *lens), contours, timeout=40)
+    lens = h.simulate("lens_b", "ellipse", seed=3)
+    c = peer.send_scan(pub, h.raw_scan(11, RawScan.TARGET_LENS, *lens), contours, timeout=40)
     assert c.calibrated and len(c.points) == 400, c
-    worst = max(t.ellipse_distance(p.x, p.y) for p in c.points)
+    worst = max(h.ellipse_distance(p.x, p.y) for p in c.points)
     assert worst < 40e-6, f"corrected points up to {worst * 1e3:.4f} mm off the ellipse"
     deadline = time.monotonic() + 20
     while not any(p.header.stamp.sec == 1700000011 for p in polygons):
         assert time.monotonic() < deadline, "no PolygonStamped for the lens scan"
-        pub.publish(t.raw_scan(11, RawScan.TARGET_LENS, *lens))
+        pub.publish(h.raw_scan(11, RawScan.TARGET_LENS, *lens))
         try:
             peer.spin_until(lambda: any(p.header.stamp.sec == 1700000011 for p in polygons), 1.0, "a polygon")
         except AssertionError:

@@ -17,8 +17,9 @@
 #
 # The cargo build of tracer_calib reuses the repository's release build: the package's
 # colcon build directory (build/tracer_calib, which colcon-ros-cargo passes to cargo as
-# --target-dir) is a symlink to the repository's target/, so `cargo build --release`
-# finds the dependencies built already (CI builds them once; from a copy, cargo compiles
+# --target-dir) is a symlink to cargo's target directory of the repository (target/, or
+# wherever CARGO_TARGET_DIR or a cargo config puts it: scripts/target_dir.sh), so
+# `cargo build --release` finds the dependencies built already (CI builds them once; from a copy, cargo compiles
 # the repository's own crates, tracer_calib and vendor/, again, once per copy).
 # TRACER_WS_FRESH_TARGET=1 builds into a directory of its own instead, as an integrator's
 # workspace does.
@@ -37,6 +38,7 @@ TOOLS=$ROOT/target/tools
 COLCON_VENV=$TOOLS/colcon
 WS=$ROOT/target/colcon_ws/$DISTRO
 ROS_SETUP=$ROOT/target/ros/$DISTRO/ros_setup.sh
+. "$ROOT/scripts/target_dir.sh"
 
 now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 step_done() {
@@ -71,10 +73,12 @@ fi
 exec 8>&-
 
 # 2. the workspace: src/tracer_calib is this repository (its files as they are now, less
-#    target/ and .git/; modification times kept, so an unchanged copy builds nothing).
+#    target/ (and cargo's target directory, if it is in the repository elsewhere) and .git/;
+#    modification times kept, so an unchanged copy builds nothing).
 if [ "$DISTRO" = jazzy ]; then
-    tar -C "$ROOT" --exclude=./target --exclude=./.git --exclude=./fuzz/target --exclude=__pycache__ \
-        -cf "$WS/src.tar" .
+    excludes=(--exclude=./target --exclude=./.git --exclude=./fuzz/target --exclude=__pycache__)
+    case "$TRACER_TARGET_DIR" in "$ROOT"/*) excludes+=("--exclude=./${TRACER_TARGET_DIR#"$ROOT"/}") ;; esac
+    tar -C "$ROOT" "${excludes[@]}" -cf "$WS/src.tar" .
     key=$(sha256sum <"$WS/src.tar" | cut -c1-64)
     if [ -L "$WS/src/tracer_calib" ] || [ "$(cat "$WS/src.stamp" 2>/dev/null)" != "$key" ]; then
         rm -rf "$WS/src/tracer_calib" "$WS/src.stamp"
@@ -92,7 +96,7 @@ if [ "${TRACER_WS_FRESH_TARGET:-0}" = 1 ]; then
 else
     mkdir -p "$WS/build"
     [ -e "$WS/build/tracer_calib" ] && [ ! -L "$WS/build/tracer_calib" ] && rm -rf "$WS/build/tracer_calib"
-    ln -sfn "$ROOT/target" "$WS/build/tracer_calib"
+    ln -sfn "$TRACER_TARGET_DIR" "$WS/build/tracer_calib"
 fi
 LINE=$(grep -m 1 '^colcon build' "$ROOT/README.md") || die "README.md has no line starting with 'colcon build'"
 
@@ -130,10 +134,10 @@ if ! in_ros_env "$WS" "nice -n 10 $LINE" >"$WS/build.log" 2>&1; then
     show_log "$WS/build.log"
     die "'$LINE' failed in $WS (log: $WS/build.log)"
 fi
-# colcon leaves its bookkeeping in each package's build directory: here the repository's
-# target/ (the symlink), where it has no business.
-rm -f "$ROOT/target/colcon_build.rc" "$ROOT/target/colcon_command_prefix_build.sh" \
-    "$ROOT/target/colcon_command_prefix_build.sh.env"
+# colcon leaves its bookkeeping in each package's build directory: here cargo's target
+# directory (the symlink), where it has no business.
+rm -f "$TRACER_TARGET_DIR/colcon_build.rc" "$TRACER_TARGET_DIR/colcon_command_prefix_build.sh" \
+    "$TRACER_TARGET_DIR/colcon_command_prefix_build.sh.env"
 step_done "colcon build" built "$t0"
 
 # 4b. the same line again, in a shell where the workspace is sourced as well (what an
@@ -146,8 +150,8 @@ fi
 if [ ! -L "$WS/src/tracer_calib" ] && ! cmp -s "$ROOT/Cargo.lock" "$WS/src/tracer_calib/Cargo.lock"; then
     die "the rebuild changed src/tracer_calib/Cargo.lock"
 fi
-rm -f "$ROOT/target/colcon_build.rc" "$ROOT/target/colcon_command_prefix_build.sh" \
-    "$ROOT/target/colcon_command_prefix_build.sh.env"
+rm -f "$TRACER_TARGET_DIR/colcon_build.rc" "$TRACER_TARGET_DIR/colcon_command_prefix_build.sh" \
+    "$TRACER_TARGET_DIR/colcon_command_prefix_build.sh.env"
 step_done rebuild built "$t0"
 
 # 5. what it installed: as the README and CONTRACT say, and found through the ament index
