@@ -185,6 +185,15 @@ where
         Some(Err(e)) => return Err(e.into()),
         Some(Ok(dcc)) => {
           let mi = MessageInfo::from(&dcc);
+          // PATCH (tracer_calib): a response that names another request in its
+          // related sample identity is skipped before it is decoded. A server that
+          // answers clients of several layouts (Server reads each request in its
+          // client's layout) sends some responses to every client, in another
+          // layout than ours: decoded, they failed this call.
+          if mi.related_request_id().is_some_and(|related| related != request_id) {
+            debug!("Skipped a response to another request: {:?}", mi.related_request_id());
+            continue;
+          }
           let (req_id, response) =
             dcc
               .into_value()

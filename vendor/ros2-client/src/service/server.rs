@@ -11,7 +11,11 @@ use log::{debug, error, info, warn};
 use futures::{StreamExt, pin_mut, stream::FusedStream};
 use std::{
   collections::{BTreeMap, BTreeSet},
-  sync::{Arc, Mutex},
+  sync::{
+    Arc, Mutex,
+    atomic::{AtomicU64, Ordering},
+  },
+  time::{Duration, Instant},
 };
 
 use crate::{
@@ -37,6 +41,81 @@ where
   // PATCH (tracer_calib): the node's map of local writers to the remote readers
   // matched with them, kept by the Spinner; see `write_options`.
   matched_readers: Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>>,
+  // PATCH (tracer_calib): each request's layout, read from the wire, until it is
+  // answered; see `decode_request` and `PendingLayouts`.
+  pending: Mutex<PendingLayouts>,
+  bad_requests: AtomicU64,
+  bad_request_log: Mutex<BadRequestLog>,
+}
+
+/// PATCH (tracer_calib): the layout (and request writer) of each request taken and
+/// not answered yet, so that its response goes out in the layout its client reads.
+/// Bounded: a server that never answers some requests forgets the oldest ones
+/// (their responses, if ever sent, use the server's own mapping).
+#[derive(Default)]
+struct PendingLayouts {
+  by_id: BTreeMap<RmwRequestId, (u64, ServiceMapping, GUID)>,
+  by_age: BTreeMap<u64, RmwRequestId>,
+  next: u64,
+}
+
+impl PendingLayouts {
+  const CAPACITY: usize = 4096;
+
+  fn insert(&mut self, id: RmwRequestId, mapping: ServiceMapping, writer: GUID) {
+    let n = self.next;
+    self.next += 1;
+    if let Some((old, ..)) = self.by_id.insert(id, (n, mapping, writer)) {
+      self.by_age.remove(&old);
+    }
+    self.by_age.insert(n, id);
+    while self.by_age.len() > Self::CAPACITY {
+      if let Some((_, oldest)) = self.by_age.pop_first() {
+        self.by_id.remove(&oldest);
+      }
+    }
+  }
+
+  fn take(&mut self, id: &RmwRequestId) -> Option<(ServiceMapping, GUID)> {
+    let (n, mapping, writer) = self.by_id.remove(id)?;
+    self.by_age.remove(&n);
+    Some((mapping, writer))
+  }
+}
+
+/// PATCH (tracer_calib): when each client that sent an unreadable request was last
+/// warned about, and how many of its requests were not shown since.
+#[derive(Default)]
+struct BadRequestLog {
+  clients: BTreeMap<GUID, (Instant, u64)>,
+}
+
+impl BadRequestLog {
+  const INTERVAL: Duration = Duration::from_secs(60);
+  const MAX_CLIENTS: usize = 1024;
+
+  /// `Some(n)`: log now, `n` earlier ones from this client were not shown.
+  fn allow(&mut self, client: GUID, now: Instant) -> Option<u64> {
+    if !self.clients.contains_key(&client) && self.clients.len() >= Self::MAX_CLIENTS {
+      self.clients.retain(|_, (t, _)| now.duration_since(*t) < Self::INTERVAL);
+    }
+    match self.clients.get_mut(&client) {
+      Some((last, held)) if now.duration_since(*last) < Self::INTERVAL => {
+        *held += 1;
+        None
+      }
+      Some((last, held)) => {
+        let n = *held;
+        *last = now;
+        *held = 0;
+        Some(n)
+      }
+      None => {
+        self.clients.insert(client, (now, 0));
+        Some(0)
+      }
+    }
+  }
 }
 
 impl<Req, Resp> Server<Req, Resp>
@@ -73,7 +152,65 @@ where
       request_receiver,
       response_sender,
       matched_readers: node.writers_to_remote_readers(),
+      pending: Mutex::new(PendingLayouts::default()),
+      bad_requests: AtomicU64::new(0),
+      bad_request_log: Mutex::new(BadRequestLog::default()),
     })
+  }
+
+  /// PATCH (tracer_calib): how many requests fitted no layout (not answered).
+  pub fn bad_request_count(&self) -> u64 {
+    self.bad_requests.load(Ordering::Relaxed)
+  }
+
+  /// PATCH (tracer_calib): a request in the layout its client used, decided per
+  /// request from the wire (`RequestWrapper::unwrap_per_request`): a server
+  /// answers Fast DDS (Enhanced) and Cyclone DDS clients at once, whatever
+  /// `ServiceMapping` it was made with (that one is tried first for other vendors).
+  /// The layout is kept for the response. A request that fits no layout is an
+  /// error, counted (`bad_request_count`) and logged once a minute per client at
+  /// most; the server carries on with the next request.
+  fn decode_request(
+    &self,
+    req_wrapper: RequestWrapper<Req>,
+    mi: &MessageInfo,
+  ) -> ReadResult<(RmwRequestId, Req)> {
+    let writer = GUID::from(mi.publisher_gid());
+    match req_wrapper.unwrap_per_request(self.service_mapping, mi) {
+      Ok((id, req, mapping)) => {
+        self.pending.lock().unwrap().insert(id, mapping, writer);
+        Ok((id, req))
+      }
+      Err(e) => {
+        let total = self.bad_requests.fetch_add(1, Ordering::Relaxed) + 1;
+        let allowed = self.bad_request_log.lock().unwrap().allow(writer, Instant::now());
+        if let Some(held) = allowed {
+          warn!(
+            "service {}: not answered: {e} ({total} unreadable requests so far; {held} more \
+             from this client not shown; at most one a minute per client is)",
+            self.response_sender.topic().name()
+          );
+        }
+        Err(e)
+      }
+    }
+  }
+
+  /// PATCH (tracer_calib): the response in the layout of its request.
+  fn response_wrapper(
+    &self,
+    rmw_req_id: RmwRequestId,
+    response: Resp,
+  ) -> WriteResult<(ResponseWrapper<Resp>, WriteOptions), ()> {
+    let (mapping, _writer) = self
+      .pending
+      .lock()
+      .unwrap()
+      .take(&rmw_req_id)
+      .unwrap_or((self.service_mapping, GUID::GUID_UNKNOWN));
+    let resp_wrapper =
+      ResponseWrapper::<Resp>::new(mapping, rmw_req_id, RepresentationIdentifier::CDR_LE, response)?;
+    Ok((resp_wrapper, self.write_options(rmw_req_id, mapping)))
   }
 
   /// PATCH (tracer_calib): the write options of a response, sent to the requesting
@@ -87,7 +224,7 @@ where
   /// GUID is a reader matched with our response writer, the response goes to it
   /// alone (the others get a GAP); otherwise (other vendors, a match not seen yet)
   /// to all, as before.
-  fn write_options(&self, rmw_req_id: RmwRequestId) -> WriteOptions {
+  fn write_options(&self, rmw_req_id: RmwRequestId, mapping: ServiceMapping) -> WriteOptions {
     let options = WriteOptionsBuilder::new()
       .source_timestamp(Timestamp::now()) // always add source timestamp
       // TODO: Check if this is right. Cyclone mapping does not send
@@ -96,7 +233,7 @@ where
       // But maybe it is not harmful to send it in both?
       .related_sample_identity(SampleIdentity::from(rmw_req_id));
     let client_reader = GUID::from(rmw_req_id.writer_gid);
-    let matched = self.service_mapping == ServiceMapping::Enhanced
+    let matched = mapping == ServiceMapping::Enhanced
       && self
         .matched_readers
         .lock()
@@ -122,7 +259,7 @@ where
       Some(dcc) => {
         let mi = MessageInfo::from(&dcc);
         let req_wrapper = dcc.into_value();
-        let (ri, req) = req_wrapper.unwrap(self.service_mapping, &mi)?;
+        let (ri, req) = self.decode_request(req_wrapper, &mi)?; // PATCH (tracer_calib)
         Ok(Some((ri, req)))
       }
     } // match
@@ -131,13 +268,8 @@ where
   /// Send response to request by Client.
   /// rmw_req_id identifies request being responded.
   pub fn send_response(&self, rmw_req_id: RmwRequestId, response: Resp) -> WriteResult<(), ()> {
-    let resp_wrapper = ResponseWrapper::<Resp>::new(
-      self.service_mapping,
-      rmw_req_id,
-      RepresentationIdentifier::CDR_LE,
-      response,
-    )?;
-    let write_opts = self.write_options(rmw_req_id);
+    // PATCH (tracer_calib): in the layout of the request
+    let (resp_wrapper, write_opts) = self.response_wrapper(rmw_req_id, response)?;
     self
       .response_sender
       .write_with_options(resp_wrapper, write_opts)
@@ -157,7 +289,7 @@ where
       Some(Ok(dcc)) => {
         let mi = MessageInfo::from(&dcc);
         let req_wrapper = dcc.into_value();
-        let (ri, req) = req_wrapper.unwrap(self.service_mapping, &mi)?;
+        let (ri, req) = self.decode_request(req_wrapper, &mi)?; // PATCH (tracer_calib)
         debug!("async_receive_request: {ri:?}");
         Ok((ri, req))
       }
@@ -180,7 +312,7 @@ where
             let mi = MessageInfo::from(&dcc);
             let req_wrapper = dcc.into_value();
             debug!("receive_request_stream: messageinfo={mi:?}");
-            req_wrapper.unwrap(self.service_mapping, &mi)
+            self.decode_request(req_wrapper, &mi) // PATCH (tracer_calib)
           }
         } // match
       }, // async
@@ -193,18 +325,13 @@ where
     rmw_req_id: RmwRequestId,
     response: Resp,
   ) -> WriteResult<(), ()> {
-    let resp_wrapper = ResponseWrapper::<Resp>::new(
-      self.service_mapping,
-      rmw_req_id,
-      RepresentationIdentifier::CDR_LE,
-      response,
-    )?;
+    // PATCH (tracer_calib): in the layout of the request
+    let (resp_wrapper, write_opts) = self.response_wrapper(rmw_req_id, response)?;
     debug!("async_send_response: rmw_req_id = {rmw_req_id:?}");
     debug!(
       "async_send_response: related_sample_identity = {:?}",
       SampleIdentity::from(rmw_req_id)
     );
-    let write_opts = self.write_options(rmw_req_id);
     self
       .response_sender
       .async_write_with_options(resp_wrapper, write_opts)

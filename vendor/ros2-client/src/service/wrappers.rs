@@ -72,8 +72,10 @@ impl<R: Message> RequestWrapper<R> {
       ServiceMapping::Enhanced => {
         // Enhanced mode does not use any header in the DDS payload.
         // Therefore, we use a wrapper that is identical to the payload.
-        let (request, _request_bytes) =
+        let (request, request_bytes) =
           deserialize_from_cdr_with_rep_id::<R>(&self.serialized_message, self.encoding)?;
+        // PATCH (tracer_calib): the payload must be this request and nothing more.
+        ensure_whole_payload(self.serialized_message.len(), request_bytes)?;
         let mut rmw_req_id = message_info.related_request_id()
             .unwrap_or_else(|| {
               // ServiceMapping::Enhanced is supposed to contain related sample identity as 
@@ -85,7 +87,9 @@ impl<R: Message> RequestWrapper<R> {
                 writer_gid: message_info.publisher_gid(),
                 sequence_number: message_info.sequence_number(),
               };
-              warn!("RequestWrapper::unwrap: related_sample_identity missing. Using sample_identity = {backup_identity:?}");
+              // PATCH (tracer_calib): debug, not warn: ros2-client's own Enhanced clients
+              // send none, so this was a warning on every call.
+              debug!("RequestWrapper::unwrap: related_sample_identity missing. Using sample_identity = {backup_identity:?}");
               backup_identity
             });
 
@@ -111,6 +115,33 @@ impl<R: Message> RequestWrapper<R> {
         self.encoding,
       ),
     }
+  }
+
+  /// PATCH (tracer_calib): decode a request in the layout its client used, which
+  /// the wire shows (see [`request_layouts`]): the vendor of the writer, checked
+  /// against the payload's shape. Returns the layout too, for the response.
+  pub(super) fn unwrap_per_request(
+    &self,
+    server_mapping: ServiceMapping,
+    message_info: &MessageInfo,
+  ) -> ReadResult<(RmwRequestId, R, ServiceMapping)> {
+    let writer = GUID::from(message_info.publisher_gid());
+    let mut failures = Vec::new();
+    for mapping in request_layouts(writer, server_mapping) {
+      match self.unwrap(mapping, message_info) {
+        Ok((id, request)) => return Ok((id, request, mapping)),
+        Err(e) => failures.push(format!("{mapping:?}: {e}")),
+      }
+    }
+    // Not logged here: the Server logs it once per client, rate-limited.
+    Err(ReadError::Deserialization {
+      reason: format!(
+        "request of {} bytes from writer {writer:?} (vendor {}) fits no service request layout ({})",
+        self.serialized_message.len(),
+        vendor_name(writer),
+        failures.join("; ")
+      ),
+    })
   }
 
   // Client creates new RequestWrappers from Requests
@@ -243,6 +274,62 @@ impl<R: Message> ResponseWrapper<R> {
   }
 }
 
+// PATCH (tracer_calib): the request layout of each request, from the wire.
+//
+// A server answers clients on any middleware at once: rmw_fastrtps_cpp clients
+// send the Enhanced layout (the payload is the request; the request id is the
+// RELATED_SAMPLE_IDENTITY inline QoS), rmw_cyclonedds_cpp clients the Cyclone one
+// (a 16-byte header, the client's id and the sequence number, before the request),
+// and a cell may hold both. The layout is decided per request: first the one the
+// writer's vendor uses (RTPS GUID prefixes begin with the vendor id), then the
+// other, and a layout is taken only if the payload is exactly a request in it
+// (at most the 3 bytes of CDR end padding left over). A request from an unknown
+// vendor tries the server's own mapping first. A server made with `Basic` reads
+// `Basic` only, as before.
+
+/// RTPS vendor id of eProsima Fast DDS.
+pub(super) const VENDOR_EPROSIMA: [u8; 2] = [0x01, 0x0f];
+/// RTPS vendor id of Eclipse Cyclone DDS.
+pub(super) const VENDOR_ECLIPSE: [u8; 2] = [0x01, 0x10];
+
+/// The vendor id at the start of an RTPS GUID prefix.
+pub(super) fn vendor_of(guid: GUID) -> [u8; 2] {
+  let b = guid.to_bytes();
+  [b[0], b[1]]
+}
+
+pub(super) fn vendor_name(guid: GUID) -> String {
+  match vendor_of(guid) {
+    VENDOR_EPROSIMA => "eProsima".to_string(),
+    VENDOR_ECLIPSE => "Eclipse Cyclone DDS".to_string(),
+    [a, b] => format!("{a:02x}{b:02x}"),
+  }
+}
+
+/// The layouts to try for a request from `writer`, most likely first.
+pub(super) fn request_layouts(writer: GUID, server_mapping: ServiceMapping) -> Vec<ServiceMapping> {
+  use ServiceMapping::*;
+  match (server_mapping, vendor_of(writer)) {
+    (Basic, _) => vec![Basic],
+    (_, VENDOR_ECLIPSE) => vec![Cyclone, Enhanced],
+    (_, VENDOR_EPROSIMA) => vec![Enhanced, Cyclone],
+    (Cyclone, _) => vec![Cyclone, Enhanced],
+    (Enhanced, _) => vec![Enhanced, Cyclone],
+  }
+}
+
+/// A payload of `len` bytes holds one message of `used` bytes and at most the CDR
+/// end padding (to a multiple of 4 bytes) after it.
+fn ensure_whole_payload(len: usize, used: usize) -> ReadResult<()> {
+  if len >= used && len - used < 4 {
+    Ok(())
+  } else {
+    Err(ReadError::Deserialization {
+      reason: format!("{} bytes left over after the message", len.saturating_sub(used)),
+    })
+  }
+}
+
 // Basic mode header is specified in
 // RPC over DDS Section "7.5.1.1.1 Common Types"
 #[derive(Serialize, Deserialize)]
@@ -288,20 +375,20 @@ impl Message for BasicReplyHeader {}
 #[derive(Serialize, Deserialize)]
 pub struct CycloneHeader {
   guid_second_half: [u8; 8], // CycloneDDS RMW only sends last 8 bytes of client GUID
-  sequence_number_high: i32,
-  sequence_number_low: u32,
+  // PATCH (tracer_calib): one int64, as rmw_cyclonedds' `int64_t seq` (was read and
+  // written as a high i32 and a low u32, which swaps the halves in little-endian CDR:
+  // a Cyclone client's request 1 read as 2^32).
+  sequence_number: i64,
 }
 impl CycloneHeader {
   fn new(r_id: RmwRequestId) -> Self {
-    let sn = SequenceNumber::from(r_id.sequence_number);
     let mut guid_second_half = [0; 8];
     // writer_gid means client GUID (i.e. request writer)
     guid_second_half.copy_from_slice(&r_id.writer_gid.to_bytes16()[8..16]);
 
     CycloneHeader {
       guid_second_half,
-      sequence_number_high: sn.high(),
-      sequence_number_low: sn.low(),
+      sequence_number: r_id.sequence_number,
     }
   }
 }
@@ -338,7 +425,9 @@ fn cyclone_unwrap<R: Message>(
     // of the payload is preserved when it is decoded from the start of this
     // slice.
     let payload = bytes.split_off(header_size);
-    let (response, _response_bytes) = deserialize_from_cdr_with_rep_id::<R>(&payload, encoding)?;
+    let (response, response_bytes) = deserialize_from_cdr_with_rep_id::<R>(&payload, encoding)?;
+    // PATCH (tracer_calib): the payload must be this message and nothing more.
+    ensure_whole_payload(payload.len(), response_bytes)?;
 
     // Reassemble the full client GUID: upper 8 bytes from the supplied source,
     // lower 8 bytes from the Cyclone header.
@@ -348,10 +437,7 @@ fn cyclone_unwrap<R: Message>(
 
     let req_id = RmwRequestId {
       writer_gid: crate::gid::Gid::from(GUID::from_bytes(client_guid_bytes)),
-      sequence_number: i64::from(SequenceNumber::from_high_low(
-        header.sequence_number_high,
-        header.sequence_number_low,
-      )),
+      sequence_number: header.sequence_number, // PATCH (tracer_calib): one int64
     };
     Ok((req_id, response))
   }
