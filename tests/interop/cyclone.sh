@@ -1,0 +1,174 @@
+#!/usr/bin/env bash
+# A stock Cyclone DDS peer: rmw_cyclonedds_cpp built from source for a distribution's
+# wheel venv, and an environment file that puts an rclpy process on it.
+#
+#   tests/interop/cyclone.sh [--force] DISTRO...     (after tests/interop/setup.sh DISTRO)
+#
+# rmw_cyclonedds_cpp (../shared/ros2-src/rmw_cyclonedds.tar.gz, or $TRACER_ROS2_SRC) is
+# built with cmake against Debian's Cyclone DDS (apt: cyclonedds-dev,
+# libiceoryx-binding-c-dev, liblttng-ust-dev, patchelf; installed here when missing) and
+# the distribution's wheels (target/ros/DISTRO/venv), into a cache outside the clone:
+#
+#   ${TRACER_CACHE:-~/.cache/tracer_calib}/cyclone-<sha256 of the tarball>-DISTRO/
+#       install/lib/librmw_cyclonedds_cpp.so     the RMW
+#       shim/librmw_fastrtps_cpp.so              a copy of it under rmw_fastrtps_cpp's SONAME
+#       key                                      what it was built from (see KEY below)
+#
+# A fresh machine builds it (about a minute), a rerun reuses it; it is rebuilt when the
+# tarball, the venv's pinned wheels (the lock file), Debian's Cyclone DDS or this recipe
+# change. Then it writes
+#
+#   target/ros/DISTRO/cyclone_env.sh   source it AFTER target/ros/DISTRO/env.sh: the
+#                                      process (and everything it starts) is on Cyclone DDS
+#
+# Why the shim: the wheels' librcl*.so and rclpy's extension link librmw_fastrtps_cpp.so
+# directly (no run-time RMW selection), so RMW_IMPLEMENTATION alone fails. A copy of
+# librmw_cyclonedds_cpp.so given the SONAME librmw_fastrtps_cpp.so and LD_PRELOADed
+# takes its place; RMW_IMPLEMENTATION=rmw_cyclonedds_cpp makes rmw's identifier checks
+# agree. LD_PRELOAD applies to every program the shell starts, so LD_LIBRARY_PATH must
+# hold the venv's libraries (env.sh sets it).
+#
+# Prints one line per distribution with its time. Exit status 0 when every distribution
+# given has a working build; a distribution whose build fails says why (log kept).
+set -euo pipefail
+
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+ROOT=$(cd "$HERE/../.." && pwd)
+SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
+TARBALL=$SRC_DIR/rmw_cyclonedds.tar.gz
+CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
+JOBS=${ROS_SETUP_JOBS:-2}
+# Bump when the way it is built changes.
+RECIPE=1
+
+FORCE=0
+DISTROS=()
+for a in "$@"; do
+    case "$a" in
+        --force) FORCE=1 ;;
+        kilted|jazzy) DISTROS+=("$a") ;;
+        -h|--help) sed -n '2,31p' "$0"; exit 0 ;;
+        *) echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2 ;;
+    esac
+done
+[ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
+[ -f "$TARBALL" ] || { echo "cyclone.sh: no $TARBALL (set TRACER_ROS2_SRC)" >&2; exit 1; }
+
+# Work in a clean environment even when a target/ros/*/env.sh is sourced in this shell.
+unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH LD_PRELOAD AMENT_PREFIX_PATH CMAKE_PREFIX_PATH \
+    VIRTUAL_ENV PYTHONHOME _ROS_WHEELS_BOOTSTRAP_COMPLETE RMW_IMPLEMENTATION
+
+now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
+took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
+
+# Debian build dependencies, apt-get only for what is missing.
+APT_PKGS=()
+for p in cyclonedds-dev libiceoryx-binding-c-dev liblttng-ust-dev patchelf; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || APT_PKGS+=("$p")
+done
+if [ "${#APT_PKGS[@]}" -gt 0 ]; then
+    [ "$(id -u)" -eq 0 ] || { echo "cyclone.sh: missing ${APT_PKGS[*]} and not root: apt-get install -y ${APT_PKGS[*]}" >&2; exit 1; }
+    t0=$(now_ms)
+    mkdir -p "$CACHE_TOP"
+    if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${APT_PKGS[@]}"; } \
+        >"$CACHE_TOP/apt.log" 2>&1; then
+        tail -n 30 "$CACHE_TOP/apt.log" >&2
+        echo "cyclone.sh: apt-get install ${APT_PKGS[*]} failed" >&2
+        exit 1
+    fi
+    echo "cyclone.sh: apt-get install ${APT_PKGS[*]} $(took "$t0")"
+fi
+CYCLONE_DEB=$(dpkg-query -W -f='${Version}' cyclonedds-dev)
+TAR_SHA=$(sha256sum "$TARBALL" | cut -c1-64)
+
+failed=()
+for d in "${DISTROS[@]}"; do
+    t0=$(now_ms)
+    ROS_DIR=$ROOT/target/ros/$d
+    VENV=$ROS_DIR/venv
+    [ -x "$VENV/bin/python" ] || { echo "cyclone.sh: $d: no $VENV: run tests/interop/setup.sh $d first" >&2; failed+=("$d"); continue; }
+    case "$d" in
+        kilted) LOCK=$HERE/requirements.lock ;;
+        *) LOCK=$HERE/requirements-$d.lock ;;
+    esac
+    CACHE=$CACHE_TOP/cyclone-$TAR_SHA-$d
+    KEY="tarball=$TAR_SHA distro=$d lock=$(sha256sum "$LOCK" | cut -c1-64) cyclonedds=$CYCLONE_DEB recipe=$RECIPE"
+    mkdir -p "$CACHE_TOP"
+    exec 8>"$CACHE.lock"
+    flock 8
+    if [ "$FORCE" = 0 ] && [ -f "$CACHE/key" ] && [ "$(cat "$CACHE/key")" = "$KEY" ] \
+        && [ -f "$CACHE/shim/librmw_fastrtps_cpp.so" ]; then
+        status=cached
+    else
+        rm -rf "$CACHE" "$CACHE.tmp"
+        work=$CACHE.tmp
+        mkdir -p "$work/src"
+        log=$CACHE_TOP/cyclone-$d.log
+        tar -xzf "$TARBALL" -C "$work/src"
+        # The venv's shared libraries (ros_*.libs: the wheels' vendored dependencies).
+        libdirs=$VENV/lib$(cd "$VENV/lib/python3.11/site-packages" && for x in ros_*.libs; do [ -d "$x" ] && printf ':%s' "$PWD/$x"; done; true)
+        if ! ( export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" LD_LIBRARY_PATH="$libdirs" \
+                      _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
+               nice -n 10 cmake -S "$work/src/rmw_cyclonedds/rmw_cyclonedds_cpp" -B "$work/build" \
+                   -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
+                   -DCMAKE_PREFIX_PATH="$VENV;/usr" \
+                   -DPython3_EXECUTABLE="$VENV/bin/python" \
+                   -DCMAKE_INSTALL_PREFIX="$work/install" || exit
+               # (set -e does not apply inside `if`: each step says `|| exit`)
+               nice -n 10 cmake --build "$work/build" -j "$JOBS" || exit
+               cmake --install "$work/build" || exit
+             ) >"$log" 2>&1; then
+            echo "cyclone.sh: $d: building rmw_cyclonedds_cpp failed; last lines of $log:" >&2
+            tail -n 25 "$log" >&2
+            rm -rf "$work"
+            exec 8>&-
+            failed+=("$d")
+            continue
+        fi
+        rm -rf "$work/src" "$work/build"
+        mkdir -p "$work/shim"
+        cp "$work/install/lib/librmw_cyclonedds_cpp.so" "$work/shim/librmw_fastrtps_cpp.so"
+        patchelf --set-soname librmw_fastrtps_cpp.so "$work/shim/librmw_fastrtps_cpp.so"
+        echo "$KEY" >"$work/key"
+        mv "$work" "$CACHE"
+        status=built
+    fi
+    exec 8>&-
+
+    # The environment file (rewritten only when its text changes).
+    env_sh=$ROS_DIR/cyclone_env.sh
+    tmp=$(mktemp "$env_sh.XXXXXX")
+    cat >"$tmp" <<EOF
+# Written by tests/interop/cyclone.sh -- do not edit. Source it AFTER target/ros/$d/env.sh:
+#   . target/ros/$d/env.sh; . target/ros/$d/cyclone_env.sh
+# Puts this shell's ROS 2 processes on Cyclone DDS (rmw_cyclonedds_cpp, Debian's Cyclone DDS
+# $CYCLONE_DEB) instead of Fast DDS: the RMW built from rmw_cyclonedds.tar.gz (sha256
+# $TAR_SHA), preloaded under rmw_fastrtps_cpp's SONAME, which the wheels link.
+TRACER_CYCLONE_DIR='$CACHE'
+export TRACER_CYCLONE_DIR
+export LD_LIBRARY_PATH="\$TRACER_CYCLONE_DIR/install/lib\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}"
+export LD_PRELOAD="\$TRACER_CYCLONE_DIR/shim/librmw_fastrtps_cpp.so"
+export RMW_IMPLEMENTATION=rmw_cyclonedds_cpp
+export AMENT_PREFIX_PATH="\$TRACER_CYCLONE_DIR/install\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}"
+# Keep DDS on this machine: rmw's LOCALHOST range (no multicast, localhost as the peer),
+# and Cyclone on the loopback interface only.
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+export CYCLONEDDS_URI='<CycloneDDS><Domain><General><Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces></General></Domain></CycloneDDS>'
+unset FASTDDS_DEFAULT_PROFILES_FILE
+EOF
+    if [ -f "$env_sh" ] && cmp -s "$tmp" "$env_sh"; then rm -f "$tmp"; else mv -f "$tmp" "$env_sh"; fi
+
+    # Check: an rclpy process on it says it is on Cyclone (no participant is created).
+    if ! out=$(. "$ROS_DIR/env.sh" && . "$env_sh" && timeout -s KILL 60 python -c '
+from rclpy.utilities import get_rmw_implementation_identifier as rmw
+print(rmw())' 2>&1) || [ "$out" != rmw_cyclonedds_cpp ]; then
+        echo "cyclone.sh: $d: rclpy is not on rmw_cyclonedds_cpp with $env_sh: $out" >&2
+        failed+=("$d")
+        continue
+    fi
+    echo "cyclone.sh: $d: rmw_cyclonedds_cpp $status ($CACHE) $(took "$t0")"
+done
+if [ "${#failed[@]}" -gt 0 ]; then
+    echo "cyclone.sh: failed: ${failed[*]}" >&2
+    exit 1
+fi
