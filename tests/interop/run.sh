@@ -16,8 +16,12 @@
 # Nothing leaves the machine. Prints each part's time.
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), two_hosts
-# test_two_hosts.py's scenarios (two_hosts: all); the others, node_suite.py's tests; with
-# names, 3 and 4 are skipped. No names: everything.
+# test_two_hosts.py's scenarios (two_hosts: all), cyclone or mixed test_cyclone.py's
+# (cyclone: all); the others, node_suite.py's tests; with names, 3 and 4 are skipped.
+# No names: everything.
+# Also (2b, after 2): tests/interop/cyclone.sh builds rmw_cyclonedds_cpp (cached outside
+# the clone) and tests/interop/ros2cli.sh installs the ros2 CLI and launch into the venv;
+# test_cyclone.py then runs with the node's peers on Cyclone DDS, and on both DDS at once.
 #   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -30,11 +34,12 @@ export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
-node_tests=() graph=() two_hosts=()
+node_tests=() graph=() two_hosts=() cyclone=()
 for a in "$@"; do
     case "$a" in
         graph*) graph+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
+        cyclone*|mixed*) cyclone+=("$a") ;;
         *) node_tests+=("$a") ;;
     esac
 done
@@ -77,6 +82,25 @@ for d in $DISTROS; do
             echo "run.sh: $d: test_two_hosts.py (ROS 2 $d rclpy, release binaries)"
             peer_run two_hosts.sh test_two_hosts.py "$d" ${two_hosts[@]+"${two_hosts[@]}"} || failed+=("$d:two_hosts")
             echo "run.sh: $d: test_two_hosts.py $(took "$t0")"
+        fi
+    fi
+    # 2b. Cyclone DDS peers (test_cyclone.py), with the stock ros2 CLI.
+    if [ "$#" -eq 0 ] || [ "${#cyclone[@]}" -gt 0 ]; then
+        t0=$(now_ms)
+        if "$HERE/cyclone.sh" "$d" && "$HERE/ros2cli.sh" "$d"; then
+            echo "run.sh: $d: rmw_cyclonedds_cpp and ros2 CLI $(took "$t0")"
+            t0=$(now_ms)
+            echo "run.sh: $d: test_cyclone.py (ROS 2 $d rclpy on Cyclone DDS and Fast DDS, release binaries)"
+            # shellcheck disable=SC2016
+            "$HERE/netns.sh" bash -c '
+                . "$1/target/ros/$2/env.sh"
+                . "$1/target/ros/$2/cyclone_env.sh"
+                shift 2
+                exec timeout -s KILL 600 python "$0" "$@"
+            ' "$HERE/test_cyclone.py" "$ROOT" "$d" ${cyclone[@]+"${cyclone[@]}"} || failed+=("$d:test_cyclone")
+            echo "run.sh: $d: test_cyclone.py $(took "$t0")"
+        else
+            failed+=("$d:cyclone_setup")
         fi
     fi
     [ "$#" -eq 0 ] || continue
