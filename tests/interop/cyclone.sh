@@ -105,6 +105,17 @@ for d in "${DISTROS[@]}"; do
         mkdir -p "$work/src"
         log=$CACHE_TOP/cyclone-$d.log
         tar -xzf "$TARBALL" -C "$work/src"
+        # ament_cmake_ros' cmake extras find_package() gmock, gtest and pytest: Jazzy's
+        # requirements have them (for msg/), Kilted's venv not; the wheels of the venv's
+        # own ament_cmake version.
+        if [ ! -d "$VENV/share/ament_cmake_gmock" ]; then
+            v=$("$VENV/bin/python" -S -c 'import sys; sys.path.append(sys.argv[1]); import importlib.metadata as m; print(m.version("ros-ament-cmake"))' \
+                "$VENV/lib/python3.11/site-packages")
+            "$VENV/bin/python" -m pip install --disable-pip-version-check --no-input -q \
+                "ros-ament-cmake-gmock==$v" "ros-ament-cmake-gtest==$v" "ros-ament-cmake-pytest==$v" \
+                >"$CACHE_TOP/cyclone-$d-pip.log" 2>&1 \
+                || { echo "cyclone.sh: $d: pip install ros-ament-cmake-{gmock,gtest,pytest}==$v failed (see $CACHE_TOP/cyclone-$d-pip.log)" >&2; rm -rf "$work"; exec 8>&-; failed+=("$d"); continue; }
+        fi
         # The venv's shared libraries (ros_*.libs: the wheels' vendored dependencies).
         libdirs=$VENV/lib$(cd "$VENV/lib/python3.11/site-packages" && for x in ros_*.libs; do [ -d "$x" ] && printf ':%s' "$PWD/$x"; done; true)
         if ! ( export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" LD_LIBRARY_PATH="$libdirs" \

@@ -84,8 +84,12 @@ for d in $DISTROS; do
             echo "run.sh: $d: test_two_hosts.py $(took "$t0")"
         fi
     fi
-    # 2b. Cyclone DDS peers (test_cyclone.py), with the stock ros2 CLI.
-    if [ "$#" -eq 0 ] || [ "${#cyclone[@]}" -gt 0 ]; then
+    # 2b. Cyclone DDS peers (test_cyclone.py), with the stock ros2 CLI. Jazzy only: the
+    # rmw_cyclonedds tarball is its Jazzy branch, which does not build against Kilted's
+    # wheels (rmw_dds_common 4.0 has no security.hpp any more).
+    if [ "$d" != jazzy ] && { [ "$#" -eq 0 ] || [ "${#cyclone[@]}" -gt 0 ]; }; then
+        echo "run.sh: $d: test_cyclone.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
+    elif [ "$#" -eq 0 ] || [ "${#cyclone[@]}" -gt 0 ]; then
         t0=$(now_ms)
         if "$HERE/cyclone.sh" "$d" && "$HERE/ros2cli.sh" "$d"; then
             echo "run.sh: $d: rmw_cyclonedds_cpp and ros2 CLI $(took "$t0")"

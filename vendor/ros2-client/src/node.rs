@@ -978,6 +978,12 @@ impl Node {
     }
   }
 
+  // PATCH (tracer_calib): for `Server`, which looks up a Cyclone DDS client's
+  // response reader in the discovery data.
+  pub(crate) fn domain_participant(&self) -> DomainParticipant {
+    self.ros_context.domain_participant()
+  }
+
   // PATCH (tracer_calib): for `Server`, which sends a response to the client's
   // reader alone when this map shows it matched.
   pub(crate) fn writers_to_remote_readers(&self) -> Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>> {

@@ -46,6 +46,10 @@ where
   pending: Mutex<PendingLayouts>,
   bad_requests: AtomicU64,
   bad_request_log: Mutex<BadRequestLog>,
+  // PATCH (tracer_calib): to find a Cyclone DDS client's response reader from the
+  // discovery data (see `cyclone_client_reader`), and what was found.
+  participant: DomainParticipant,
+  cyclone_readers: Mutex<BTreeMap<GUID, GUID>>,
 }
 
 /// PATCH (tracer_calib): the layout (and request writer) of each request taken and
@@ -155,6 +159,8 @@ where
       pending: Mutex::new(PendingLayouts::default()),
       bad_requests: AtomicU64::new(0),
       bad_request_log: Mutex::new(BadRequestLog::default()),
+      participant: node.domain_participant(),
+      cyclone_readers: Mutex::new(BTreeMap::new()),
     })
   }
 
@@ -178,6 +184,7 @@ where
     let writer = GUID::from(mi.publisher_gid());
     match req_wrapper.unwrap_per_request(self.service_mapping, mi) {
       Ok((id, req, mapping)) => {
+        debug!("request {id:?} from writer {writer:?}: {mapping:?} layout");
         self.pending.lock().unwrap().insert(id, mapping, writer);
         Ok((id, req))
       }
@@ -202,7 +209,7 @@ where
     rmw_req_id: RmwRequestId,
     response: Resp,
   ) -> WriteResult<(ResponseWrapper<Resp>, WriteOptions), ()> {
-    let (mapping, _writer) = self
+    let (mapping, writer) = self
       .pending
       .lock()
       .unwrap()
@@ -210,7 +217,47 @@ where
       .unwrap_or((self.service_mapping, GUID::GUID_UNKNOWN));
     let resp_wrapper =
       ResponseWrapper::<Resp>::new(mapping, rmw_req_id, RepresentationIdentifier::CDR_LE, response)?;
-    Ok((resp_wrapper, self.write_options(rmw_req_id, mapping)))
+    Ok((resp_wrapper, self.write_options(rmw_req_id, mapping, writer)))
+  }
+
+  /// PATCH (tracer_calib): the response reader of the Cyclone DDS client whose
+  /// request writer is `writer`, if it is matched with our response writer.
+  /// rmw_cyclonedds_cpp gives a client's request writer and response reader the same
+  /// `clientid=...;` in their USER_DATA (its own servers pair them the same way); found
+  /// once per client from the discovery data, then kept while it stays matched.
+  fn cyclone_client_reader(&self, writer: GUID, matched: &BTreeSet<GUID>) -> Option<GUID> {
+    let mut known = self.cyclone_readers.lock().unwrap();
+    if let Some(reader) = known.get(&writer).filter(|r| matched.contains(r)) {
+      return Some(*reader);
+    }
+    let client_id = |user_data: &[u8]| -> Option<Vec<u8>> {
+      let at = user_data.windows(9).position(|w| w == b"clientid=")? + 9;
+      let len = user_data[at..].iter().position(|&b| b == b';')?;
+      Some(user_data[at..at + len].to_vec())
+    };
+    let id = self
+      .participant
+      .discovered_writers()
+      .into_iter()
+      .find(|w| w.writer_proxy.remote_writer_guid == writer)
+      .and_then(|w| client_id(&w.user_data))?;
+    let topic = self.response_sender.topic().name();
+    let reader = self
+      .participant
+      .discovered_readers()
+      .into_iter()
+      .find(|r| {
+        matched.contains(&r.reader_proxy.remote_reader_guid)
+          && *r.subscription_topic_data.topic_name() == topic
+          && client_id(&r.user_data).as_ref() == Some(&id)
+      })?
+      .reader_proxy
+      .remote_reader_guid;
+    if known.len() >= 1024 {
+      known.retain(|_, r| matched.contains(r));
+    }
+    known.insert(writer, reader);
+    Some(reader)
   }
 
   /// PATCH (tracer_calib): the write options of a response, sent to the requesting
@@ -224,7 +271,12 @@ where
   /// GUID is a reader matched with our response writer, the response goes to it
   /// alone (the others get a GAP); otherwise (other vendors, a match not seen yet)
   /// to all, as before.
-  fn write_options(&self, rmw_req_id: RmwRequestId, mapping: ServiceMapping) -> WriteOptions {
+  fn write_options(
+    &self,
+    rmw_req_id: RmwRequestId,
+    mapping: ServiceMapping,
+    request_writer: GUID,
+  ) -> WriteOptions {
     let options = WriteOptionsBuilder::new()
       .source_timestamp(Timestamp::now()) // always add source timestamp
       // TODO: Check if this is right. Cyclone mapping does not send
@@ -232,18 +284,22 @@ where
       // WriteOptions (QoS ParameterList), but within data payload.
       // But maybe it is not harmful to send it in both?
       .related_sample_identity(SampleIdentity::from(rmw_req_id));
-    let client_reader = GUID::from(rmw_req_id.writer_gid);
-    let matched = mapping == ServiceMapping::Enhanced
-      && self
-        .matched_readers
-        .lock()
-        .unwrap()
-        .get(&self.response_sender.guid())
-        .is_some_and(|readers| readers.contains(&client_reader));
-    if matched {
-      options.to_single_reader(client_reader).build()
-    } else {
-      options.build()
+    let matched_readers = self.matched_readers.lock().unwrap();
+    let Some(matched) = matched_readers.get(&self.response_sender.guid()) else {
+      return options.build();
+    };
+    // PATCH (tracer_calib): per layout; a Cyclone DDS client's reader is found by its
+    // client id (`cyclone_client_reader`).
+    let client_reader = match mapping {
+      ServiceMapping::Enhanced => Some(GUID::from(rmw_req_id.writer_gid)),
+      ServiceMapping::Cyclone => self.cyclone_client_reader(request_writer, matched),
+      ServiceMapping::Basic => None,
+    }
+    .filter(|reader| matched.contains(reader));
+    debug!("response to {rmw_req_id:?} ({mapping:?}): to reader {client_reader:?} (None: all)");
+    match client_reader {
+      Some(reader) => options.to_single_reader(reader).build(),
+      None => options.build(),
     }
   }
 
