@@ -20,7 +20,7 @@ use crate::{
   action_msgs, builtin_interfaces,
   context::{Context, DEFAULT_SUBSCRIPTION_QOS},
   entities_info::{NodeEntitiesInfo, ParticipantEntitiesInfo},
-  error::{CreateError, CreateResult},
+  error::{CreateError, CreateResult, ReadError},
   gid::Gid,
   graph::{EntityKind, GraphEntity, GraphEvent},
   log::Log,
@@ -181,6 +181,17 @@ pub struct Spinner {
   fully_qualified_node_name: String,
 }
 
+/// PATCH (tracer_calib): a parameter service request that could not be read. One that
+/// fits no request layout is logged by its `Server` already, once a minute per client
+/// at most (`Server::decode_request`); logged here again, at warn level, a client
+/// sending such requests in a loop filled the log.
+fn parameter_request_error(service: &str, e: &ReadError) {
+  match e {
+    ReadError::Deserialization { .. } => debug!("{service} request error {e:?}"),
+    _ => warn!("{service} request error {e:?}"),
+  }
+}
+
 async fn next_if_some<S>(s: &mut Option<S>) -> S::Item
 where
   S: Stream + Unpin + FusedStream,
@@ -273,7 +284,7 @@ impl Spinner {
                 .await
                 .unwrap_or_else(|e| warn!("GetParameter response error {e:?}"));
             }
-            Err(e) => warn!("GetParameter request error {e:?}"),
+            Err(e) => parameter_request_error("GetParameter", &e), // PATCH (tracer_calib)
           }
         }
 
@@ -289,7 +300,7 @@ impl Spinner {
                 .await
                 .unwrap_or_else(|e| warn!("GetParameterTypes response error {e:?}"));
             }
-            Err(e) => warn!("GetParameterTypes request error {e:?}"),
+            Err(e) => parameter_request_error("GetParameterTypes", &e), // PATCH (tracer_calib)
           }
         }
 
@@ -311,7 +322,7 @@ impl Spinner {
                 .await
                 .unwrap_or_else(|e| warn!("SetParameters response error {e:?}"));
             }
-            Err(e) => warn!("SetParameters request error {e:?}"),
+            Err(e) => parameter_request_error("SetParameters", &e), // PATCH (tracer_calib)
           }
         }
 
@@ -329,7 +340,7 @@ impl Spinner {
                 .await
                 .unwrap_or_else(|e| warn!("SetParametersAtomically response error {e:?}"));
             }
-            Err(e) => warn!("SetParametersAtomically request error {e:?}"),
+            Err(e) => parameter_request_error("SetParametersAtomically", &e), // PATCH (tracer_calib)
           }
         }
 
@@ -345,7 +356,7 @@ impl Spinner {
                 .await
                 .unwrap_or_else(|e| warn!("ListParameter response error {e:?}"));
             }
-            Err(e) => warn!("ListParameter request error {e:?}"),
+            Err(e) => parameter_request_error("ListParameter", &e), // PATCH (tracer_calib)
           }
         }
 
@@ -364,7 +375,7 @@ impl Spinner {
                 .await
                 .unwrap_or_else(|e| warn!("DescribeParameters response error {e:?}"));
             }
-            Err(e) => warn!("DescribeParameters request error {e:?}"),
+            Err(e) => parameter_request_error("DescribeParameters", &e), // PATCH (tracer_calib)
           }
         }
 
