@@ -18,6 +18,9 @@
 # `ros2 daemon` that outlives a command: pass --no-daemon (or ROS2CLI_NO_DAEMON=1 where
 # a verb has no flag), or `ros2 daemon stop` afterwards.
 #
+# The sources are the Jazzy branches; the same install works in Kilted's venv (checked by
+# hand: `ros2 service call /calibrate` and `ros2 param get` against the node).
+#
 # Idempotent: keyed on the tarballs, the requirements, this script and the venv itself
 # (a venv made afresh by setup.sh gets it again). Prints one line per distribution.
 set -euo pipefail
@@ -44,7 +47,7 @@ for a in "$@"; do
     case "$a" in
         --force) FORCE=1 ;;
         kilted|jazzy) DISTROS+=("$a") ;;
-        -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,25p' "$0"; exit 0 ;;
         *) echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2 ;;
     esac
 done
