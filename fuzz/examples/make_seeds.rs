@@ -14,10 +14,10 @@ use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::model::PlateSpec;
 use tracer_calib::engine::shape::{Ellipse, Shape};
 use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib::interfaces::{Header, RawScan, Time, to_cdr};
 use tracer_calib::io::{csv, oma};
 use tracer_calib::params::Parameters;
 use tracer_calib::params::file as params_file;
-use tracer_calib::interfaces::{Header, RawScan, Time, to_cdr};
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()

@@ -15,13 +15,13 @@
 use std::f64::consts::FRAC_PI_4;
 
 use libfuzzer_sys::fuzz_target;
+use tracer_calib::cell::{NodeState, intake};
 use tracer_calib::engine::ModelKind;
 use tracer_calib::engine::calibrate::{Calibration, Options, calibrate};
 use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::interfaces::{RawScan, from_cdr};
 use tracer_calib::params::file as params_file;
 use tracer_calib::params::{ParamValue, Parameters, names};
-use tracer_calib::interfaces::{RawScan, from_cdr};
-use tracer_calib::cell::NodeState;
 
 /// The fit is the expensive part: only scans up to this many samples are fitted.
 const MAX_FIT_SAMPLES: usize = 2000;
@@ -53,7 +53,7 @@ fuzz_target!(|data: &[u8]| {
     }
 
     // The fit (with the tuned node's encoder scale, if any), on scans that validate.
-    let Ok(scan) = fitter.validate(&msg) else { return };
+    let Ok(scan) = intake::to_scan(&msg, fitter.params.meters_per_count) else { return };
     if scan.len() > MAX_FIT_SAMPLES {
         return;
     }

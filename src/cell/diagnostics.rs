@@ -105,6 +105,7 @@ impl NodeState {
                     kv("last_rejection", s.last_rejection.clone()),
                     kv("plate_scans_kept", self.plates.len().to_string()),
                     kv("qos_incompatible", s.qos_incompatible.to_string()),
+                    kv("requests_unreadable", s.requests_unreadable.to_string()),
                     kv("last_qos_incompatible", s.last_qos_incompatible.clone()),
                 ],
             }],

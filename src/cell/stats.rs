@@ -19,6 +19,8 @@ pub struct Stats {
     /// node's endpoint on their topic (no data flows), and the last one.
     pub qos_incompatible: u64,
     pub last_qos_incompatible: String,
+    /// `calibrate` requests in no client layout (not answered; the server logs them).
+    pub requests_unreadable: u64,
 }
 
 impl NodeState {

@@ -16,7 +16,16 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
         let (id, req) = match item {
             Ok(r) => r,
             Err(err) => {
-                warn!("cannot read a calibrate request: {err:?}");
+                // A request in no client layout: the server counted it and warned (once a
+                // minute per client at most); the count goes on /diagnostics.
+                let unreadable = e.calibrate.bad_request_count();
+                let mut st = shared.state.lock().expect("state lock");
+                if unreadable > st.stats.requests_unreadable {
+                    st.stats.requests_unreadable = unreadable;
+                    debug!("unreadable calibrate request: {err:?}");
+                } else {
+                    warn!("cannot read a calibrate request: {err:?}");
+                }
                 continue;
             }
         };

@@ -1,0 +1,136 @@
+//! `tracer_calib_node` (the binary, over DDS on loopback) given `calibrate` requests that fit
+//! no client layout: none is answered, each is counted on `/diagnostics`
+//! (`requests_unreadable`), and the node goes on answering good requests.
+//!
+//! Run inside a private network namespace, as `scripts/test.sh` runs `cargo test`.
+
+use std::net::{IpAddr, Ipv4Addr};
+use std::process::{Child, Command};
+use std::time::{Duration, Instant};
+
+use futures::{FutureExt, StreamExt, future};
+use ros2_client::{Context, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, qos::*};
+use rustdds::no_key::SerializerAdapter;
+use rustdds::{DomainParticipantBuilder, QosPolicies, RepresentationIdentifier, TopicKind};
+use tracer_calib::interfaces::{Calibrate, CalibrateRequest, CalibrateResponse, DiagnosticArray, RosMsg, RosService};
+
+const DOMAIN: u16 = 96;
+
+fn reliable(depth: usize) -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+/// Raw bytes as a sample's CDR payload.
+#[derive(Debug)]
+struct Raw(Vec<u8>);
+struct RawAdapter;
+impl SerializerAdapter<Raw> for RawAdapter {
+    type Error = std::io::Error;
+    fn output_encoding() -> RepresentationIdentifier {
+        RepresentationIdentifier::CDR_LE
+    }
+    fn to_bytes(value: &Raw) -> Result<rustdds::bytes::Bytes, Self::Error> {
+        Ok(rustdds::bytes::Bytes::from(value.0.clone()))
+    }
+}
+
+/// The node, killed when dropped.
+struct NodeProcess(Child);
+impl Drop for NodeProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+async fn within<T>(secs: u64, what: &str, f: impl std::future::Future<Output = T>) -> T {
+    let timeout = FutureExt::map(smol::Timer::after(Duration::from_secs(secs)), |_| None);
+    match future::select(Box::pin(f.map(Some)), Box::pin(timeout)).await.factor_first().0 {
+        Some(v) => v,
+        None => panic!("timed out after {secs} s: {what}"),
+    }
+}
+
+fn value(d: &DiagnosticArray, key: &str) -> Option<String> {
+    d.status.first()?.values.iter().find(|kv| kv.key == key).map(|kv| kv.value.clone())
+}
+
+#[test]
+fn unreadable_requests_are_counted_on_diagnostics_and_the_node_keeps_serving() {
+    let _node = NodeProcess(
+        Command::new(env!("CARGO_BIN_EXE_tracer_calib_node"))
+            .env("ROS_DOMAIN_ID", DOMAIN.to_string())
+            .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+            .spawn()
+            .expect("the node starts"),
+    );
+    let participant = DomainParticipantBuilder::new(DOMAIN)
+        .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
+        .build()
+        .expect("participant");
+    let ctx = Context::from_domain_participant(participant).expect("context");
+    let mut peer = ctx
+        .new_node(NodeName::new("/", "unreadable_requests_test").unwrap(), NodeOptions::new().enable_rosout(false))
+        .unwrap();
+    let client = peer
+        .create_client::<CalibrateRequest, CalibrateResponse>(
+            ServiceMapping::Enhanced,
+            &Name::new("/", "calibrate").unwrap(),
+            &Calibrate::type_name(),
+            reliable(100),
+            reliable(100),
+        )
+        .unwrap();
+    let diag_topic = peer
+        .create_topic(&Name::new("/", "diagnostics").unwrap(), DiagnosticArray::NAME.message_type_name(), &reliable(10))
+        .unwrap();
+    let diagnostics = peer.create_subscription::<DiagnosticArray>(&diag_topic, None).unwrap();
+    // A writer of raw payloads on the calibrate request topic.
+    let dp = ctx.domain_participant();
+    let request_qos: QosPolicies = (&reliable(100)).into();
+    let topic = dp
+        .create_topic(
+            "rq/calibrateRequest".into(),
+            <Calibrate as RosService>::Request::NAME.dds_type_name(),
+            &request_qos,
+            TopicKind::NoKey,
+        )
+        .unwrap();
+    let raw =
+        dp.create_publisher(&request_qos).unwrap().create_datawriter_no_key::<Raw, RawAdapter>(&topic, None).unwrap();
+    let spinner = smol::spawn(peer.spinner().unwrap().spin());
+
+    smol::block_on(async {
+        within(30, "the node's calibrate service", client.wait_for_service(&peer)).await;
+        let first = within(10, "a first call", client.async_call_service(CalibrateRequest::default())).await.unwrap();
+        assert!(first.message.starts_with("no calibration-plate scan received yet"), "{}", first.message);
+
+        // Three payloads of no client layout: a bool of 9 (Enhanced and Cyclone alike),
+        // too short, and a request with 8 bytes too many.
+        for bad in [vec![9u8; 24], vec![1, 2, 3], vec![1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 7, 7, 7, 7]] {
+            raw.write(Raw(bad), None).unwrap();
+        }
+        let mut stream = std::pin::pin!(diagnostics.async_stream());
+        let deadline = Instant::now() + Duration::from_secs(15);
+        let counted = within(20, "requests_unreadable 3 on /diagnostics", async {
+            while let Some(Ok((d, _))) = stream.next().await {
+                if value(&d, "requests_unreadable").as_deref() == Some("3") || Instant::now() > deadline {
+                    return value(&d, "requests_unreadable");
+                }
+            }
+            None
+        })
+        .await;
+        assert_eq!(counted.as_deref(), Some("3"));
+
+        // And the node answers the next good request.
+        let again = within(10, "a call after the bad ones", client.async_call_service(CalibrateRequest::default()))
+            .await
+            .unwrap();
+        assert!(!again.success && again.message.starts_with("no calibration-plate scan"), "{}", again.message);
+    });
+    drop(spinner);
+}
