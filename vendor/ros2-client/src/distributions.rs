@@ -76,14 +76,17 @@ const fn compiled_distro() -> RosDistro {
 /// Compare the `ROS_DISTRO` environment variable against the distribution this
 /// crate was compiled for, and log the outcome:
 ///
-/// * unset -> warning (we cannot tell whether the build matches the runtime),
+/// * unset -> info (no ROS installation sourced: nothing to compare),
 /// * equal -> info (all good),
 /// * `"rolling"` -> warning (rolling tracks the newest, assume compatible),
 /// * anything else -> error (likely wire-incompatible, e.g. wrong Gid format).
 pub fn verify_ros_distro_env() {
   let built = COMPILED_ROS_DISTRO;
   match std::env::var("ROS_DISTRO") {
-    Err(_) => warn!("ROS_DISTRO is not set; ros2-client was built for '{built}'."),
+    // PATCH (tracer_calib): unset is what a program run without a sourced ROS
+    // installation sees (ros2-client needs none); a stock rcl node does not read it
+    // either. Nothing to warn about.
+    Err(_) => info!("ROS_DISTRO is not set; ros2-client was built for '{built}'."),
     Ok(distro) if distro == built.as_str() => {
       info!("ROS_DISTRO='{distro}' matches the ros2-client build.");
     }
