@@ -54,10 +54,9 @@ mod tests;
 pub use cdr::{CDR_LE_HEADER, CdrError, from_cdr, to_cdr};
 pub use definition::Definition;
 pub use name::{InterfaceKind, InterfaceName};
-pub use standard::{
-    DiagnosticArray, DiagnosticStatus, Header, KeyValue, Point, Point32, Polygon, PolygonStamped, ServiceEventInfo,
-    Time,
-};
+// Every standard type at this level: the generated code names field types
+// `crate::interfaces::Type`.
+pub use standard::*;
 pub use tracer_calib_msgs::{Calibrate, CalibrateRequest, CalibrateResponse, Calibration, Contour, RawScan};
 
 /// A Rust mirror of a ROS 2 interface type, with the definition it mirrors.
@@ -91,22 +90,8 @@ pub trait RosService {
     }
 }
 
-/// Every type this layer mirrors, with its definition: what complete definitions (rosbag2)
-/// resolve dependencies against.
-pub const KNOWN: &[(InterfaceName, Definition)] = &[
-    (Time::NAME, Time::DEFINITION),
-    (Header::NAME, Header::DEFINITION),
-    (Point::NAME, Point::DEFINITION),
-    (Point32::NAME, Point32::DEFINITION),
-    (Polygon::NAME, Polygon::DEFINITION),
-    (PolygonStamped::NAME, PolygonStamped::DEFINITION),
-    (KeyValue::NAME, KeyValue::DEFINITION),
-    (DiagnosticStatus::NAME, DiagnosticStatus::DEFINITION),
-    (DiagnosticArray::NAME, DiagnosticArray::DEFINITION),
-    (ServiceEventInfo::NAME, ServiceEventInfo::DEFINITION),
-    (RawScan::NAME, RawScan::DEFINITION),
-    (Contour::NAME, Contour::DEFINITION),
-    (Calibration::NAME, Calibration::DEFINITION),
-    (CalibrateRequest::NAME, CalibrateRequest::DEFINITION),
-    (CalibrateResponse::NAME, CalibrateResponse::DEFINITION),
-];
+/// Every type this layer mirrors (messages and service halves), with its definition: what
+/// complete definitions (rosbag2) resolve dependencies against, and what type descriptions
+/// and hashes ([`type_hash`]) are made of. Listed by the build script: every text in `msg/`
+/// and `standard/` is here.
+pub const KNOWN: &[(InterfaceName, Definition)] = include!(concat!(env!("OUT_DIR"), "/known.rs"));
