@@ -161,6 +161,18 @@ pub fn participant_from_env(env: &RosEnv) -> Result<DomainParticipant, String> {
     plan.participant(env.domain_id)
 }
 
+/// The ROS context on `participant`: every endpoint made through it (the node's topics and
+/// services, rosout, parameter events, the parameter services, `ros_discovery_info`)
+/// announces its type's RIHS01 hash in USER_DATA (`typehash=RIHS01_<hex>;`), as rmw does,
+/// computed from the interface texts ([`crate::interfaces::type_hash`]); a type without a
+/// text here announces none (patched ros2-client, `vendor/ros2-client/PATCHES.md`).
+pub fn context(participant: DomainParticipant) -> Result<ros2_client::Context, String> {
+    let hashes: ros2_client::context::TypeHashResolver =
+        std::sync::Arc::new(|ros_type: &str| crate::interfaces::type_hash::type_hash(ros_type).ok());
+    ros2_client::Context::from_domain_participant_with_type_hashes(participant, Some(hashes))
+        .map_err(|e| format!("cannot create the ROS context: {e:?}"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

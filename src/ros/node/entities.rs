@@ -137,8 +137,7 @@ impl Entities {
         endpoints: &Endpoints,
     ) -> Result<Self, String> {
         let participant = crate::rmw::dds::participant_from_env(env)?;
-        let ctx = Context::from_domain_participant(participant)
-            .map_err(|e| format!("cannot create the ROS context: {e:?}"))?;
+        let ctx = crate::rmw::dds::context(participant)?;
         let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
         let mut node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node: {e:?}"))?;
         let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
