@@ -179,7 +179,7 @@ fn demo(args: &Args) -> Result<(), String> {
         .with_only_networks([std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)])
         .build()
         .map_err(|e| format!("cannot create a DDS participant: {e:?}"))?;
-    let ctx = crate::rmw::dds::context(participant)?;
+    let (ctx, _) = crate::rmw::dds::context(participant)?;
     let mut peer = ctx
         .new_node(NodeName::new("/", "edging_cell_demo").unwrap(), NodeOptions::new().enable_rosout(false))
         .map_err(|e| format!("{e:?}"))?;

@@ -100,7 +100,7 @@ fn replay(args: &Args) -> Result<String, String> {
 
     let env = RosEnv::from_env().map_err(|e| e.to_string())?;
     let participant = crate::rmw::dds::participant_from_env(&env)?;
-    let ctx = crate::rmw::dds::context(participant)?;
+    let (ctx, _) = crate::rmw::dds::context(participant)?;
     let mut node = ctx
         .new_node(NodeName::new("/", "tracer_calib_replay").unwrap(), NodeOptions::new().enable_rosout(false))
         .map_err(|e| format!("{e:?}"))?;

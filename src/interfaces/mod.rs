@@ -15,6 +15,7 @@
 //!   uses it too);
 //! - [`definition`]: where each type's text is, and the complete definitions rosbag2 stores;
 //! - [`type_hash`]: type descriptions and RIHS01 hashes (REP-2016), from the same texts;
+//! - [`type_description`]: the answer of `~/get_type_description` (REP-2016), as rcl's;
 //! - [`cdr`]: plain CDR with its encapsulation header, as DDS sends and rosbag2 stores it.
 //!
 //! # One declaration per type
@@ -44,6 +45,7 @@ mod name;
 pub mod standard;
 pub mod syntax;
 pub mod tracer_calib_msgs;
+pub mod type_description;
 pub mod type_hash;
 
 #[cfg(test)]
