@@ -7,8 +7,10 @@
 //! ([`crate::cell`]) all use it; it uses none of them.
 //!
 //! - [`standard`]: the standard types used (`builtin_interfaces`, `std_msgs`,
-//!   `geometry_msgs`, `diagnostic_msgs`), their `.msg` texts copied verbatim from ROS 2
-//!   (`standard/msg/<package>/<Type>.msg`);
+//!   `geometry_msgs`, `diagnostic_msgs`, `service_msgs`; those of ros2-client's own endpoints,
+//!   `rcl_interfaces` and `rmw_dds_common`, for their hashes; `type_description_interfaces`),
+//!   their `.msg` / `.srv` texts copied verbatim from ROS 2 (`standard/msg/<package>/<Type>.msg`,
+//!   `standard/srv/<package>/<Service>.srv`); a text there is a type known to the crate;
 //! - [`tracer_calib_msgs`]: the node's own package, its texts read from `msg/` at compile
 //!   time (the files colcon builds the package from);
 //! - [`syntax`]: the `.msg` / `.srv` parser, the one reader of the texts (the build script
