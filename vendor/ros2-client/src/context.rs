@@ -337,8 +337,9 @@ impl Context {
   /// the topic's), with the type hash in USER_DATA if the resolver knows it.
   fn with_type_hash(&self, topic: &Topic, qos: Option<QosProfile>) -> Option<QosPolicies> {
     let dds_qos = qos.map(QosPolicies::from);
-    let inner = self.inner.lock().unwrap();
-    match type_hash_user_data(inner.type_hashes.as_ref(), topic) {
+    // The resolver is the application's: not called under the Context's lock.
+    let type_hashes = self.inner.lock().unwrap().type_hashes.clone();
+    match type_hash_user_data(type_hashes.as_ref(), topic) {
       Some(user_data) => Some(
         dds_qos
           .unwrap_or_else(QosPolicies::qos_none)
