@@ -15,7 +15,7 @@ use futures::StreamExt;
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use ros2_client::{Context, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, qos::*};
+use ros2_client::{Name, NodeName, NodeOptions, QosProfile, ServiceMapping, qos::*};
 
 use super::exit;
 use crate::engine::calibrate::{Options, calibrate};
@@ -179,7 +179,7 @@ fn demo(args: &Args) -> Result<(), String> {
         .with_only_networks([std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)])
         .build()
         .map_err(|e| format!("cannot create a DDS participant: {e:?}"))?;
-    let ctx = Context::from_domain_participant(participant).map_err(|e| format!("{e:?}"))?;
+    let (ctx, _) = crate::rmw::dds::context(participant)?;
     let mut peer = ctx
         .new_node(NodeName::new("/", "edging_cell_demo").unwrap(), NodeOptions::new().enable_rosout(false))
         .map_err(|e| format!("{e:?}"))?;

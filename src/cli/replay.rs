@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use ros2_client::{Context, NodeName, NodeOptions, QosProfile, qos::*};
+use ros2_client::{NodeName, NodeOptions, QosProfile, qos::*};
 
 use super::exit;
 use crate::interfaces::{Contour, RawScan, RosMsg};
@@ -100,7 +100,7 @@ fn replay(args: &Args) -> Result<String, String> {
 
     let env = RosEnv::from_env().map_err(|e| e.to_string())?;
     let participant = crate::rmw::dds::participant_from_env(&env)?;
-    let ctx = Context::from_domain_participant(participant).map_err(|e| format!("{e:?}"))?;
+    let (ctx, _) = crate::rmw::dds::context(participant)?;
     let mut node = ctx
         .new_node(NodeName::new("/", "tracer_calib_replay").unwrap(), NodeOptions::new().enable_rosout(false))
         .map_err(|e| format!("{e:?}"))?;

@@ -7,14 +7,17 @@
 //! ([`crate::cell`]) all use it; it uses none of them.
 //!
 //! - [`standard`]: the standard types used (`builtin_interfaces`, `std_msgs`,
-//!   `geometry_msgs`, `diagnostic_msgs`), their `.msg` texts copied verbatim from ROS 2
-//!   (`standard/msg/<package>/<Type>.msg`);
+//!   `geometry_msgs`, `diagnostic_msgs`, `service_msgs`; those of ros2-client's own endpoints,
+//!   `rcl_interfaces` and `rmw_dds_common`, for their hashes; `type_description_interfaces`),
+//!   their `.msg` / `.srv` texts copied verbatim from ROS 2 (`standard/msg/<package>/<Type>.msg`,
+//!   `standard/srv/<package>/<Service>.srv`); a text there is a type known to the crate;
 //! - [`tracer_calib_msgs`]: the node's own package, its texts read from `msg/` at compile
 //!   time (the files colcon builds the package from);
 //! - [`syntax`]: the `.msg` / `.srv` parser, the one reader of the texts (the build script
 //!   uses it too);
 //! - [`definition`]: where each type's text is, and the complete definitions rosbag2 stores;
 //! - [`type_hash`]: type descriptions and RIHS01 hashes (REP-2016), from the same texts;
+//! - [`type_description`]: the answer of `~/get_type_description` (REP-2016), as rcl's;
 //! - [`cdr`]: plain CDR with its encapsulation header, as DDS sends and rosbag2 stores it.
 //!
 //! # One declaration per type
@@ -44,6 +47,7 @@ mod name;
 pub mod standard;
 pub mod syntax;
 pub mod tracer_calib_msgs;
+pub mod type_description;
 pub mod type_hash;
 
 #[cfg(test)]
@@ -54,10 +58,9 @@ mod tests;
 pub use cdr::{CDR_LE_HEADER, CdrError, from_cdr, to_cdr};
 pub use definition::Definition;
 pub use name::{InterfaceKind, InterfaceName};
-pub use standard::{
-    DiagnosticArray, DiagnosticStatus, Header, KeyValue, Point, Point32, Polygon, PolygonStamped, ServiceEventInfo,
-    Time,
-};
+// Every standard type at this level: the generated code names field types
+// `crate::interfaces::Type`.
+pub use standard::*;
 pub use tracer_calib_msgs::{Calibrate, CalibrateRequest, CalibrateResponse, Calibration, Contour, RawScan};
 
 /// A Rust mirror of a ROS 2 interface type, with the definition it mirrors.
@@ -91,22 +94,8 @@ pub trait RosService {
     }
 }
 
-/// Every type this layer mirrors, with its definition: what complete definitions (rosbag2)
-/// resolve dependencies against.
-pub const KNOWN: &[(InterfaceName, Definition)] = &[
-    (Time::NAME, Time::DEFINITION),
-    (Header::NAME, Header::DEFINITION),
-    (Point::NAME, Point::DEFINITION),
-    (Point32::NAME, Point32::DEFINITION),
-    (Polygon::NAME, Polygon::DEFINITION),
-    (PolygonStamped::NAME, PolygonStamped::DEFINITION),
-    (KeyValue::NAME, KeyValue::DEFINITION),
-    (DiagnosticStatus::NAME, DiagnosticStatus::DEFINITION),
-    (DiagnosticArray::NAME, DiagnosticArray::DEFINITION),
-    (ServiceEventInfo::NAME, ServiceEventInfo::DEFINITION),
-    (RawScan::NAME, RawScan::DEFINITION),
-    (Contour::NAME, Contour::DEFINITION),
-    (Calibration::NAME, Calibration::DEFINITION),
-    (CalibrateRequest::NAME, CalibrateRequest::DEFINITION),
-    (CalibrateResponse::NAME, CalibrateResponse::DEFINITION),
-];
+/// Every type this layer mirrors (messages and service halves), with its definition: what
+/// complete definitions (rosbag2) resolve dependencies against, and what type descriptions
+/// and hashes ([`type_hash`]) are made of. Listed by the build script: every text in `msg/`
+/// and `standard/` is here.
+pub const KNOWN: &[(InterfaceName, Definition)] = include!(concat!(env!("OUT_DIR"), "/known.rs"));

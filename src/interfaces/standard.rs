@@ -1,6 +1,9 @@
-//! The standard ROS 2 types the node and the tools use. Their `.msg` texts are ROS 2's files,
-//! copied verbatim from the Kilted packages (Jazzy's are the same) into
-//! `standard/msg/<package>/<Type>.msg`; the structs are generated from them (`build.rs`).
+//! The standard ROS 2 types the node and the tools use. Their `.msg` / `.srv` texts are ROS 2's
+//! files, copied verbatim from the Kilted packages into `standard/msg/<package>/<Type>.msg` and
+//! `standard/srv/<package>/<Service>.srv`; the structs are generated from them (`build.rs`).
+//! Jazzy's are the same but for a longer comment in `builtin_interfaces/msg/Time.msg` (the
+//! same hash). `type_description_interfaces/msg/KeyValue` is [`TypeKeyValue`]
+//! (`diagnostic_msgs`' is [`KeyValue`]).
 
 use super::{Definition, InterfaceName, RosMsg};
 

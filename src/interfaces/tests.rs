@@ -378,7 +378,31 @@ fn every_type_is_known_with_its_complete_definition() {
     }
     for_every_type!(known);
     known::<ServiceEventInfo>();
-    assert_eq!(KNOWN.len(), 15);
+    // Every text is known: each .msg once, each .srv as its two halves.
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let count = |dir: &str, ext: &str| -> usize {
+        let dir = root.join(dir);
+        let mut dirs = vec![dir];
+        let mut n = 0;
+        while let Some(d) = dirs.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    dirs.push(p);
+                } else if p.extension().is_some_and(|x| x == ext) {
+                    n += 1;
+                }
+            }
+        }
+        n
+    };
+    let texts = count("msg/msg", "msg")
+        + count("src/interfaces/standard/msg", "msg")
+        + 2 * (count("msg/srv", "srv") + count("src/interfaces/standard/srv", "srv"));
+    assert_eq!(KNOWN.len(), texts);
+    for (name, _) in KNOWN {
+        assert_eq!(KNOWN.iter().filter(|(n, _)| n == name).count(), 1, "{} twice", name.ros_name());
+    }
 }
 
 #[test]

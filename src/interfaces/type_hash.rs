@@ -50,7 +50,8 @@ pub struct FieldType {
 pub struct Field {
     pub name: String,
     pub field_type: FieldType,
-    /// The default value as written in the text; empty if none (not hashed).
+    /// The default value as rosidl writes it (Python's `str` of the value: `True`, `0`,
+    /// `1.0`); empty if none (not hashed).
     pub default_value: String,
 }
 
@@ -179,14 +180,53 @@ fn individual(type_name: &str) -> Result<TypeDescription, String> {
         .iter()
         .filter(|m| m.constant.is_none())
         .map(|m| {
-            Ok(Field {
-                name: m.name.to_string(),
-                field_type: field_type(m.ty, package).map_err(|e| format!("{type_name}: {e}"))?,
-                default_value: m.default.unwrap_or("").to_string(),
-            })
+            let field_type = field_type(m.ty, package).map_err(|e| format!("{type_name}: {e}"))?;
+            let default_value = m.default.map(|d| rosidl_default(field_type.type_id, d)).unwrap_or_default();
+            Ok(Field { name: m.name.to_string(), field_type, default_value })
         })
         .collect::<Result<Vec<_>, String>>()?;
     Ok(TypeDescription { type_name: type_name.to_string(), fields })
+}
+
+/// A scalar default value as rosidl writes it in a description: the value parsed, then
+/// Python's `str` of it (`true` -> `True`, `1` of a float -> `1.0`). Other defaults (strings,
+/// arrays) as written.
+fn rosidl_default(type_id: u8, written: &str) -> String {
+    let w = written.trim();
+    match type_id {
+        15 => match w {
+            "true" | "True" | "1" => "True".to_string(),
+            "false" | "False" | "0" => "False".to_string(),
+            _ => w.to_string(),
+        },
+        2..=9 | 16 => w.parse::<i128>().map(|v| v.to_string()).unwrap_or_else(|_| w.to_string()),
+        10 | 11 => w.parse::<f64>().map(python_float).unwrap_or_else(|_| w.to_string()),
+        _ => w.to_string(),
+    }
+}
+
+/// Python's `repr` of a float (`1.0`, `0.25`, `1e-05`, `1e+16`).
+fn python_float(x: f64) -> String {
+    if !x.is_finite() {
+        return if x.is_nan() {
+            "nan".into()
+        } else if x > 0.0 {
+            "inf".into()
+        } else {
+            "-inf".into()
+        };
+    }
+    let a = x.abs();
+    if a == 0.0 || (1e-4..1e16).contains(&a) {
+        let s = format!("{x}");
+        if s.contains('.') { s } else { format!("{s}.0") }
+    } else {
+        // Rust writes `1e-5`, Python `1e-05`: at least two exponent digits, with a sign.
+        let s = format!("{x:e}");
+        let (mantissa, exp) = s.split_once('e').expect("an exponent");
+        let (sign, digits) = exp.strip_prefix('-').map_or(("+", exp), |d| ("-", d));
+        format!("{mantissa}e{sign}{digits:0>2}")
+    }
 }
 
 /// The description of `type_name` (`pkg/msg/Type`, `pkg/srv/Service`, a service half) and of
@@ -321,6 +361,22 @@ mod tests {
     }
 
     #[test]
+    fn defaults_are_written_as_rosidl_writes_them() {
+        assert_eq!(rosidl_default(15, "true"), "True");
+        assert_eq!(rosidl_default(15, "false"), "False");
+        assert_eq!(rosidl_default(3, "0"), "0");
+        assert_eq!(rosidl_default(2, "-2"), "-2");
+        assert_eq!(rosidl_default(11, "1"), "1.0");
+        assert_eq!(rosidl_default(11, "0.0"), "0.0");
+        assert_eq!(rosidl_default(10, "0.25"), "0.25");
+        assert_eq!(python_float(1e-5), "1e-05");
+        assert_eq!(python_float(2e16), "2e+16");
+        // In a description: type_description_interfaces/msg/FieldType's type_id, 0.
+        let d = describe("type_description_interfaces/msg/FieldType").unwrap();
+        assert_eq!(d.type_description.fields[0].default_value, "0");
+    }
+
+    #[test]
     fn the_hashed_json_is_pythons() {
         let d = describe("builtin_interfaces/msg/Time").unwrap();
         assert_eq!(
@@ -358,6 +414,9 @@ mod tests {
     fn hashes_equal_rosidls() {
         let mut names: Vec<InterfaceName> = KNOWN.iter().map(|(n, _)| *n).collect();
         names.push(InterfaceName::srv("tracer_calib_msgs", "Calibrate"));
+        names.push(InterfaceName::srv("type_description_interfaces", "GetTypeDescription"));
+        names.push(InterfaceName::srv("rcl_interfaces", "GetParameters"));
+        let mut described = 0;
         for name in names {
             let type_name = name.ros_name();
             let (json_name, ours) = match name.kind {
@@ -381,6 +440,33 @@ mod tests {
                 .unwrap()
                 .to_string();
             assert_eq!(ours, theirs, "{type_name} (rosidl: {})", path.display());
+            // The whole description, default values included, is rosidl's too.
+            if json_name == type_name {
+                let d = describe(&type_name).unwrap();
+                let as_json = |t: &TypeDescription| {
+                    serde_json::json!({
+                        "type_name": t.type_name,
+                        "fields": t.fields.iter().map(|f| serde_json::json!({
+                            "name": f.name,
+                            "type": {
+                                "type_id": f.field_type.type_id,
+                                "capacity": f.field_type.capacity,
+                                "string_capacity": f.field_type.string_capacity,
+                                "nested_type_name": f.field_type.nested_type_name,
+                            },
+                            "default_value": f.default_value,
+                        })).collect::<Vec<_>>(),
+                    })
+                };
+                let ours = serde_json::json!({
+                    "type_description": as_json(&d.type_description),
+                    "referenced_type_descriptions":
+                        d.referenced_type_descriptions.iter().map(as_json).collect::<Vec<_>>(),
+                });
+                assert_eq!(ours, json["type_description_msg"], "{type_name}: description");
+                described += 1;
+            }
         }
+        assert!(described >= 30, "{described} descriptions compared");
     }
 }

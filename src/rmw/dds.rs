@@ -17,7 +17,9 @@
 //! A name that does not resolve, or an entry that is neither an address nor a host
 //! name, gives one warning naming it; the others are used.
 
+use std::collections::BTreeSet;
 use std::net::{IpAddr, Ipv4Addr, ToSocketAddrs};
+use std::sync::{Arc, Mutex};
 
 use rustdds::{DomainParticipant, DomainParticipantBuilder};
 
@@ -159,6 +161,49 @@ pub fn participant_from_env(env: &RosEnv) -> Result<DomainParticipant, String> {
         plan.static_peers
     );
     plan.participant(env.domain_id)
+}
+
+/// The ROS types of the endpoints made through a context (`pkg/msg/Type`, and for a
+/// service's two topics the service, `pkg/srv/Service`), as their hashes were asked for:
+/// the types `~/get_type_description` answers for (rcl's type cache).
+#[derive(Debug, Clone, Default)]
+pub struct TypesInUse(Arc<Mutex<BTreeSet<String>>>);
+
+impl TypesInUse {
+    fn record(&self, ros_type: &str) {
+        let name = match ros_type.rsplit_once('/') {
+            Some((prefix, name)) if prefix.ends_with("/srv") => {
+                let service = name.strip_suffix("_Request").or_else(|| name.strip_suffix("_Response")).unwrap_or(name);
+                format!("{prefix}/{service}")
+            }
+            _ => ros_type.to_string(),
+        };
+        self.0.lock().expect("types in use").insert(name);
+    }
+
+    /// The types, sorted.
+    pub fn names(&self) -> Vec<String> {
+        self.0.lock().expect("types in use").iter().cloned().collect()
+    }
+}
+
+/// The ROS context on `participant`: every endpoint made through it (the node's topics and
+/// services, rosout, parameter events, the parameter services, `ros_discovery_info`)
+/// announces its type's RIHS01 hash in USER_DATA (`typehash=RIHS01_<hex>;`), as rmw does,
+/// computed from the interface texts ([`crate::interfaces::type_hash`]); a type without a
+/// text here announces none (patched ros2-client, `vendor/ros2-client/PATCHES.md`). The
+/// types whose hashes were announced are recorded in the [`TypesInUse`].
+pub fn context(participant: DomainParticipant) -> Result<(ros2_client::Context, TypesInUse), String> {
+    let in_use = TypesInUse::default();
+    let recorder = in_use.clone();
+    let hashes: ros2_client::context::TypeHashResolver = Arc::new(move |ros_type: &str| {
+        let hash = crate::interfaces::type_hash::type_hash(ros_type).ok()?;
+        recorder.record(ros_type);
+        Some(hash)
+    });
+    let ctx = ros2_client::Context::from_domain_participant_with_type_hashes(participant, Some(hashes))
+        .map_err(|e| format!("cannot create the ROS context: {e:?}"))?;
+    Ok((ctx, in_use))
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@
 #        namespace;
 #      - test_graph.py, the node in the ROS graph (leaving it, matching, QoS), in a private
 #        network namespace too;
+#      - test_type_hash.py, type hashes and ~/get_type_description (REP-2016), likewise;
 #      - test_two_hosts.py on two "hosts", network namespaces joined by a veth pair with
 #        multicast off (tests/interop/two_hosts.sh; root only);
 #   3. tests/interop/workspace.sh DISTRO: the README's `colcon build` in a workspace over
@@ -15,10 +16,10 @@
 #      as `ros2 launch` would run them, `ros2 run`, with the installed interfaces.
 # Nothing leaves the machine. Prints each part's time.
 #   tests/interop/run.sh [TEST_NAME...]
-# Names starting with graph select test_graph.py's tests (graph: all), two_hosts
-# test_two_hosts.py's scenarios (two_hosts: all), cyclone or mixed test_cyclone.py's
-# (cyclone: all); the others, node_suite.py's tests; with names, 3 and 4 are skipped.
-# No names: everything.
+# Names starting with graph select test_graph.py's tests (graph: all), type_hash
+# test_type_hash.py's (type_hash: all), two_hosts test_two_hosts.py's scenarios (two_hosts:
+# all), cyclone or mixed test_cyclone.py's (cyclone: all); the others, node_suite.py's
+# tests; with names, 3 and 4 are skipped. No names: everything.
 # Also: after 1, tests/interop/ros2cli.sh installs the stock ros2 CLI and launch into the
 # venv; (2b, after 2, Jazzy) tests/interop/cyclone.sh builds rmw_cyclonedds_cpp (cached
 # outside the clone), and test_cyclone.py runs with the node's peers on Cyclone DDS, and
@@ -35,10 +36,11 @@ export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
-node_tests=() graph=() two_hosts=() cyclone=()
+node_tests=() graph=() type_hash=() two_hosts=() cyclone=()
 for a in "$@"; do
     case "$a" in
         graph*) graph+=("$a") ;;
+        type_hash*) type_hash+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
         cyclone*|mixed*) cyclone+=("$a") ;;
         *) node_tests+=("$a") ;;
@@ -76,6 +78,12 @@ for d in $DISTROS; do
         echo "run.sh: $d: test_graph.py (ROS 2 $d rclpy, release binaries)"
         peer_run netns.sh test_graph.py "$d" ${graph[@]+"${graph[@]}"} || failed+=("$d:test_graph")
         echo "run.sh: $d: test_graph.py $(took "$t0")"
+    fi
+    if [ "$#" -eq 0 ] || [ "${#type_hash[@]}" -gt 0 ]; then
+        t0=$(now_ms)
+        echo "run.sh: $d: test_type_hash.py (ROS 2 $d rclpy, release binaries)"
+        peer_run netns.sh test_type_hash.py "$d" ${type_hash[@]+"${type_hash[@]}"} || failed+=("$d:test_type_hash")
+        echo "run.sh: $d: test_type_hash.py $(took "$t0")"
     fi
     if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
         if [ "$(id -u)" -ne 0 ]; then

@@ -8,6 +8,10 @@
 //! | service | `calibrate` (Fast DDS "Enhanced" mapping) | reliable, keep last 1000 |
 //! | publisher | `/diagnostics`, 1 Hz | reliable, keep last 10 |
 //! | publisher | `calibration` (the calibration in force) | reliable, transient local, keep last 1 |
+//! | service | `~/get_type_description` (REP-2016) | reliable, keep last 10 |
+//!
+//! Every endpoint, ros2-client's own included, announces its type's hash
+//! ([`crate::rmw::dds::context`]).
 //!
 //! Why: every scan is a measurement an edger acts on, so delivery is reliable (as the
 //! ROS default a tracer driver publishes with; a best-effort "sensor data" publisher
@@ -32,10 +36,12 @@ use ros2_client::{
 };
 
 use crate::interfaces::{
-    Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, PolygonStamped, RawScan, RosMsg,
-    RosService, tracer_calib_msgs as msgs,
+    Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
+    GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
+    tracer_calib_msgs as msgs,
 };
 use crate::rmw::RosEnv;
+use crate::rmw::dds::TypesInUse;
 use crate::ros::args::RosArgs;
 use crate::ros::names::{NodeIdentity, ros2_name};
 use crate::ros::qos_overrides::{QosOverrides, Side};
@@ -123,6 +129,9 @@ pub(super) struct Entities {
     pub diagnostics: Publisher<DiagnosticArray>,
     pub calibration: Publisher<msgs::Calibration>,
     pub calibrate: Server<CalibrateRequest, CalibrateResponse>,
+    pub type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
+    /// The types of the node's endpoints, which `type_description` describes.
+    pub types_in_use: TypesInUse,
     spinner: smol::Task<ros2_client::CreateResult<()>>,
 }
 
@@ -137,8 +146,7 @@ impl Entities {
         endpoints: &Endpoints,
     ) -> Result<Self, String> {
         let participant = crate::rmw::dds::participant_from_env(env)?;
-        let ctx = Context::from_domain_participant(participant)
-            .map_err(|e| format!("cannot create the ROS context: {e:?}"))?;
+        let (ctx, types_in_use) = crate::rmw::dds::context(participant)?;
         let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
         let mut node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node: {e:?}"))?;
         let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
@@ -165,8 +173,31 @@ impl Entities {
                 reliable(CALIBRATE_QUEUE),
             )
             .map_err(mk)?;
+        let type_description_name = ros2_name(&format!("{}/get_type_description", identity.fully_qualified_name()))
+            .map_err(|e| e.to_string())?;
+        let type_description = node
+            .create_server::<GetTypeDescriptionRequest, GetTypeDescriptionResponse>(
+                ServiceMapping::Enhanced,
+                &type_description_name,
+                &GetTypeDescription::type_name(),
+                reliable(10),
+                reliable(10),
+            )
+            .map_err(mk)?;
         let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
-        Ok(Entities { ctx, node, raw_scans, contours, polygons, diagnostics, calibration, calibrate, spinner })
+        Ok(Entities {
+            ctx,
+            node,
+            raw_scans,
+            contours,
+            polygons,
+            diagnostics,
+            calibration,
+            calibrate,
+            type_description,
+            types_in_use,
+            spinner,
+        })
     }
 
     /// Tear down in order: dropping each endpoint makes discovery announce it gone; the
@@ -174,8 +205,20 @@ impl Entities {
     /// after a moment. Without this, peers keep the node's topics and services in their
     /// graphs for the lease duration.
     pub fn close(self) {
-        let Entities { ctx, node, raw_scans, contours, polygons, diagnostics, calibration, calibrate, spinner } = self;
-        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate));
+        let Entities {
+            ctx,
+            node,
+            raw_scans,
+            contours,
+            polygons,
+            diagnostics,
+            calibration,
+            calibrate,
+            type_description,
+            types_in_use: _,
+            spinner,
+        } = self;
+        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description));
         drop(node);
         std::thread::sleep(Duration::from_millis(150));
         smol::block_on(spinner.cancel());

@@ -9,6 +9,7 @@
 //! | [`calibration`] | the calibration in force, latched, at start-up and on each change |
 //! | [`diagnostics`] | `/diagnostics` at 1 Hz |
 //! | [`graph`] | matches (polygons only when someone listens) and incompatible QoS |
+//! | [`type_description`] | `~/get_type_description` (REP-2016) |
 //!
 //! The parameters ([`parameters`]) are served by ros2-client's parameter services, with
 //! the cell's validation. Each loop reads the [`Entities`] and the [`Shared`] state and
@@ -23,6 +24,7 @@ mod graph;
 mod parameters;
 mod rate_limit;
 mod scans;
+mod type_description;
 
 use std::pin::Pin;
 use std::sync::atomic::AtomicBool;
@@ -132,6 +134,10 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         error!("the calibrate request stream ended")
     }));
     loops.push(Box::pin(diagnostics::run(e, shared)));
+    loops.push(Box::pin(async {
+        type_description::run(e).await;
+        error!("the type description request stream ended")
+    }));
     loops.push(Box::pin(async {
         calibration::run(e, shared, calibration_changes).await;
         error!("the calibration change stream ended")

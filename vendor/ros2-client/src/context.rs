@@ -137,12 +137,34 @@ impl Context {
 
   /// Create a new Context from an existing [`DomainParticipant`].
   pub fn from_domain_participant(domain_participant: DomainParticipant) -> CreateResult<Context> {
+    Self::from_domain_participant_with_type_hashes(domain_participant, None) // PATCH (tracer_calib)
+  }
+
+  /// PATCH (tracer_calib): a Context whose endpoints announce their types'
+  /// hashes.
+  ///
+  /// Since ROS 2 Iron, every endpoint carries its type's RIHS01 hash (REP-2016)
+  /// in its DDS USER_DATA as `typehash=RIHS01_<64 hex>;`, as rmw_fastrtps and
+  /// rmw_cyclonedds announce it; peers show it (`ros2 topic info -v`) and
+  /// Cyclone peers warn for every endpoint without one. ros2-client has no type
+  /// database, so the application supplies the hashes: `type_hashes` maps a ROS
+  /// type name (`pkg/msg/Type`; for a service's request and reply topics,
+  /// `pkg/srv/Service_Request`, `pkg/srv/Service_Response`) to its hash
+  /// (`RIHS01_...`), or `None` when it does not
+  /// know it (the endpoint then has no USER_DATA, as before). It is asked for
+  /// every reader and writer made through this Context and its Nodes: topics,
+  /// services, rosout, parameter events, the parameter services and
+  /// `ros_discovery_info`.
+  pub fn from_domain_participant_with_type_hashes(
+    domain_participant: DomainParticipant,
+    type_hashes: Option<TypeHashResolver>,
+  ) -> CreateResult<Context> {
     // Check the runtime ROS_DISTRO against the distribution we were compiled
     // for. Guarded so it logs only once per process even with many Contexts.
     static ROS_DISTRO_CHECK: std::sync::Once = std::sync::Once::new();
     ROS_DISTRO_CHECK.call_once(crate::distributions::verify_ros_distro_env);
 
-    let i = ContextInner::from_domain_participant(domain_participant)?;
+    let i = ContextInner::from_domain_participant(domain_participant, type_hashes)?; // PATCH (tracer_calib)
     Ok(Context {
       inner: Arc::new(Mutex::new(i)),
     })
@@ -246,7 +268,7 @@ impl Context {
   where
     M: Serialize,
   {
-    let dds_qos = qos.map(QosPolicies::from);
+    let dds_qos = self.with_type_hash(topic, qos); // PATCH (tracer_calib)
     let datawriter = self
       .get_ros_default_publisher()
       .create_datawriter_no_key(topic, dds_qos)?;
@@ -262,7 +284,7 @@ impl Context {
   where
     M: 'static,
   {
-    let dds_qos = qos.map(QosPolicies::from);
+    let dds_qos = self.with_type_hash(topic, qos); // PATCH (tracer_calib)
     let datareader = self
       .get_ros_default_subscriber()
       .create_simple_datareader_no_key(topic, dds_qos)?;
@@ -277,7 +299,7 @@ impl Context {
   where
     SA: SerializerAdapter<M>,
   {
-    let dds_qos = qos.map(QosPolicies::from);
+    let dds_qos = self.with_type_hash(topic, qos); // PATCH (tracer_calib)
     Ok(
       self
         .get_ros_default_publisher()
@@ -294,7 +316,7 @@ impl Context {
     M: 'static,
     DA: 'static + DeserializerAdapter<M>,
   {
-    let dds_qos = qos.map(QosPolicies::from);
+    let dds_qos = self.with_type_hash(topic, qos); // PATCH (tracer_calib)
     Ok(
       self
         .get_ros_default_subscriber()
@@ -310,6 +332,24 @@ impl Context {
     self.inner.lock().unwrap().remove_node(node_name);
   }
 
+  // PATCH (tracer_calib): begin (type hashes in USER_DATA)
+  /// The DDS QoS of a new reader or writer of `topic`: `qos` (or, if `None`,
+  /// the topic's), with the type hash in USER_DATA if the resolver knows it.
+  fn with_type_hash(&self, topic: &Topic, qos: Option<QosProfile>) -> Option<QosPolicies> {
+    let dds_qos = qos.map(QosPolicies::from);
+    // The resolver is the application's: not called under the Context's lock.
+    let type_hashes = self.inner.lock().unwrap().type_hashes.clone();
+    match type_hash_user_data(type_hashes.as_ref(), topic) {
+      Some(user_data) => Some(
+        dds_qos
+          .unwrap_or_else(QosPolicies::qos_none)
+          .with_user_data(user_data),
+      ),
+      None => dds_qos,
+    }
+  }
+  // PATCH (tracer_calib): end
+
   fn get_ros_default_publisher(&self) -> rustdds::Publisher {
     self.inner.lock().unwrap().ros_default_publisher.clone()
   }
@@ -322,6 +362,39 @@ impl Context {
     self.inner.lock().unwrap().ros_discovery_topic.clone()
   }
 }
+
+// PATCH (tracer_calib): begin (type hashes in USER_DATA)
+/// Gives a ROS type's RIHS01 hash (`RIHS01_<64 hex>`) by its name
+/// (`pkg/msg/Type`, `pkg/srv/Service_Request`), if known. See
+/// [`Context::from_domain_participant_with_type_hashes`].
+pub type TypeHashResolver = Arc<dyn Fn(&str) -> Option<String> + Send + Sync>;
+
+/// The ROS type name whose hash an endpoint of a topic of DDS type `dds_type`
+/// announces: `pkg::msg::dds_::Type_` -> `pkg/msg/Type`. A service's request
+/// and reply topics announce their message's hash, `pkg/srv/Service_Request`
+/// and `pkg/srv/Service_Response`, as rmw_fastrtps and rmw_cyclonedds do.
+pub fn ros_type_of_dds_type(dds_type: &str) -> Option<String> {
+  let mut parts = dds_type.split("::");
+  let (package, kind, dds, name) = (parts.next()?, parts.next()?, parts.next()?, parts.next()?);
+  if dds != "dds_" || parts.next().is_some() {
+    return None;
+  }
+  Some(format!("{package}/{kind}/{}", name.strip_suffix('_')?))
+}
+
+/// `typehash=RIHS01_...;`, the USER_DATA of an endpoint of `topic`, if its
+/// type's hash is known.
+fn type_hash_user_data(
+  type_hashes: Option<&TypeHashResolver>,
+  topic: &Topic,
+) -> Option<rustdds::policy::UserData> {
+  let ros_type = ros_type_of_dds_type(topic.get_type().name())?;
+  let hash = type_hashes?(&ros_type)?;
+  Some(rustdds::policy::UserData {
+    value: format!("typehash={hash};").into_bytes(),
+  })
+}
+// PATCH (tracer_calib): end
 
 struct ContextInner {
   local_nodes: HashMap<String, NodeEntitiesInfo>,
@@ -341,12 +414,15 @@ struct ContextInner {
 
   ros_parameter_events_topic: Topic,
   ros_rosout_topic: Topic,
+
+  type_hashes: Option<TypeHashResolver>, // PATCH (tracer_calib)
 }
 
 impl ContextInner {
   // "new"
   pub fn from_domain_participant(
     domain_participant: DomainParticipant,
+    type_hashes: Option<TypeHashResolver>, // PATCH (tracer_calib)
   ) -> CreateResult<ContextInner> {
     let ros_default_publisher =
       domain_participant.create_publisher(&QosPolicies::from(DEFAULT_PUBLISHER_QOS))?;
@@ -375,8 +451,12 @@ impl ContextInner {
       TopicKind::NoKey,
     )?;
 
-    let node_writer =
-      Publisher::new(ros_default_publisher.create_datawriter_no_key(&ros_discovery_topic, None)?);
+    // PATCH (tracer_calib): with its type hash, as rmw_fastrtps announces it.
+    let node_writer_qos = type_hash_user_data(type_hashes.as_ref(), &ros_discovery_topic)
+      .map(|u| QosPolicies::qos_none().with_user_data(u));
+    let node_writer = Publisher::new(
+      ros_default_publisher.create_datawriter_no_key(&ros_discovery_topic, node_writer_qos)?,
+    );
 
     Ok(ContextInner {
       local_nodes: HashMap::new(),
@@ -388,6 +468,7 @@ impl ContextInner {
       ros_default_subscriber,
       ros_parameter_events_topic,
       ros_rosout_topic,
+      type_hashes, // PATCH (tracer_calib)
     })
   }
 

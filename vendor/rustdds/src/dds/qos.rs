@@ -210,6 +210,7 @@ impl QosPolicyBuilder {
       // (drop glue) which is incompatible with `const fn`, and the built-in QoS
       // policies never need it. Set it via `QosPolicies::with_data_representation`.
       data_representation: None,
+      user_data: None, // tracer_calib patch: not in the const builder either
       #[cfg(feature = "security")]
       property: None,
     }
@@ -235,6 +236,9 @@ pub struct QosPolicies {
   pub(crate) resource_limits: Option<policy::ResourceLimits>,
   pub(crate) lifespan: Option<policy::Lifespan>,
   pub(crate) data_representation: Option<policy::DataRepresentation>,
+  // tracer_calib patch: USER_DATA (DDS 2.2.3.1), sent in the SEDP data of a
+  // DataWriter or DataReader. Not a requested/offered policy: never matched.
+  pub(crate) user_data: Option<policy::UserData>,
   #[cfg(feature = "security")]
   pub(crate) property: Option<policy::Property>,
 }
@@ -333,6 +337,26 @@ impl QosPolicies {
     self
   }
 
+  // tracer_calib patch: begin (USER_DATA)
+  pub fn user_data(&self) -> Option<policy::UserData> {
+    self.user_data.clone()
+  }
+
+  /// Set the USER_DATA QoS policy (DDS 2.2.3.1).
+  ///
+  /// A DataWriter's or DataReader's USER_DATA is sent in its discovery (SEDP)
+  /// data (`PID_USER_DATA`), where remote participants find it
+  /// (`DiscoveredWriterData::user_data`, `DiscoveredReaderData::user_data`).
+  /// ROS 2 puts the type hash there (`typehash=RIHS01_<hex>;`). Like
+  /// DATA_REPRESENTATION, this is not part of [`QosPolicyBuilder`] because it
+  /// holds a `Vec`. It does not take part in QoS matching.
+  #[must_use]
+  pub fn with_user_data(mut self, user_data: policy::UserData) -> Self {
+    self.user_data = Some(user_data);
+    self
+  }
+  // tracer_calib patch: end
+
   #[cfg(feature = "security")]
   pub fn property(&self) -> Option<policy::Property> {
     self.property.clone()
@@ -362,6 +386,7 @@ impl QosPolicies {
         .data_representation
         .clone()
         .or(self.data_representation.clone()),
+      user_data: other.user_data.clone().or(self.user_data.clone()), // tracer_calib patch
       #[cfg(feature = "security")]
       property: other.property.clone().or(self.property.clone()),
     }
@@ -566,6 +591,9 @@ impl QosPolicies {
       resource_limits,
       lifespan,
       data_representation,
+      // tracer_calib patch: USER_DATA is emitted by the SEDP endpoint data that
+      // carries it (`DiscoveredWriterData::user_data`, ...), not here.
+      user_data: _,
       #[cfg(feature = "security")]
         property: _, // TODO: properties to parameter list?
     } = self;
@@ -738,6 +766,9 @@ impl QosPolicies {
       resource_limits,
       lifespan,
       data_representation,
+      // tracer_calib patch: USER_DATA is read into the discovered endpoint's
+      // `user_data`, not into its QoS.
+      user_data: None,
       #[cfg(feature = "security")]
       property,
     })
@@ -793,11 +824,15 @@ pub mod policy {
   #[cfg(feature = "security")]
   use crate::serialization::speedy_pl_cdr_helpers::*;
 
-  /*
+  /// DDS 2.2.3.1 USER_DATA: opaque bytes an application attaches to a
+  /// DataWriter or DataReader, sent to remote participants in its discovery
+  /// data (tracer_calib patch).
+  #[derive(Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
   pub struct UserData {
     pub value: Vec<u8>,
   }
 
+  /*
   pub struct TopicData {
     pub value: Vec<u8>,
   }

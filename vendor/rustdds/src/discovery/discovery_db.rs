@@ -680,7 +680,8 @@ impl DiscoveryDB {
       reader_proxy: ReaderProxy::from(reader_proxy),
       subscription_topic_data: subscription_data,
       content_filter,
-      user_data: Vec::new(),
+      // tracer_calib patch: the reader's USER_DATA QoS policy, sent in SEDP.
+      user_data: reader.qos_policy.user_data().map(|u| u.value).unwrap_or_default(),
     }
   }
 

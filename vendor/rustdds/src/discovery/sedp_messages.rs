@@ -1,4 +1,4 @@
-use std::time::Instant;
+use std::{collections::BTreeMap, time::Instant}; // tracer_calib patch: BTreeMap
 
 use serde::{Deserialize, Serialize};
 #[allow(unused_imports)]
@@ -287,6 +287,7 @@ impl SubscriptionBuiltinTopicData {
       resource_limits: None, // nor Resource Limits, see Figure 8.30 in RTPS spec 2.5
       lifespan: self.lifespan,
       data_representation: self.data_representation.clone(),
+      user_data: None, // tracer_calib patch: in `DiscoveredReaderData::user_data`
 
       #[cfg(feature = "security")]
       property: None, // TODO: no property QoS?
@@ -418,11 +419,7 @@ impl PlCdrDeserialize for DiscoveredReaderData {
 
     let qos = QosPolicies::from_parameter_list(ctx, &pl_map)?;
 
-    let user_data = pl_map
-      .get(&ParameterId::PID_USER_DATA)
-      .and_then(|v| v.first())
-      .map(|p| p.value.clone())
-      .unwrap_or_default();
+    let user_data = user_data_from_pl_map(&pl_map, ctx); // tracer_calib patch
 
     Ok(DiscoveredReaderData {
       reader_proxy: ReaderProxy::new(
@@ -498,7 +495,7 @@ impl ParameterListable for DiscoveredReaderData {
           security_info,
         },
       content_filter,
-      user_data: _,
+      user_data, // tracer_calib patch: sent, below
     } = self;
 
     let mut pl = ParameterList::new();
@@ -572,6 +569,10 @@ impl ParameterListable for DiscoveredReaderData {
       content_filter,
       ContentFilterProperty
     );
+    // tracer_calib patch: the reader's USER_DATA QoS, if any.
+    if !user_data.is_empty() {
+      emit!(PID_USER_DATA, user_data, Vec<u8>);
+    }
 
     #[cfg(feature = "security")]
     emit_option!(
@@ -736,6 +737,7 @@ impl PublicationBuiltinTopicData {
       resource_limits: None, // nor Resource Limits, see Figure 8.30 in RTPS spec 2.5
       lifespan: self.lifespan,
       data_representation: self.data_representation.clone(),
+      user_data: None, // tracer_calib patch: in `DiscoveredWriterData::user_data`
       #[cfg(feature = "security")]
       property: None, // TODO: no property Qos?
     }
@@ -810,7 +812,8 @@ impl DiscoveredWriterData {
       last_updated: Instant::now(),
       writer_proxy,
       publication_topic_data,
-      user_data: Vec::new(),
+      // tracer_calib patch: the writer's USER_DATA QoS policy, sent in SEDP.
+      user_data: writer.qos().user_data().map(|u| u.value).unwrap_or_default(),
     }
   }
 }
@@ -877,11 +880,7 @@ impl PlCdrDeserialize for DiscoveredWriterData {
 
     let qos = QosPolicies::from_parameter_list(ctx, &pl_map)?;
 
-    let user_data = pl_map
-      .get(&ParameterId::PID_USER_DATA)
-      .and_then(|v| v.first())
-      .map(|p| p.value.clone())
-      .unwrap_or_default();
+    let user_data = user_data_from_pl_map(&pl_map, ctx); // tracer_calib patch
 
     Ok(DiscoveredWriterData {
       last_updated: Instant::now(),
@@ -956,7 +955,7 @@ impl ParameterListable for DiscoveredWriterData {
           #[cfg(feature = "security")]
           security_info,
         },
-      user_data: _,
+      user_data, // tracer_calib patch: sent, below
     } = self;
 
     let mut pl = ParameterList::new();
@@ -1025,6 +1024,10 @@ impl ParameterListable for DiscoveredWriterData {
         StringWithNul
       );
     }
+    // tracer_calib patch: the writer's USER_DATA QoS, if any.
+    if !user_data.is_empty() {
+      emit!(PID_USER_DATA, user_data, Vec<u8>);
+    }
 
     #[cfg(feature = "security")]
     emit_option!(
@@ -1036,6 +1039,25 @@ impl ParameterListable for DiscoveredWriterData {
     Ok(pl)
   }
 }
+
+// tracer_calib patch: begin (USER_DATA)
+/// The value of a PID_USER_DATA parameter: a CDR `sequence<octet>` (length,
+/// then the octets; the parameter is padded to 4). Before this, the raw
+/// parameter value was kept, length and padding included. A malformed one is
+/// logged and read as empty: USER_DATA is not needed to match.
+fn user_data_from_pl_map(
+  pl_map: &BTreeMap<ParameterId, Vec<&Parameter>>,
+  ctx: speedy::Endianness,
+) -> Vec<u8> {
+  let Some(p) = pl_map.get(&ParameterId::PID_USER_DATA).and_then(|v| v.first()) else {
+    return Vec::new();
+  };
+  Vec::<u8>::read_from_buffer_with_ctx(ctx, &p.value).unwrap_or_else(|e| {
+    warn!("Cannot read USER_DATA {:?}: {e}", p.value);
+    Vec::new()
+  })
+}
+// tracer_calib patch: end
 
 // =======================================================================
 // =======================================================================
@@ -1097,6 +1119,7 @@ impl HasQoSPolicy for TopicBuiltinTopicData {
       resource_limits: self.resource_limits,
       lifespan: self.lifespan,
       data_representation: None, // Topic-level DATA_REPRESENTATION not tracked
+      user_data: None,           // tracer_calib patch
       #[cfg(feature = "security")]
       property: None, // TODO: no property Qos?
     }
