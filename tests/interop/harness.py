@@ -77,6 +77,20 @@ def raw_scan(scan_id, target, steps, counts, n=400):
     return msg
 
 
+def rosidl_hash(ros_type):
+    """The hash rosidl generated for `pkg/kind/Name` (a service half: `pkg/srv/S_Request`),
+    from the `.json` the ament prefixes install."""
+    package, kind, name = ros_type.split("/")
+    file_name = name.removesuffix("_Request").removesuffix("_Response").removesuffix("_Event")
+    for prefix in os.environ["AMENT_PREFIX_PATH"].split(":"):
+        path = os.path.join(prefix, "share", package, kind, file_name + ".json")
+        if os.path.exists(path):
+            with open(path) as f:
+                hashes = json.load(f)["type_hashes"]
+            return next(h["hash_string"] for h in hashes if h["type_name"] == ros_type)
+    raise AssertionError(f"no rosidl .json for {ros_type}")
+
+
 RUNNING = []
 
 

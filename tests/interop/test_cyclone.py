@@ -13,8 +13,9 @@ preload; Fast DDS peers are subprocesses with the Fast DDS environment of env.sh
   corrected; the node logs no unreadable request.
 - cyclone_parameters: rclpy's parameter client on Cyclone lists, gets and sets the
   node's parameters (a bad value refused with its reason).
-- cyclone_cli: the real `ros2 service call` and `ros2 param get/set` from a Cyclone
-  environment (when tests/interop/ros2cli.sh has installed them).
+- cyclone_cli: the real `ros2 service call`, `ros2 param get/set` and `ros2 topic info -v`
+  from a Cyclone environment (when tests/interop/ros2cli.sh has installed them): the
+  node's type hash read from USER_DATA, rosidl's; no type-hash warning from Cyclone.
 - mixed_cell: a Cyclone client process and a Fast DDS client process, 30 /calibrate calls
   each at once, every one answered with the fit of the plate scan it named.
 
@@ -136,6 +137,8 @@ def test_cyclone_cli(peer):
     def ros2(*args):
         out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=env, capture_output=True, text=True)
         assert out.returncode == 0, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
+        # rmw_cyclonedds warns of every endpoint whose USER_DATA has no type hash.
+        assert "type hash" not in out.stderr, f"ros2 {' '.join(args)}:\n{out.stderr}"
         return out.stdout
 
     try:
@@ -145,6 +148,10 @@ def test_cyclone_cli(peer):
         assert "Double value is: 0.045" in ros2("param", "get", "--no-daemon", "/tracer_calibrator", "plate.side")
         assert "Set parameter successful" in ros2("param", "set", "--no-daemon", "/tracer_calibrator", "model", "paper")
         assert "String value is: paper" in ros2("param", "get", "--no-daemon", "/tracer_calibrator", "model")
+        # Every endpoint's type hash, as Cyclone reads it from USER_DATA: rosidl's.
+        info = ros2("topic", "info", "--no-daemon", "-v", "/raw_scan")
+        hashes = [line.split(":", 1)[1].strip() for line in info.splitlines() if "Topic type hash" in line]
+        assert hashes and all(h == tn.rosidl_hash("tracer_calib_msgs/msg/RawScan") for h in hashes), info
     finally:
         node.stop()
     bad = node_warnings(node)

@@ -14,33 +14,18 @@ node (issue 20, item 2):
   same requests.
 
 Run by tests/interop/run.sh (names `type_hash`, `type_hash_<test>`) inside a private
-network namespace, with the helpers of test_node.py. Prints one line per test.
+network namespace, with the helpers of harness.py. Prints one line per test.
 """
 
-import json
 import os
 import sys
 
 import rclpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import test_node as t  # noqa: E402
+import harness as t  # noqa: E402
 
 NODE = "tracer_calibrator"
-
-
-def rosidl_hash(ros_type):
-    """The hash rosidl generated for `pkg/kind/Name` (a service half: `pkg/srv/S_Request`),
-    from the `.json` the ament prefixes install."""
-    package, kind, name = ros_type.split("/")
-    file_name = name.removesuffix("_Request").removesuffix("_Response").removesuffix("_Event")
-    for prefix in os.environ["AMENT_PREFIX_PATH"].split(":"):
-        path = os.path.join(prefix, "share", package, kind, file_name + ".json")
-        if os.path.exists(path):
-            with open(path) as f:
-                hashes = json.load(f)["type_hashes"]
-            return next(h["hash_string"] for h in hashes if h["type_name"] == ros_type)
-    raise AssertionError(f"no rosidl .json for {ros_type}")
 
 
 def ros_type(dds_type):
@@ -113,7 +98,7 @@ def test_endpoint_hashes(peer):
 
         peer.spin_until(complete, 20, lambda: f"all endpoints; have {endpoints}")
         for topic, kind, dds_type, hash_string in endpoints:
-            expected = rosidl_hash(ros_type(dds_type))
+            expected = t.rosidl_hash(ros_type(dds_type))
             assert hash_string == expected, f"{topic} ({kind}, {dds_type}): {hash_string}, rosidl: {expected}"
         return f"{len(endpoints)} endpoints, every hash rosidl's"
     finally:
@@ -177,7 +162,7 @@ def test_get_type_description(peer):
             return peer.retry(lambda: client.call_async(request), f"the description of {type_name}")
 
         raw_scan = "tracer_calib_msgs/msg/RawScan"
-        r = call(ours, raw_scan, rosidl_hash(raw_scan), True)
+        r = call(ours, raw_scan, t.rosidl_hash(raw_scan), True)
         assert r.successful, r.failure_reason
         assert r.type_description.type_description.type_name == raw_scan
         referenced = [d.type_name for d in r.type_description.referenced_type_descriptions]
@@ -195,8 +180,8 @@ def test_get_type_description(peer):
         compared = 0
         for type_name in (raw_scan, "rcl_interfaces/msg/Log", "type_description_interfaces/srv/GetTypeDescription"):
             for with_sources in (True, False):
-                mine = fields(call(ours, type_name, rosidl_hash(type_name), with_sources))
-                stock = fields(call(theirs, type_name, rosidl_hash(type_name), with_sources))
+                mine = fields(call(ours, type_name, t.rosidl_hash(type_name), with_sources))
+                stock = fields(call(theirs, type_name, t.rosidl_hash(type_name), with_sources))
                 mine, stock = same_texts(mine, stock)
                 assert mine == stock, f"{type_name}, sources {with_sources}:\n ours {mine}\n rclpy {stock}"
                 compared += 1
@@ -205,7 +190,7 @@ def test_get_type_description(peer):
             (raw_scan, ""),
             (raw_scan, "RIHS01_12"),
             ("sensor_msgs/msg/Image", "RIHS01_" + "0" * 64),
-            ("std_msgs/msg/Header", rosidl_hash("std_msgs/msg/Header")),
+            ("std_msgs/msg/Header", t.rosidl_hash("std_msgs/msg/Header")),
         ):
             mine = fields(call(ours, type_name, type_hash, False))
             stock = fields(call(theirs, type_name, type_hash, False))
