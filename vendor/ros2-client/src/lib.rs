@@ -208,7 +208,8 @@ pub mod dds {
   };
   #[doc(inline)]
   pub use crate::node::{
-    Node, NodeCreateError, NodeEvent, ParameterError, ReaderWait, Spinner, WriterWait,
+    Clock, Node, NodeClock, NodeCreateError, NodeEvent, ParameterError, ReaderWait, Spinner,
+    WriterWait, // PATCH (tracer_calib): Clock, NodeClock
   };
   #[doc(inline)]
   pub use crate::pubsub::{Publisher, Subscription};
@@ -272,7 +273,7 @@ pub use request_id::RmwRequestId;
 #[doc(inline)]
 pub use node_options::NodeOptions;
 #[doc(inline)]
-pub use parameters::{Parameter, ParameterValue};
+pub use parameters::{NumericRange, Parameter, ParameterDescriptor, ParameterValue}; // PATCH (tracer_calib): descriptors
 #[doc(inline)]
 pub use qos::QosProfile;
 #[doc(inline)]
@@ -293,6 +294,10 @@ pub use dds::{
   NodeLoggingHandle, ParameterError, Publisher, ReaderWait, RosoutRaw, Server, ServiceMapping,
   Spinner, Subscription, WriterWait,
 };
+// PATCH (tracer_calib): the clock types, at the root as the rest.
+#[cfg(all(feature = "dds", not(feature = "zenoh")))]
+#[doc(inline)]
+pub use dds::{Clock, NodeClock};
 #[cfg(all(feature = "zenoh", not(feature = "dds")))]
 #[doc(inline)]
 pub use zenoh::{

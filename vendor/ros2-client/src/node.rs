@@ -181,6 +181,37 @@ pub struct Spinner {
   fully_qualified_node_name: String,
 }
 
+/// PATCH (tracer_calib): a node's clock, apart from the node ([`Node::clock`]).
+#[derive(Clone)]
+pub struct NodeClock {
+  parameters: Arc<ParameterStore>,
+  sim_time: Arc<Mutex<ROSTime>>,
+}
+
+impl NodeClock {
+  /// The node's time: the last `/clock` received (0 before the first) under
+  /// `use_sim_time`, else the system time.
+  pub fn now(&self) -> ROSTime {
+    if self.parameters.use_sim_time() {
+      *self.sim_time.lock().unwrap()
+    } else {
+      ROSTime::now()
+    }
+  }
+
+  /// Whether the node is on simulated time.
+  pub fn use_sim_time(&self) -> bool {
+    self.parameters.use_sim_time()
+  }
+}
+
+/// PATCH (tracer_calib): rosgraph_msgs/msg/Clock, what `/clock` carries.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Clock {
+  pub clock: builtin_interfaces::Time,
+}
+impl crate::message::Message for Clock {}
+
 /// PATCH (tracer_calib): a parameter service request that could not be read. One that
 /// fits no request layout is logged by its `Server` already, once a minute per client
 /// at most (`Server::decode_request`); logged here again, at warn level, a client
@@ -216,9 +247,12 @@ impl Spinner {
     let ros_discovery_stream = ros_discovery_reader.async_stream();
     pin_mut!(ros_discovery_stream);
 
+    // PATCH (tracer_calib): /clock carries rosgraph_msgs/msg/Clock, as rclcpp's
+    // TimeSource and every stock clock publisher (`ros2 bag play --clock`, simulators)
+    // have it; as builtin_interfaces/Time, no stock publisher ever matched.
     let ros_clock_reader = self
       .ros_context
-      .create_subscription::<builtin_interfaces::Time>(&self.clock_topic, None)?;
+      .create_subscription::<Clock>(&self.clock_topic, None)?;
     let ros_clock_stream = ros_clock_reader.async_stream();
     pin_mut!(ros_clock_stream);
 
@@ -258,7 +292,7 @@ impl Spinner {
 
         clock_msg = ros_clock_stream.select_next_some() => {
           match clock_msg {
-            Ok((time,_msg_info)) => {
+            Ok((Clock { clock: time },_msg_info)) => { // PATCH (tracer_calib): Clock
               // Simulated time is updated internally unconditionally.
               // The logic in Node decides if it is used.
               *self.sim_time.lock().unwrap() = time.into();
@@ -629,7 +663,8 @@ impl Node {
       options.parameter_validator.take(),
       options.parameter_set_action.take(),
     )
-    .map_err(NodeCreateError::BadParameter)?;
+    .map_err(NodeCreateError::BadParameter)?
+    .with_descriptors(std::mem::take(&mut options.parameter_descriptors)); // PATCH (tracer_calib)
 
     let mut node = Node {
       node_name,
@@ -684,6 +719,16 @@ impl Node {
 
   pub fn time_now_not_simulated(&self) -> ROSTime {
     ROSTime::now()
+  }
+
+  /// PATCH (tracer_calib): the node's clock as a handle of its own (rclcpp's
+  /// `get_clock()`), for code that has no `Node` at hand: a parameter set action, a
+  /// task on another thread. It reads what [`Node::time_now`] reads.
+  pub fn clock(&self) -> NodeClock {
+    NodeClock {
+      parameters: Arc::clone(&self.parameters),
+      sim_time: Arc::clone(&self.sim_time),
+    }
   }
 
   /// Create a Spinner object to execute Node backround tasks.
@@ -767,9 +812,11 @@ impl Node {
       None // No parameter services
     };
 
+    // PATCH (tracer_calib): rosgraph_msgs/msg/Clock (was builtin_interfaces/Time).
+    // DEFAULT_SUBSCRIPTION_QOS is rclcpp's ClockQoS: best effort, volatile, keep last 1.
     let clock_topic = self.create_topic(
       &Name::new("/", "clock").unwrap(),
-      MessageTypeName::new("builtin_interfaces", "Time"),
+      MessageTypeName::new("rosgraph_msgs", "Clock"),
       &DEFAULT_SUBSCRIPTION_QOS,
     )?;
 
@@ -1568,6 +1615,11 @@ impl RosoutRaw for Node {
   fn base_name(&self) -> &str {
     self.node_name.base_name()
   }
+
+  // PATCH (tracer_calib): rosout records carry the node's time (sim time included).
+  fn rosout_stamp(&self) -> builtin_interfaces::Time {
+    self.time_now().into()
+  }
 }
 
 /// Macro for writing to [rosout](https://wiki.ros.org/rosout) topic.
@@ -1601,7 +1653,7 @@ macro_rules! rosout {
     ($node:expr, $lvl:expr, $($arg:tt)+) => (
         $crate::rosout::RosoutRaw::rosout_raw(
             &$node,
-            $crate::builtin_interfaces::Time::now(),
+            $crate::rosout::RosoutRaw::rosout_stamp(&$node), // PATCH (tracer_calib)
             $lvl,
             $crate::rosout::RosoutRaw::base_name(&$node),
             &std::format!($($arg)+), // msg

@@ -12,7 +12,7 @@
 //! `src/zenoh_backend/node.rs`). Fields not honored by a backend are
 //! documented as no-ops there (logged once at `debug` level).
 
-use crate::parameters::{Parameter, ParameterValue, SetParametersResult};
+use crate::parameters::{Parameter, ParameterDescriptor, ParameterValue, SetParametersResult};
 
 /// Signature of a user-supplied parameter validator / set-action callback
 /// (see [`NodeOptions::parameter_validator`] /
@@ -37,6 +37,8 @@ pub struct NodeOptions {
   pub(crate) allow_undeclared_parameters: bool,
   pub(crate) parameter_validator: Option<Box<ParameterFunc>>,
   pub(crate) parameter_set_action: Option<Box<ParameterFunc>>,
+  // PATCH (tracer_calib): descriptors of declared parameters.
+  pub(crate) parameter_descriptors: Vec<ParameterDescriptor>,
 }
 
 impl NodeOptions {
@@ -52,6 +54,7 @@ impl NodeOptions {
       allow_undeclared_parameters: false,
       parameter_validator: None,
       parameter_set_action: None,
+      parameter_descriptors: Vec::new(), // PATCH (tracer_calib)
     }
   }
   pub fn enable_rosout(self, enable_rosout: bool) -> NodeOptions {
@@ -99,6 +102,16 @@ impl NodeOptions {
   /// through the parameter services. Default `false`.
   ///
   /// When `true`, parameters may also change type (dynamic typing).
+  /// PATCH (tracer_calib): the descriptor of a declared parameter (its `name`
+  /// says which): `describe_parameters` answers with it (the type is the value's),
+  /// and a set that it refuses (`read_only`, out of `range`) fails with rclcpp's
+  /// reason before the validator runs. Without one, a parameter is described as
+  /// published ros2-client describes it.
+  pub fn describe_parameter(mut self, descriptor: ParameterDescriptor) -> NodeOptions {
+    self.parameter_descriptors.push(descriptor);
+    self
+  }
+
   pub fn allow_undeclared_parameters(self, allow_undeclared_parameters: bool) -> NodeOptions {
     NodeOptions {
       allow_undeclared_parameters,

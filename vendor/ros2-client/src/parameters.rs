@@ -198,6 +198,7 @@ impl From<SetParametersResult> for raw::SetParametersResult {
 }
 
 /// Documentation and constraints for a [`Parameter`]
+#[derive(Clone, Debug, PartialEq)] // PATCH (tracer_calib): declared descriptors are kept and copied
 pub struct ParameterDescriptor {
   pub name: String,
   pub param_type: ParameterType, // ParameterType.msg defines enum
@@ -237,6 +238,7 @@ impl ParameterDescriptor {
 }
 
 /// Optional Limits for a numeric [`Parameter`]
+#[derive(Clone, Debug, PartialEq)] // PATCH (tracer_calib)
 pub enum NumericRange {
   NotSpecified,
   IntegerRange {
@@ -249,6 +251,53 @@ pub enum NumericRange {
     to_value: f64,
     step: f64,
   },
+}
+
+impl ParameterDescriptor {
+  /// PATCH (tracer_calib): whether `value` may be set under this descriptor: not
+  /// `read_only`, and within `range` (bounds inclusive; a step of 0 allows any value
+  /// between them, else values `from + k·step` and `to`), with rclcpp's reasons.
+  pub fn check(&self, name: &str, value: &ParameterValue) -> SetParametersResult {
+    if self.read_only {
+      return Err(format!("parameter '{name}' cannot be set because it is read-only"));
+    }
+    match (&self.range, value) {
+      (
+        NumericRange::IntegerRange {
+          from_value,
+          to_value,
+          step,
+        },
+        ParameterValue::Integer(v),
+      ) => {
+        let on_step = *step == 0 || *v == *to_value || (*v - *from_value) % *step == 0;
+        if *v < *from_value || *v > *to_value || !on_step {
+          return Err(format!("Parameter {{{name}}} doesn't comply with integer range."));
+        }
+      }
+      (
+        NumericRange::FloatingPointRange {
+          from_value,
+          to_value,
+          step,
+        },
+        ParameterValue::Double(v),
+      ) => {
+        // rclcpp's tolerance: 100 ULPs of the larger magnitude.
+        let near = |a: f64, b: f64| (a - b).abs() <= f64::EPSILON * a.abs().max(b.abs()) * 100.0;
+        let on_step = *step == 0.0 || near(*v, *to_value) || {
+          let k = ((*v - *from_value) / *step).round();
+          near(*v, *from_value + k * *step)
+        };
+        let inside = (*v >= *from_value || near(*v, *from_value)) && (*v <= *to_value || near(*v, *to_value));
+        if !inside || !on_step {
+          return Err(format!("Parameter {{{name}}} doesn't comply with floating point range."));
+        }
+      }
+      _ => {}
+    }
+    Ok(())
+  }
 }
 
 impl From<ParameterDescriptor> for raw::ParameterDescriptor {
@@ -351,6 +400,8 @@ pub(crate) struct ParameterStore {
   validator: Option<Mutex<Box<ParameterFunc>>>,
   set_action: Option<Mutex<Box<ParameterFunc>>>,
   use_sim_time: AtomicBool,
+  // PATCH (tracer_calib): the descriptors the application declared, by name.
+  descriptors: BTreeMap<String, ParameterDescriptor>,
 }
 
 impl ParameterStore {
@@ -384,6 +435,7 @@ impl ParameterStore {
       validator: validator.map(Mutex::new),
       set_action: set_action.map(Mutex::new),
       use_sim_time: AtomicBool::new(false),
+      descriptors: BTreeMap::new(), // PATCH (tracer_calib)
     };
     for (name, value) in &initial {
       store.check_value(name, value)?;
@@ -394,6 +446,16 @@ impl ParameterStore {
 
   pub fn allow_undeclared(&self) -> bool {
     self.allow_undeclared
+  }
+
+  /// PATCH (tracer_calib): descriptors declared by the application
+  /// ([`NodeOptions::describe_parameter`](crate::NodeOptions::describe_parameter)):
+  /// `describe` answers with them, and every later set is checked against their
+  /// `read_only` and range, as rclcpp checks a declared descriptor (the declared
+  /// values themselves are not: the application declares values it accepts).
+  pub fn with_descriptors(mut self, descriptors: impl IntoIterator<Item = ParameterDescriptor>) -> Self {
+    self.descriptors = descriptors.into_iter().map(|d| (d.name.clone(), d)).collect();
+    self
   }
 
   /// Current value of the built-in `use_sim_time` parameter.
@@ -428,9 +490,14 @@ impl ParameterStore {
     let values = self.values.lock().unwrap();
     names
       .iter()
-      .map(|name| match values.get(name) {
-        Some(value) => ParameterDescriptor::from_value(name, value),
-        None => ParameterDescriptor::unknown(name),
+      .map(|name| match (values.get(name), self.descriptors.get(name)) {
+        // PATCH (tracer_calib): a declared descriptor, with the value's type.
+        (Some(value), Some(declared)) => ParameterDescriptor {
+          param_type: value.to_parameter_type(),
+          ..declared.clone()
+        },
+        (Some(value), None) => ParameterDescriptor::from_value(name, value),
+        (None, _) => ParameterDescriptor::unknown(name),
       })
       .collect()
   }
@@ -532,6 +599,11 @@ impl ParameterStore {
         value.to_parameter_type()
       ));
     }
+    // PATCH (tracer_calib): the declared descriptor's read_only and range, with
+    // rclcpp's reasons, before the application's validator (as rclcpp orders them).
+    if let Some(d) = self.descriptors.get(name) {
+      d.check(name, value)?;
+    }
     self.check_value(name, value)
   }
 
@@ -554,7 +626,8 @@ impl ParameterStore {
       if let ParameterValue::Boolean(b) = value {
         self.use_sim_time.store(*b, Ordering::SeqCst);
       }
-      return Ok(());
+      // PATCH (tracer_calib): the application's set action sees use_sim_time too
+      // (to persist it, say), as rclcpp's callbacks do; it was skipped.
     }
     match &self.set_action {
       Some(a) => a.lock().unwrap()(name, value),

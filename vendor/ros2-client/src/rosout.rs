@@ -15,6 +15,12 @@ pub trait RosoutRaw {
   /// Returns the base name of the Node.
   fn base_name(&self) -> &str;
 
+  /// PATCH (tracer_calib): the stamp of a record logged now: the node's clock (simulated
+  /// time under `use_sim_time`, as rcl stamps rosout). The system clock by default.
+  fn rosout_stamp(&self) -> Time {
+    Time::now()
+  }
+
   /// Logs to `rosout`.
   #[allow(clippy::too_many_arguments)]
   #[tracing::instrument(skip_all)]
