@@ -5,6 +5,7 @@
 //! [`file`](mod@file) reads and writes ROS 2 parameter files; [`value`] is the untyped value.
 
 pub mod file;
+pub mod spec;
 pub mod value;
 
 pub use file::{ParamsFile, ParamsFileError};
@@ -30,8 +31,10 @@ pub mod names {
     pub const HISTORY_FILE: &str = "history_file";
     pub const MAX_AGE_DAYS: &str = "calibration.max_age_days";
     pub const DRIFT_WARN_SIGMA: &str = "calibration.drift_warn_sigma";
+    pub const USE_SIM_TIME: &str = "use_sim_time";
+    pub const MANAGED: &str = "managed";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 15] = [
+    pub const ALL: [&str; 17] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -47,15 +50,13 @@ pub mod names {
         HISTORY_FILE,
         MAX_AGE_DAYS,
         DRIFT_WARN_SIGMA,
+        USE_SIM_TIME,
+        MANAGED,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
     pub const CALIBRATION_IN_FORCE: [&str; 5] = [ALPHA0, OFFSET, DELTA_L, SCALE, VALID];
 }
-
-/// The encoder scales accepted: a scale further from 1 is a wrong
-/// `encoder.meters_per_count`, not a calibration.
-pub const SCALE_RANGE: std::ops::RangeInclusive<f64> = 0.5..=2.0;
 
 /// Largest `resample_points` accepted.
 pub const MAX_RESAMPLE_POINTS: i64 = 100_000;
@@ -81,6 +82,10 @@ pub struct Parameters {
     /// /diagnostics warns when a calibration moved a parameter by more than this many
     /// combined standard uncertainties from the one before; 0 = never.
     pub drift_warn_sigma: f64,
+    /// The node's clock follows `/clock`.
+    pub use_sim_time: bool,
+    /// A lifecycle (managed) node; read at start-up.
+    pub managed: bool,
 }
 
 impl Default for Parameters {
@@ -97,6 +102,8 @@ impl Default for Parameters {
             history_file: String::new(),
             max_age_days: 0.0,
             drift_warn_sigma: 10.0,
+            use_sim_time: false,
+            managed: false,
         }
     }
 }
@@ -126,6 +133,8 @@ impl Parameters {
             names::HISTORY_FILE => String(self.history_file.clone()),
             names::MAX_AGE_DAYS => Double(self.max_age_days),
             names::DRIFT_WARN_SIGMA => Double(self.drift_warn_sigma),
+            names::USE_SIM_TIME => Bool(self.use_sim_time),
+            names::MANAGED => Bool(self.managed),
             _ => return None,
         })
     }
@@ -135,89 +144,54 @@ impl Parameters {
         names::ALL.contains(&name)
     }
 
-    /// Set one parameter, checking its type and range; the message says what is wrong.
-    /// Unknown names are an error here; the caller decides whether to ignore them.
+    /// Set one parameter, checking its type and its declaration's bound
+    /// ([`spec::SPECS`]); the message says what is wrong. Unknown names are an error
+    /// here; the caller decides whether to ignore them.
     pub fn set(&mut self, name: &str, value: &ParamValue) -> Result<(), String> {
+        let spec = spec::spec(name).ok_or_else(|| format!("'{name}' is not a parameter of this node"))?;
         let mut next = self.clone();
-        let double =
-            |v: &ParamValue| v.as_f64().ok_or_else(|| format!("expected a double, got {} '{}'", v.type_name(), v));
-        let finite = |v: &ParamValue| {
-            let d = double(v)?;
-            if d.is_finite() { Ok(d) } else { Err(format!("must be a finite number, got {d}")) }
+        let double = |v: &ParamValue| {
+            v.as_f64()
+                .ok_or_else(|| format!("expected a double, got {} '{}'", v.type_name(), v))
+                .and_then(|x| spec.check_f64(x))
+        };
+        let integer = |v: &ParamValue| match v {
+            ParamValue::Integer(i) => spec.check_i64(*i),
+            v => Err(format!("expected an integer, got {} '{}'", v.type_name(), v)),
+        };
+        let boolean = |v: &ParamValue| match v {
+            ParamValue::Bool(b) => Ok(*b),
+            v => Err(format!("expected a bool, got {} '{}'", v.type_name(), v)),
+        };
+        let string = |v: &ParamValue| match v {
+            ParamValue::String(s) => Ok(s.clone()),
+            v => Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
         };
         match name {
-            names::ALPHA0 => {
-                let a = finite(value)?;
-                if a.abs() > std::f64::consts::PI {
-                    return Err(format!("must be an angle in radians within [-pi, pi], got {a}"));
-                }
-                next.calibration.alpha0 = a;
+            names::ALPHA0 => next.calibration.alpha0 = double(value)?,
+            names::OFFSET => next.calibration.offset = double(value)?,
+            names::DELTA_L => next.calibration.delta_l = double(value)?,
+            names::SCALE => next.calibration.scale = double(value)?,
+            names::VALID => next.calibration_valid = boolean(value)?,
+            names::PLATE_SIDE => next.plate.side = double(value)?,
+            names::CORNER_RADIUS => next.plate.corner_radius = double(value)?,
+            names::METERS_PER_COUNT => next.meters_per_count = double(value)?,
+            names::MODEL => {
+                next.model = string(value)
+                    .map_err(|_| {
+                        format!("expected a string ({}), got {} '{}'", spec.constraints, value.type_name(), value)
+                    })?
+                    .parse()?
             }
-            names::OFFSET => next.calibration.offset = finite(value)?,
-            names::DELTA_L => next.calibration.delta_l = finite(value)?,
-            names::SCALE => {
-                let k = finite(value)?;
-                if !SCALE_RANGE.contains(&k) {
-                    return Err(format!(
-                        "must be an encoder scale between {} and {} (true length = counts × encoder.meters_per_count × scale), got {k}",
-                        SCALE_RANGE.start(),
-                        SCALE_RANGE.end()
-                    ));
-                }
-                next.calibration.scale = k;
-            }
-            names::VALID => match value {
-                ParamValue::Bool(b) => next.calibration_valid = *b,
-                v => return Err(format!("expected a bool, got {} '{}'", v.type_name(), v)),
-            },
-            names::PLATE_SIDE => next.plate.side = finite(value)?,
-            names::CORNER_RADIUS => next.plate.corner_radius = finite(value)?,
-            names::METERS_PER_COUNT => {
-                let m = finite(value)?;
-                if m <= 0.0 {
-                    return Err(format!("must be positive (metres per encoder count), got {m}"));
-                }
-                next.meters_per_count = m;
-            }
-            names::MODEL => match value {
-                ParamValue::String(s) => next.model = s.parse()?,
-                v => {
-                    return Err(format!(
-                        "expected a string ('full', 'paper' or 'full_scale'), got {} '{}'",
-                        v.type_name(),
-                        v
-                    ));
-                }
-            },
-            names::OUTPUT_FRAME_ID => match value {
-                ParamValue::String(s) => next.output_frame_id = s.clone(),
-                v => return Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
-            },
-            names::RESAMPLE_POINTS => match value {
-                ParamValue::Integer(i) if (0..=MAX_RESAMPLE_POINTS).contains(i) => next.resample_points = *i as usize,
-                ParamValue::Integer(i) => return Err(format!("must be between 0 and {MAX_RESAMPLE_POINTS}, got {i}")),
-                v => return Err(format!("expected an integer, got {} '{}'", v.type_name(), v)),
-            },
-            names::PARAMS_FILE => match value {
-                ParamValue::String(s) => next.params_file = s.clone(),
-                v => return Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
-            },
-            names::HISTORY_FILE => match value {
-                ParamValue::String(s) => next.history_file = s.clone(),
-                v => return Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
-            },
-            names::MAX_AGE_DAYS | names::DRIFT_WARN_SIGMA => {
-                let x = finite(value)?;
-                if x < 0.0 {
-                    return Err(format!("must be 0 (no limit) or positive, got {x}"));
-                }
-                if name == names::MAX_AGE_DAYS {
-                    next.max_age_days = x;
-                } else {
-                    next.drift_warn_sigma = x;
-                }
-            }
-            _ => return Err(format!("'{name}' is not a parameter of this node")),
+            names::OUTPUT_FRAME_ID => next.output_frame_id = string(value)?,
+            names::RESAMPLE_POINTS => next.resample_points = integer(value)? as usize,
+            names::PARAMS_FILE => next.params_file = string(value)?,
+            names::HISTORY_FILE => next.history_file = string(value)?,
+            names::MAX_AGE_DAYS => next.max_age_days = double(value)?,
+            names::DRIFT_WARN_SIGMA => next.drift_warn_sigma = double(value)?,
+            names::USE_SIM_TIME => next.use_sim_time = boolean(value)?,
+            names::MANAGED => next.managed = boolean(value)?,
+            _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
             next.plate.validate()?;
@@ -264,7 +238,9 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 15);
+        assert_eq!(list.len(), 17);
+        assert_eq!(p.get("use_sim_time"), Some(ParamValue::Bool(false)));
+        assert_eq!(p.get("managed"), Some(ParamValue::Bool(false)));
         assert_eq!(p.get("history_file"), Some(ParamValue::String(String::new())));
         assert_eq!(p.get("calibration.max_age_days"), Some(ParamValue::Double(0.0)));
         assert_eq!(p.get("calibration.drift_warn_sigma"), Some(ParamValue::Double(10.0)));
@@ -283,7 +259,7 @@ mod tests {
         let mut p = Parameters::default();
         assert_eq!(
             p.set("plate.side", &ParamValue::Double(-0.045)).unwrap_err(),
-            "plate side must be a positive length in metres, got -0.045"
+            "must be positive (greater than 0), got -0.045 (side of the square calibration plate (m))"
         );
         assert_eq!(
             p.set("model", &ParamValue::String("magic".into())).unwrap_err(),
@@ -293,7 +269,7 @@ mod tests {
         assert!(p.set("plate.corner_radius", &ParamValue::Double(0.03)).is_err());
         assert!(p.set("calibration.valid", &ParamValue::Integer(1)).unwrap_err().contains("expected a bool"));
         assert!(p.set("calibration.scale", &ParamValue::Double(0.0)).unwrap_err().contains("between 0.5 and 2"));
-        assert!(p.set("calibration.max_age_days", &ParamValue::Double(-1.0)).unwrap_err().contains("0 (no limit)"));
+        assert!(p.set("calibration.max_age_days", &ParamValue::Double(-1.0)).unwrap_err().contains("at least 0"));
         assert!(p.set("calibration.drift_warn_sigma", &ParamValue::Double(f64::NAN)).unwrap_err().contains("finite"));
         assert!(p.set("history_file", &ParamValue::Integer(3)).unwrap_err().contains("expected a string"));
         assert_eq!(p, Parameters::default(), "failed sets change nothing");
@@ -309,9 +285,10 @@ mod tests {
         let e = p.apply_file(&f, "/tracer_calibrator", "cell.yaml").unwrap_err();
         assert_eq!(e.to_string(), "cell.yaml:4: resample_points: expected an integer, got string 'lots'");
         assert_eq!(p, Parameters::default());
-        let ok = "tracer_calibrator:\n  ros__parameters:\n    plate.side: 0.05\n    use_sim_time: false\n";
+        let ok =
+            "tracer_calibrator:\n  ros__parameters:\n    plate.side: 0.05\n    use_sim_time: true\n    tags: [a]\n";
         let unknown = p.apply_file(&file::parse(ok, "c").unwrap(), "/tracer_calibrator", "c").unwrap();
-        assert_eq!(unknown, ["use_sim_time"]);
-        assert_eq!(p.plate.side, 0.05);
+        assert_eq!(unknown, ["tags"]);
+        assert_eq!((p.plate.side, p.use_sim_time), (0.05, true));
     }
 }

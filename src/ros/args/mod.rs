@@ -14,7 +14,7 @@
 //! | argument | meaning |
 //! |---|---|
 //! | `-r`/`--remap [NODE:]FROM:=TO` | name remap; `__node`/`__name` renames the node, `__ns` sets its namespace (must be absolute); `rostopic://`/`rosservice://` limit `FROM` to topics/services |
-//! | `-p`/`--param [NODE:]NAME:=VALUE` | parameter override; `VALUE` is a one-line YAML value, typed like a params file ([`ParamValue::parse_yaml`]) |
+//! | `-p`/`--param [NODE:]NAME:=VALUE` | parameter override; `NAME` as rcl reads it (parts of tokens and `/` separated by `.`: `qos_overrides./raw_scan.subscription.depth`), `VALUE` a one-line YAML value, typed like a params file ([`ParamValue::parse_yaml`]); a value rcl reads as NOT_SET (`[]`, a comment alone) sets nothing |
 //! | `--params-file FILE` | parameters file; may repeat |
 //! | `--log-level LEVEL` / `--log-level LOGGER:=LEVEL` | `debug info warn error fatal unset`, any case |
 //! | `--log-config-file FILE`, `-e`/`--enclave NAME`, `--log-file-name NAME` | recorded |
@@ -199,8 +199,11 @@ impl RosArgs {
                 }
                 "-p" | "--param" => {
                     let v = value(EXPECT_PARAM)?;
-                    let o = ParamOverride::parse(&v).map_err(|e| bad(EXPECT_PARAM, &v, e))?;
-                    out.param_sources.push(ParamSource::Override(o));
+                    match ParamOverride::parse(&v) {
+                        Ok(o) => out.param_sources.push(ParamSource::Override(o)),
+                        Err(_) if ParamOverride::is_not_set(&v) => out.ignored.push(format!("{arg} {v}")),
+                        Err(e) => return Err(bad(EXPECT_PARAM, &v, e)),
+                    }
                 }
                 "--params-file" => {
                     let v = value(EXPECT_FILE)?;

@@ -1,7 +1,7 @@
 //! What the node needs to start: the command line, the environment and the params files,
 //! read into one [`Config`].
 
-use log::debug;
+use log::{debug, warn};
 
 use super::DEFAULT_NODE_NAME;
 use crate::params::{Parameters, file as params_file, names};
@@ -51,6 +51,11 @@ impl Config {
         for o in args.param_overrides_for(&identity) {
             if qos_overrides::is_override(&o.name) {
                 qos.set(&o.name, &o.value).map_err(|e| format!("-p {}:={}: {e}", o.name, o.value))?;
+                continue;
+            }
+            if !Parameters::is_known(&o.name) {
+                // rcl keeps an override of an undeclared parameter and uses it for nothing.
+                warn!("-p {}:={}: ignored, not a parameter of this node", o.name, o.value);
                 continue;
             }
             params.set(&o.name, &o.value).map_err(|e| format!("-p {}:={}: {e}", o.name, o.value))?;

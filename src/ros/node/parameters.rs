@@ -3,12 +3,13 @@
 //! calibration `/calibrate` applies mirrored into them.
 
 use log::{error, info};
-use ros2_client::{NodeOptions, ParameterValue as RosValue};
+use ros2_client::{NodeOptions, NumericRange, ParameterDescriptor, ParameterValue as RosValue};
 
 use super::Shared;
 use crate::engine::geometry::Mounting;
-use crate::params::{ParamValue, Parameters, names};
-use crate::ros::qos_overrides::{self, QosOverrides};
+use crate::params::spec::{Bound, Spec};
+use crate::params::{ParamValue, Parameters, names, spec};
+use crate::ros::qos_overrides::QosOverrides;
 
 /// A ROS parameter value as ours; `None` for the kinds the node has no parameter of.
 pub(super) fn from_ros(v: &RosValue) -> Option<ParamValue> {
@@ -25,30 +26,64 @@ pub(super) fn from_ros(v: &RosValue) -> Option<ParamValue> {
     })
 }
 
-/// The node's options: rosout, every parameter declared (the `qos_overrides.*` in force
-/// too), a validator and a set action over the shared state.
+/// The descriptor a parameter is declared with, from its [`Spec`]: description, the range
+/// rcl_interfaces can express, the rest as constraints, read-only.
+pub(super) fn descriptor(spec: &Spec) -> ParameterDescriptor {
+    let range = match spec.bound {
+        Bound::Float { from, to } => NumericRange::FloatingPointRange { from_value: from, to_value: to, step: 0.0 },
+        Bound::Integer { from, to } => NumericRange::IntegerRange { from_value: from, to_value: to, step: 0 },
+        Bound::Any | Bound::Positive => NumericRange::NotSpecified,
+    };
+    let constraints = match (spec.bound, spec.constraints) {
+        (Bound::Positive, "") => spec.bound_text(),
+        (_, c) => c.to_string(),
+    };
+    ParameterDescriptor {
+        name: spec.name.to_string(),
+        param_type: ros2_client::parameters::ParameterType::NotSet, // the value's, when described
+        description: spec.description.to_string(),
+        additional_constraints: constraints,
+        read_only: spec.read_only,
+        dynamic_typing: false,
+        range,
+    }
+}
+
+/// A `qos_overrides.*` parameter's descriptor: read-only, as rclcpp declares them.
+fn qos_descriptor(name: &str) -> ParameterDescriptor {
+    ParameterDescriptor {
+        name: name.to_string(),
+        param_type: ros2_client::parameters::ParameterType::NotSet,
+        description: "QoS override of an endpoint (rclcpp's qos_overrides), read at start-up".into(),
+        additional_constraints: String::new(),
+        read_only: true,
+        dynamic_typing: false,
+        range: NumericRange::NotSpecified,
+    }
+}
+
+/// The node's options: rosout, every parameter declared with its descriptor (the
+/// `qos_overrides.*` in force too), a validator and a set action over the shared state.
 ///
 /// A change is validated by the same rules as the params file, applied to the state and
 /// persisted, only when the value really changes (so the start-up round of set actions
-/// writes nothing). A failed write fails the set. `qos_overrides.*` are read-only, as
-/// rclcpp declares them: only the value given at start passes.
+/// writes nothing). A failed write fails the set. The read-only parameters
+/// (`qos_overrides.*`, `managed`) are refused by ros2-client from their descriptors.
 pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) -> NodeOptions {
     let mut options = NodeOptions::new().enable_rosout(true);
-    for (name, value) in params.to_list().into_iter().chain(qos.to_list()) {
-        options = options.declare_parameter(&name, value.into());
+    for (name, value) in params.to_list() {
+        let spec = spec::spec(&name).expect("every parameter is declared in the spec");
+        options = options.declare_parameter(&name, value.into()).describe_parameter(descriptor(spec));
+    }
+    for (name, value) in qos.to_list() {
+        options = options.declare_parameter(&name, value.into()).describe_parameter(qos_descriptor(&name));
     }
     let validator_state = shared.state.clone();
-    let validator_qos = qos.clone();
     let action_state = shared.state.clone();
     let action_changed = shared.calibration_changed.clone();
+    let action_clock = shared.clock.clone();
     options
         .parameter_validator(Box::new(move |name, value| {
-            if qos_overrides::is_override(name) {
-                return match (from_ros(value), validator_qos.get(name)) {
-                    (Some(v), Some(given)) if &v == given => Ok(()),
-                    _ => Err(format!("{name} is read-only: QoS overrides are read at start-up only")),
-                };
-            }
             if !Parameters::is_known(name) {
                 return Ok(());
             }
@@ -72,7 +107,7 @@ pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) 
                 return Err(format!("{name}: not changed: {e}"));
             }
             if names::CALIBRATION_IN_FORCE.contains(&name) {
-                st.calibration_set_by_parameters(std::time::SystemTime::now());
+                st.calibration_set_by_parameters(super::now_on(&action_clock));
             }
             if name.starts_with("calibration.") {
                 let _ = action_changed.try_send(());

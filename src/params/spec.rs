@@ -1,0 +1,154 @@
+//! Every parameter's declaration: what it means (with its unit), the range the node
+//! enforces, whether it may change after start-up. One table, read both by
+//! [`Parameters::set`](super::Parameters::set) (the params file, `-p`, remote sets) and by
+//! the node, which declares each parameter's descriptor from it (`ros2 param describe`,
+//! rqt_reconfigure): the checks and what the descriptors say cannot drift apart.
+//!
+//! A [`Bound`] that rcl_interfaces can express (a closed interval) becomes the descriptor's
+//! `floating_point_range` or `integer_range`; the others (a positive length, one of a few
+//! strings, a relation between two parameters) are stated in `additional_constraints`.
+
+use super::names;
+
+/// What values a parameter takes, beyond its type.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Bound {
+    /// Any value of the type (a double: any finite value).
+    Any,
+    /// A double in `[from, to]`; `to` infinite: no upper bound (a value is finite still).
+    Float { from: f64, to: f64 },
+    /// An integer in `[from, to]`.
+    Integer { from: i64, to: i64 },
+    /// A double greater than 0 (not expressible as an rcl_interfaces range, whose bounds are
+    /// inclusive).
+    Positive,
+}
+
+/// One parameter's declaration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spec {
+    pub name: &'static str,
+    /// One line: the meaning, with the unit.
+    pub description: &'static str,
+    pub bound: Bound,
+    /// What the bound cannot say (relations to other parameters, allowed strings); empty if
+    /// nothing.
+    pub constraints: &'static str,
+    /// Read at start-up only: a remote set is refused.
+    pub read_only: bool,
+}
+
+impl Spec {
+    const fn new(name: &'static str, description: &'static str) -> Spec {
+        Spec { name, description, bound: Bound::Any, constraints: "", read_only: false }
+    }
+
+    const fn bound(self, bound: Bound) -> Spec {
+        Spec { bound, ..self }
+    }
+
+    const fn constraints(self, constraints: &'static str) -> Spec {
+        Spec { constraints, ..self }
+    }
+
+    const fn read_only(self) -> Spec {
+        Spec { read_only: true, ..self }
+    }
+
+    /// Check a double against the bound: `Ok(x)`, or what is wrong.
+    pub fn check_f64(&self, x: f64) -> Result<f64, String> {
+        if !x.is_finite() {
+            return Err(format!("must be a finite number, got {x}"));
+        }
+        let ok = match self.bound {
+            Bound::Any | Bound::Integer { .. } => true,
+            Bound::Float { from, to } => (from..=to).contains(&x),
+            Bound::Positive => x > 0.0,
+        };
+        if ok { Ok(x) } else { Err(format!("must be {}, got {x} ({})", self.bound_text(), self.description)) }
+    }
+
+    /// Check an integer against the bound: `Ok(i)`, or what is wrong.
+    pub fn check_i64(&self, i: i64) -> Result<i64, String> {
+        match self.bound {
+            Bound::Integer { from, to } if !(from..=to).contains(&i) => {
+                Err(format!("must be {}, got {i} ({})", self.bound_text(), self.description))
+            }
+            _ => Ok(i),
+        }
+    }
+
+    /// The bound in words: `between 0.5 and 2`, `at least 0`, `positive (greater than 0)`.
+    pub fn bound_text(&self) -> String {
+        match self.bound {
+            Bound::Any => "any value".into(),
+            Bound::Float { from, to } if to == f64::INFINITY => format!("at least {from}"),
+            Bound::Float { from, to } => format!("between {from} and {to}"),
+            Bound::Integer { from, to } => format!("between {from} and {to}"),
+            Bound::Positive => "positive (greater than 0)".into(),
+        }
+    }
+}
+
+/// Every parameter of the node, in [`names::ALL`] order.
+pub const SPECS: [Spec; 17] = [
+    Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
+        .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
+    Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
+    Spec::new(names::DELTA_L, "calibration in force: encoder zero error dL (m)"),
+    Spec::new(names::SCALE, "calibration in force: encoder scale k; true length = counts x encoder.meters_per_count x k")
+        .bound(Bound::Float { from: 0.5, to: 2.0 }),
+    Spec::new(names::VALID, "true once a calibration is in force (applied by /calibrate or set here); false: scans are corrected with an ideal mounting"),
+    Spec::new(names::PLATE_SIDE, "side of the square calibration plate (m)")
+        .bound(Bound::Positive)
+        .constraints("positive (greater than 0) and more than twice plate.corner_radius"),
+    Spec::new(names::CORNER_RADIUS, "corner radius of the calibration plate (m)")
+        .constraints("at least 0 and less than half of plate.side"),
+    Spec::new(names::METERS_PER_COUNT, "encoder resolution (m per count)").bound(Bound::Positive),
+    Spec::new(names::MODEL, "fitting model: full, paper (the seed paper's reduced model) or full_scale (full + encoder scale)")
+        .constraints("one of: full, paper, full_scale"),
+    Spec::new(names::OUTPUT_FRAME_ID, "frame_id of the published contours and polygons"),
+    Spec::new(names::RESAMPLE_POINTS, "size of Contour.radii (equal angle steps); 0 = no resampling")
+        .bound(Bound::Integer { from: 0, to: super::MAX_RESAMPLE_POINTS }),
+    Spec::new(names::PARAMS_FILE, "ROS 2 params file the node persists its parameters to after each change; empty = not persisted"),
+    Spec::new(names::HISTORY_FILE, "JSON-lines file each applied calibration is appended to; empty = none"),
+    Spec::new(names::MAX_AGE_DAYS, "/diagnostics warns when the calibration in force is older than this (days); 0 = no limit")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::DRIFT_WARN_SIGMA, "/diagnostics warns when a calibration moved a parameter by more than this many combined standard uncertainties; 0 = never")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::USE_SIM_TIME, "the node's clock follows /clock (rosgraph_msgs/msg/Clock) instead of the system clock"),
+    Spec::new(names::MANAGED, "true: a lifecycle (managed) node that starts unconfigured; read at start-up")
+        .read_only(),
+];
+
+/// The declaration of `name`, if it is one of the node's parameters.
+pub fn spec(name: &str) -> Option<&'static Spec> {
+    SPECS.iter().find(|s| s.name == name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_declaration_per_parameter_in_order() {
+        let names: Vec<_> = SPECS.iter().map(|s| s.name).collect();
+        assert_eq!(names, names::ALL);
+        assert!(SPECS.iter().all(|s| !s.description.is_empty()));
+    }
+
+    #[test]
+    fn bounds_say_what_is_wrong() {
+        let scale = spec(names::SCALE).unwrap();
+        assert_eq!(scale.check_f64(1.5), Ok(1.5));
+        assert!(
+            scale.check_f64(2.5).unwrap_err().starts_with("must be between 0.5 and 2, got 2.5 (calibration in force")
+        );
+        let age = spec(names::MAX_AGE_DAYS).unwrap();
+        assert!(age.check_f64(f64::INFINITY).unwrap_err().contains("finite"), "no upper bound, yet finite");
+        assert!(age.check_f64(-1.0).unwrap_err().starts_with("must be at least 0"));
+        assert!(age.check_f64(f64::NAN).unwrap_err().contains("finite"));
+        assert!(spec(names::METERS_PER_COUNT).unwrap().check_f64(0.0).unwrap_err().contains("greater than 0"));
+        assert!(spec(names::RESAMPLE_POINTS).unwrap().check_i64(-1).unwrap_err().contains("between 0 and 100000"));
+    }
+}
