@@ -326,6 +326,7 @@ fn history_table_json_and_svg_with_a_torn_last_line() {
             samples_used: 400,
             iterations: 7,
             previous,
+            ros_time: None,
         };
         previous = Some(Previous::from(r.mounting()));
         history::append(&path, &r).unwrap();

@@ -2,9 +2,7 @@
 //! applied, recorded in the history and persisted in the params file. A failed fit, or one
 //! that cannot be recorded, leaves the calibration in force as it was on disk.
 
-use std::time::SystemTime;
-
-use super::{InForce, NodeState};
+use super::{InForce, NodeState, Now};
 use crate::engine::calibrate::{Calibration, calibrate};
 use crate::engine::geometry::Mounting;
 use crate::interfaces::{CalibrateRequest, CalibrateResponse};
@@ -24,6 +22,12 @@ impl NodeState {
     /// run, apply the result and persist the parameters. A failed fit leaves the
     /// calibration in force untouched.
     pub fn on_calibrate(&mut self, req: &CalibrateRequest) -> CalibrateOutcome {
+        self.on_calibrate_at(req, Now::system())
+    }
+
+    /// [`NodeState::on_calibrate`] at `now`: the record's `time` is its system time, its
+    /// `ros_time` (and the `calibration` message's stamp) its ROS time.
+    pub fn on_calibrate_at(&mut self, req: &CalibrateRequest, now: Now) -> CalibrateOutcome {
         let fail = |this: &mut Self, message: String| {
             this.stats.calibrations_failed += 1;
             this.stats.last_fit_message = message.clone();
@@ -74,9 +78,8 @@ impl NodeState {
             self.stats.last_fit_message = response.message.clone();
             return CalibrateOutcome { response, applied: None };
         }
-        let now = SystemTime::now();
         let record = Record {
-            time: records::format_utc(now),
+            time: records::format_utc(now.wall),
             node: self.fqn.clone(),
             scan_id,
             model: cal.model.as_str().to_string(),
@@ -89,12 +92,14 @@ impl NodeState {
             samples_used: cal.samples_used as u32,
             iterations: cal.iterations as u32,
             previous: previous.map(Previous::from),
+            ros_time: Some(records::RosTime::from_nanos(now.ros.to_nanos())),
         };
         self.params.calibration = cal.mounting;
         self.params.calibration_valid = true;
         // The time the record gives, to the millisecond: what a restart reads back.
         self.in_force = InForce {
-            applied_at: record.applied_at().unwrap_or(now),
+            applied_at: record.applied_at().unwrap_or(now.wall),
+            ros_time: now.ros,
             model: record.model.clone(),
             scan_id,
             stddev,

@@ -1,15 +1,16 @@
 //! The node's `/diagnostics` report: one status with the calibration in force, its age and
 //! drift, the history file, the last fit, and every count.
 
-use std::time::{Duration, UNIX_EPOCH};
+use std::time::Duration;
 
-use super::NodeState;
-use crate::interfaces::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, Time};
+use super::{NodeState, Now};
+use crate::interfaces::{DiagnosticArray, DiagnosticStatus, Header, KeyValue};
 use crate::records;
 
 impl NodeState {
-    /// The node's diagnostics at time `now`.
-    pub fn diagnostics(&self, now: Time) -> DiagnosticArray {
+    /// The node's diagnostics at `now`: stamped with its ROS time; the calibration's age
+    /// is system time.
+    pub fn diagnostics(&self, now: Now) -> DiagnosticArray {
         let p = &self.params;
         let last_failed = self.stats.calibrations_failed > 0 && self.stats.last_fit_message.contains("failed");
         let (level, message) = if !p.calibration_valid && last_failed {
@@ -27,8 +28,7 @@ impl NodeState {
         } else {
             (DiagnosticStatus::OK, "calibrated".to_string())
         };
-        let now_sys = UNIX_EPOCH + Duration::from_nanos(u64::try_from(now.to_nanos()).unwrap_or(0));
-        let age = now_sys.duration_since(self.in_force.applied_at).unwrap_or(Duration::ZERO);
+        let age = now.wall.duration_since(self.in_force.applied_at).unwrap_or(Duration::ZERO);
         let age_days = age.as_secs_f64() / 86_400.0;
         let mut warnings = Vec::new();
         if p.calibration_valid && p.max_age_days > 0.0 && age_days > p.max_age_days {
@@ -47,6 +47,9 @@ impl NodeState {
                 d.describe()
             ));
         }
+        if !self.clock_problem.is_empty() {
+            warnings.push(self.clock_problem.clone());
+        }
         if self.stats.qos_incompatible > 0 {
             warnings.push(format!(
                 "{} endpoint(s) with incompatible QoS, last: {}",
@@ -61,7 +64,7 @@ impl NodeState {
         let kv = |k: &str, v: String| KeyValue { key: k.to_string(), value: v };
         let s = &self.stats;
         DiagnosticArray {
-            header: Header { stamp: now, frame_id: String::new() },
+            header: Header { stamp: now.ros, frame_id: String::new() },
             status: vec![DiagnosticStatus {
                 level,
                 name: format!("tracer_calib: {}", self.fqn),
@@ -107,6 +110,8 @@ impl NodeState {
                     kv("qos_incompatible", s.qos_incompatible.to_string()),
                     kv("requests_unreadable", s.requests_unreadable.to_string()),
                     kv("last_qos_incompatible", s.last_qos_incompatible.clone()),
+                    kv("use_sim_time", p.use_sim_time.to_string()),
+                    kv("ros_time", format!("{:.3}", now.ros.to_nanos() as f64 * 1e-9)),
                 ],
             }],
         }

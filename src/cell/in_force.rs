@@ -2,6 +2,8 @@
 
 use std::time::SystemTime;
 
+use super::Now;
+use crate::interfaces::Time;
 use crate::params::Parameters;
 use crate::records::Record;
 
@@ -13,6 +15,9 @@ pub struct InForce {
     /// loaded from the parameters, the time of its history record (the node's start when
     /// the history has none).
     pub applied_at: SystemTime,
+    /// The node's ROS time then (simulated under `use_sim_time`): the `calibration`
+    /// message's stamp.
+    pub ros_time: Time,
     /// The model that fitted it (for one set by parameters: the `model` parameter).
     pub model: String,
     /// The plate scan it was fitted to; 0 if set by parameters.
@@ -28,9 +33,10 @@ pub struct InForce {
 }
 
 impl InForce {
-    pub(super) fn by_parameters(params: &Parameters, at: SystemTime) -> Self {
+    pub(super) fn by_parameters(params: &Parameters, at: Now) -> Self {
         InForce {
-            applied_at: at,
+            applied_at: at.wall,
+            ros_time: at.ros,
             model: params.model.as_str().to_string(),
             scan_id: 0,
             stddev: Vec::new(),
@@ -40,9 +46,11 @@ impl InForce {
         }
     }
 
+    /// `at`: the record's time; its ROS time is the record's, or else that time.
     pub(super) fn from_record(r: &Record, at: SystemTime) -> Self {
         InForce {
             applied_at: at,
+            ros_time: r.ros_time.map_or_else(|| Now::at(at).ros, |t| Time::from_nanos(t.to_nanos())),
             model: r.model.clone(),
             scan_id: r.scan_id,
             stddev: r.stddev.clone(),

@@ -40,6 +40,28 @@ pub use in_force::InForce;
 pub use scans::{Corrected, PLATE_SCANS_KEPT};
 pub use stats::Stats;
 
+/// The time of an event, on both of the node's clocks: the system's (when a calibration
+/// really happened, how old it is) and the node's ROS clock (stamps; simulated time under
+/// `use_sim_time`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Now {
+    pub wall: SystemTime,
+    pub ros: Time,
+}
+
+impl Now {
+    /// `wall`, with the ROS clock on the system time.
+    pub fn at(wall: SystemTime) -> Now {
+        let since = wall.duration_since(UNIX_EPOCH).unwrap_or(Duration::ZERO);
+        Now { wall, ros: Time::from_nanos(i64::try_from(since.as_nanos()).unwrap_or(i64::MAX)) }
+    }
+
+    /// The system time now, on both clocks.
+    pub fn system() -> Now {
+        Now::at(SystemTime::now())
+    }
+}
+
 /// The node's state.
 #[derive(Debug)]
 pub struct NodeState {
@@ -57,14 +79,20 @@ pub struct NodeState {
     pub history_problem: String,
     /// Parameters persisted beside [`Parameters`]: the QoS overrides in force.
     pub extra_params: Vec<(String, crate::params::ParamValue)>,
+    /// What is wrong with the node's clock (simulated time with no `/clock`), for
+    /// /diagnostics; empty if nothing.
+    pub clock_problem: String,
     corrector: Option<Corrector>,
     plates: VecDeque<scans::PlateScan>,
 }
 
 impl NodeState {
-    /// The state at start-up (`now`), with the calibration of `params` in force.
+    /// The state at start-up (now), with the calibration of `params` in force. Under
+    /// `use_sim_time` the ROS clock stands at 0 until a `/clock` arrives, as rclcpp's.
     pub fn new(fqn: String, params: Parameters) -> Self {
-        let in_force = InForce::by_parameters(&params, SystemTime::now());
+        let now = Now::system();
+        let now = if params.use_sim_time { Now { ros: Time::ZERO, ..now } } else { now };
+        let in_force = InForce::by_parameters(&params, now);
         NodeState {
             fqn,
             params,
@@ -74,6 +102,7 @@ impl NodeState {
             history_records: 0,
             history_problem: String::new(),
             extra_params: Vec::new(),
+            clock_problem: String::new(),
             corrector: None,
             plates: VecDeque::new(),
         }
@@ -96,17 +125,15 @@ impl NodeState {
 
     /// A parameter set changed the calibration in force (`calibration.*`): it was applied
     /// now, and nothing is known of its fit.
-    pub fn calibration_set_by_parameters(&mut self, now: SystemTime) {
+    pub fn calibration_set_by_parameters(&mut self, now: Now) {
         self.in_force = InForce::by_parameters(&self.params, now);
     }
 
     /// The `calibration` message: the calibration in force.
     pub fn calibration_msg(&self) -> msgs::Calibration {
         let p = &self.params;
-        let since = self.in_force.applied_at.duration_since(UNIX_EPOCH).unwrap_or(Duration::ZERO);
-        let stamp = Time::from_nanos(i64::try_from(since.as_nanos()).unwrap_or(i64::MAX));
         msgs::Calibration {
-            header: Header { stamp, frame_id: p.output_frame_id.clone() },
+            header: Header { stamp: self.in_force.ros_time, frame_id: p.output_frame_id.clone() },
             valid: p.calibration_valid,
             model: self.in_force.model.clone(),
             scan_id: self.in_force.scan_id,

@@ -142,7 +142,7 @@ fn an_encoder_scale_error_is_refused_by_full_and_corrected_with_full_scale() {
     assert!(!out.response.success);
     assert!(out.response.message.contains("encoder scale looks off"), "{}", out.response.message);
     assert!(!st.params.calibration_valid, "the failed fit applied nothing");
-    let diag = st.diagnostics(Time::ZERO);
+    let diag = st.diagnostics(Now::at(UNIX_EPOCH));
     assert_eq!(diag.status[0].level, DiagnosticStatus::WARN);
     assert!(diag.status[0].message.contains("encoder scale looks off"), "{}", diag.status[0].message);
 
@@ -216,11 +216,14 @@ fn applied_calibrations_are_recorded_naming_the_one_they_replaced() {
     assert_eq!(b.alpha0, second.response.alpha0);
     assert_eq!(b.stddev, second.response.stddev);
     assert_eq!(b.iterations, second.response.iterations);
-    // The calibration message is the second, to the millisecond of its record.
+    // The calibration message is the second, stamped with its record's ROS time (the
+    // system time here: within the millisecond of its `time`).
     let msg = st.calibration_msg();
     assert!(msg.valid && msg.scan_id == 2 && msg.alpha0 == b.alpha0 && msg.stddev == b.stddev);
     assert_eq!(msg.header.frame_id, "tracer_axis");
-    assert_eq!(Some(UNIX_EPOCH + Duration::from_nanos(msg.header.stamp.to_nanos() as u64)), b.applied_at());
+    assert_eq!(Some(msg.header.stamp.to_nanos()), b.ros_time.map(records::RosTime::to_nanos));
+    let stamp = UNIX_EPOCH + Duration::from_nanos(msg.header.stamp.to_nanos() as u64);
+    assert!(stamp.duration_since(b.applied_at().unwrap()).unwrap() < Duration::from_millis(1));
 
     // A restart with the parameters the node persisted: the history supplies the fit.
     let file = params_file::read(Path::new(&params.params_file)).unwrap();
@@ -277,10 +280,7 @@ fn overdue_and_drifted_calibrations_warn_on_diagnostics() {
     st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
     assert!(st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false }).response.success);
     let applied = st.in_force.applied_at;
-    let at = |days: f64| {
-        let t = applied + Duration::from_secs_f64(days * 86_400.0);
-        Time::from_nanos(t.duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64)
-    };
+    let at = |days: f64| Now::at(applied + Duration::from_secs_f64(days * 86_400.0));
     let d = st.diagnostics(at(40.0));
     assert_eq!(d.status[0].level, DiagnosticStatus::OK, "no limit by default: {}", d.status[0].message);
     assert_eq!(diag_value(&d, "calibration_age_days"), "40.000");
@@ -314,8 +314,47 @@ fn a_calibration_set_by_parameters_is_published_as_such() {
     st.params.set("calibration.alpha0", &crate::params::ParamValue::Double(0.01)).unwrap();
     st.params.set("calibration.valid", &crate::params::ParamValue::Bool(true)).unwrap();
     let t = UNIX_EPOCH + Duration::from_secs(1_800_000_000);
-    st.calibration_set_by_parameters(t);
+    st.calibration_set_by_parameters(Now::at(t));
     let msg = st.calibration_msg();
     assert!(msg.valid && msg.alpha0 == 0.01 && msg.scan_id == 0 && msg.stddev.is_empty());
     assert_eq!((msg.header.stamp.to_nanos(), msg.model.as_str(), msg.scale), (1_800_000_000_000_000_000, "full", 1.0));
+}
+
+/// Under simulated time the stamps are the ROS clock's, the record keeps both clocks, and
+/// the calibration's age is system time.
+#[test]
+fn sim_time_stamps_and_records() {
+    let dir = std::env::temp_dir().join(format!("tracer_calib_cell_sim_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let history = dir.join("h.jsonl");
+    let _ = std::fs::remove_file(&history);
+    let params =
+        Parameters { history_file: history.display().to_string(), use_sim_time: true, ..Parameters::default() };
+    let mut st = NodeState::new("/t".into(), params);
+    assert_eq!(st.calibration_msg().header.stamp.to_nanos(), 0, "no /clock yet: ROS time 0");
+    let m = Mounting::new(0.02, 0.004, 0.001);
+    st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
+    let wall = UNIX_EPOCH + Duration::from_secs(1_800_000_000);
+    let sim = Time::from_nanos(5_003_250_000_000);
+    assert!(
+        st.on_calibrate_at(&CalibrateRequest { scan_id: 1, dry_run: false }, Now { wall, ros: sim }).response.success
+    );
+    assert_eq!(st.calibration_msg().header.stamp, sim);
+    let r = &records::file::read(&history).unwrap().records[0];
+    assert_eq!((r.applied_at(), r.ros_time), (Some(wall), Some(records::RosTime { sec: 5003, nanosec: 250_000_000 })));
+    let later = Now { wall: wall + Duration::from_secs(86_400), ros: Time::from_nanos(5_010_000_000_000) };
+    let d = st.diagnostics(later);
+    assert_eq!(d.header.stamp, later.ros);
+    assert_eq!(diag_value(&d, "calibration_age_days"), "1.000");
+    assert_eq!(diag_value(&d, "ros_time"), "5010.000");
+    // A restart reads the ROS time back from the record.
+    let mut again = NodeState::new("/t".into(), st.params.clone());
+    again.adopt_history(&records::file::read(&history).unwrap());
+    assert_eq!(again.calibration_msg().header.stamp, sim);
+    // No /clock for a while: the node says so.
+    st.clock_problem = "use_sim_time is true and no /clock ...".into();
+    let d = st.diagnostics(later);
+    assert_eq!(d.status[0].level, DiagnosticStatus::WARN);
+    assert!(d.status[0].message.contains("no /clock"), "{}", d.status[0].message);
+    let _ = std::fs::remove_dir_all(&dir);
 }

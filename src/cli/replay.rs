@@ -2,12 +2,15 @@
 //! `ros2 bag play`.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use ros2_client::{NodeName, NodeOptions, QosProfile, qos::*};
 
 use super::exit;
-use crate::interfaces::{Contour, RawScan, RosMsg};
+use crate::interfaces::standard::Clock;
+use crate::interfaces::{Contour, RawScan, RosMsg, Time};
 use crate::io::bag::Bag;
 use crate::rmw::RosEnv;
 
@@ -18,8 +21,14 @@ use crate::rmw::RosEnv;
 /// come from the environment as for any ROS node: ROS_DOMAIN_ID, and
 /// ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST to stay on 127.0.0.1.
 ///
+/// With --clock, /clock (rosgraph_msgs/msg/Clock) carries the bag's time as it plays, as
+/// `ros2 bag play --clock` publishes it: the first message's time while waiting for
+/// subscribers, then advancing with --rate (back to the start on each --loop), at HZ
+/// publications a second (default 40); nodes on `use_sim_time:=true` follow it.
+///
 /// Example:
 ///   tracer_calib replay --input scans.mcap --rate 2 --loop 3
+///   tracer_calib replay --input plate.mcap --clock
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -41,6 +50,34 @@ pub struct Args {
     /// Seconds to stay after the last message, for reliable delivery to finish.
     #[arg(long, default_value_t = 1.0)]
     pub linger: f64,
+    /// Also publish /clock from the bag's time, HZ times a second (default 40).
+    #[arg(long, value_name = "HZ", num_args = 0..=1, default_missing_value = "40")]
+    pub clock: Option<f64>,
+}
+
+/// The bag's time as the replay plays it: `bag_ns` at `at`, advancing `rate` times as fast
+/// as the system clock while `running`.
+#[derive(Debug, Clone, Copy)]
+struct PlayClock {
+    bag_ns: u64,
+    at: Instant,
+    rate: f64,
+    running: bool,
+}
+
+impl PlayClock {
+    fn now_ns(&self) -> u64 {
+        if self.running {
+            self.bag_ns + (self.at.elapsed().as_secs_f64() * self.rate * 1e9) as u64
+        } else {
+            self.bag_ns
+        }
+    }
+
+    /// Stand (or run from) `bag_ns`, from now.
+    fn set(&mut self, bag_ns: u64, running: bool) {
+        *self = PlayClock { bag_ns, at: Instant::now(), running, ..*self };
+    }
 }
 
 pub fn run(args: &Args) -> i32 {
@@ -65,6 +102,9 @@ enum Out {
 fn replay(args: &Args) -> Result<String, String> {
     if !(args.rate >= 0.0 && args.rate.is_finite()) {
         return Err(format!("--rate must be a number >= 0, got {}", args.rate));
+    }
+    if let Some(hz) = args.clock.filter(|hz| !(*hz > 0.0 && hz.is_finite())) {
+        return Err(format!("--clock must be a rate in Hz > 0, got {hz}"));
     }
     let bag = Bag::open(&args.input).map_err(|e| e.to_string())?;
     let wanted = |name: &str| args.topics.is_empty() || args.topics.iter().any(|t| t == name);
@@ -123,7 +163,38 @@ fn replay(args: &Args) -> Result<String, String> {
             raw_pubs.push(None);
         }
     }
+    // /clock as rosbag2's player publishes it: rclcpp's ClockQoS (best effort, keep last 1).
+    let clock_pub = match args.clock {
+        Some(_) => {
+            let name = ros2_client::Name::new("/", "clock").expect("a valid name");
+            let topic = node
+                .create_topic(&name, Clock::NAME.message_type_name(), &QosProfile::subscription_default())
+                .map_err(mk)?;
+            Some(node.create_publisher::<Clock>(&topic, None).map_err(mk)?)
+        }
+        None => None,
+    };
     let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
+    let first = timeline[0].0;
+    let play_clock =
+        Arc::new(Mutex::new(PlayClock { bag_ns: first, at: Instant::now(), rate: args.rate, running: false }));
+    let done = Arc::new(AtomicBool::new(false));
+    let clock_thread = match (clock_pub, args.clock) {
+        (Some(publisher), Some(hz)) => {
+            let (play_clock, done) = (play_clock.clone(), done.clone());
+            Some(std::thread::spawn(move || {
+                while !done.load(Ordering::Relaxed) {
+                    let ns = play_clock.lock().expect("clock lock").now_ns();
+                    let msg = Clock { clock: Time::from_nanos(i64::try_from(ns).unwrap_or(i64::MAX)) };
+                    if let Err(e) = publisher.publish(msg) {
+                        eprintln!("tracer_calib replay: cannot publish /clock: {e:?}");
+                    }
+                    std::thread::sleep(Duration::from_secs_f64(1.0 / hz));
+                }
+            }))
+        }
+        _ => None,
+    };
 
     let deadline = Instant::now() + Duration::from_secs_f64(args.wait.max(0.0));
     let matched = loop {
@@ -142,11 +213,14 @@ fn replay(args: &Args) -> Result<String, String> {
             args.wait
         );
     }
-    let first = timeline[0].0;
     let mut sent = 0u64;
     for _ in 0..args.loops {
         let start = Instant::now();
+        play_clock.lock().expect("clock lock").set(first, args.rate > 0.0);
         for (time, idx, msg) in &timeline {
+            if args.rate == 0.0 {
+                play_clock.lock().expect("clock lock").set(*time, false);
+            }
             if args.rate > 0.0 {
                 let due = Duration::from_nanos(((time - first) as f64 / args.rate) as u64);
                 if let Some(wait) = due.checked_sub(start.elapsed()) {
@@ -167,11 +241,18 @@ fn replay(args: &Args) -> Result<String, String> {
             sent += 1;
         }
     }
+    let last = timeline.last().expect("a message").0;
+    play_clock.lock().expect("clock lock").set(last, false);
     std::thread::sleep(Duration::from_secs_f64(args.linger.max(0.0)));
+    done.store(true, Ordering::Relaxed);
+    if let Some(t) = clock_thread {
+        let _ = t.join();
+    }
     drop(spinner);
     Ok(format!(
-        "published {sent} messages on {} from {}",
+        "published {sent} messages on {}{} from {}",
         topics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", "),
+        if args.clock.is_some() { ", and /clock" } else { "" },
         args.input.display()
     ))
 }

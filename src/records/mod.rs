@@ -54,6 +54,29 @@ pub struct Record {
     pub iterations: u32,
     /// The calibration this one replaced; `None` (`null`) if there was none.
     pub previous: Option<Previous>,
+    /// The node's ROS time when it was applied (simulated time under `use_sim_time`;
+    /// else the system time, as `time`). Absent in records written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ros_time: Option<RosTime>,
+}
+
+/// A ROS time (`builtin_interfaces/Time`): seconds and nanoseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RosTime {
+    pub sec: i32,
+    pub nanosec: u32,
+}
+
+impl RosTime {
+    /// From nanoseconds since the clock's epoch.
+    pub fn from_nanos(nanos: i64) -> RosTime {
+        RosTime { sec: nanos.div_euclid(1_000_000_000) as i32, nanosec: nanos.rem_euclid(1_000_000_000) as u32 }
+    }
+
+    /// Nanoseconds since the clock's epoch.
+    pub fn to_nanos(self) -> i64 {
+        i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)
+    }
 }
 
 /// The calibration a record replaced.
@@ -339,6 +362,7 @@ impl Record {
             samples_used: 400,
             iterations: 7,
             previous: None,
+            ros_time: None,
         }
     }
 }

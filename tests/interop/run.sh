@@ -8,6 +8,7 @@
 #      - test_graph.py, the node in the ROS graph (leaving it, matching, QoS), in a private
 #        network namespace too;
 #      - test_type_hash.py, type hashes and ~/get_type_description (REP-2016), likewise;
+#      - test_runtime.py, sim time, parameter descriptors, `-p` rules as rcl reads them;
 #      - test_two_hosts.py on two "hosts", network namespaces joined by a veth pair with
 #        multicast off (tests/interop/two_hosts.sh; root only);
 #   3. tests/interop/workspace.sh DISTRO: the README's `colcon build` in a workspace over
@@ -17,7 +18,8 @@
 # Nothing leaves the machine. Prints each part's time.
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), type_hash
-# test_type_hash.py's (type_hash: all), two_hosts test_two_hosts.py's scenarios (two_hosts:
+# test_type_hash.py's (type_hash: all), runtime or sim_time, replay_clock, describe,
+# rcl_param_rules test_runtime.py's (runtime: all), two_hosts test_two_hosts.py's scenarios (two_hosts:
 # all), cyclone or mixed test_cyclone.py's (cyclone: all); the others, node_suite.py's
 # tests; with names, 3 and 4 are skipped. No names: everything.
 # Also: after 1, tests/interop/ros2cli.sh installs the stock ros2 CLI and launch into the
@@ -36,11 +38,12 @@ export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
-node_tests=() graph=() type_hash=() two_hosts=() cyclone=()
+node_tests=() graph=() type_hash=() runtime=() two_hosts=() cyclone=()
 for a in "$@"; do
     case "$a" in
         graph*) graph+=("$a") ;;
         type_hash*) type_hash+=("$a") ;;
+        runtime | sim_time* | replay_clock | describe | rcl_param_rules) runtime+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
         cyclone*|mixed*) cyclone+=("$a") ;;
         *) node_tests+=("$a") ;;
@@ -84,6 +87,12 @@ for d in $DISTROS; do
         echo "run.sh: $d: test_type_hash.py (ROS 2 $d rclpy, release binaries)"
         peer_run netns.sh test_type_hash.py "$d" ${type_hash[@]+"${type_hash[@]}"} || failed+=("$d:test_type_hash")
         echo "run.sh: $d: test_type_hash.py $(took "$t0")"
+    fi
+    if [ "$#" -eq 0 ] || [ "${#runtime[@]}" -gt 0 ]; then
+        t0=$(now_ms)
+        echo "run.sh: $d: test_runtime.py (ROS 2 $d rclpy, release binaries)"
+        peer_run netns.sh test_runtime.py "$d" ${runtime[@]+"${runtime[@]}"} || failed+=("$d:test_runtime")
+        echo "run.sh: $d: test_runtime.py $(took "$t0")"
     fi
     if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
         if [ "$(id -u)" -ne 0 ]; then

@@ -3,7 +3,6 @@
 use std::time::{Duration, Instant};
 
 use log::debug;
-use ros2_client::builtin_interfaces::Time;
 
 use super::{Entities, Shared};
 
@@ -34,13 +33,32 @@ fn release_freed_memory() {
     }
 }
 
+/// How long the node waits for a first `/clock` under `use_sim_time` before /diagnostics
+/// warns that its time stands at 0.
+const CLOCK_PATIENCE: Duration = Duration::from_secs(3);
+
 /// Every second: the QoS reports that are due, the cell's diagnostics published; every
 /// 5 s the freed memory released. Never ends.
 pub(super) async fn run(e: &Entities, shared: &Shared) {
     let mut tick = 0u64;
+    // Since when the node has been on simulated time with no /clock.
+    let mut clock_silent_since: Option<Instant> = None;
     loop {
         shared.qos_reports.lock().expect("qos reports lock").flush(&e.node, Instant::now(), false);
-        let msg = shared.state.lock().expect("state lock").diagnostics(Time::now());
+        let now = shared.now();
+        let waiting = e.node.clock().use_sim_time() && now.ros.to_nanos() == 0;
+        let silent_since = if waiting { *clock_silent_since.get_or_insert_with(Instant::now) } else { Instant::now() };
+        clock_silent_since = waiting.then_some(silent_since);
+        let mut st = shared.state.lock().expect("state lock");
+        st.clock_problem = match silent_since.elapsed() {
+            silent if waiting && silent >= CLOCK_PATIENCE => format!(
+                "use_sim_time is true and no /clock (rosgraph_msgs/msg/Clock) has come for {:.0} s: the node's time stands at 0",
+                silent.as_secs_f64()
+            ),
+            _ => String::new(),
+        };
+        let msg = st.diagnostics(now);
+        drop(st);
         if let Err(err) = e.diagnostics.async_publish(msg).await {
             debug!("cannot publish diagnostics: {err:?}");
         }

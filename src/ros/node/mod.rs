@@ -28,13 +28,15 @@ mod type_description;
 
 use std::pin::Pin;
 use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
 
 use futures::{StreamExt, stream::FuturesUnordered};
 use log::{error, info, warn};
 
-use crate::cell::NodeState;
+use ros2_client::NodeClock;
+
+use crate::cell::{NodeState, Now};
 use crate::params::file as params_file;
 use crate::records;
 pub use config::Config;
@@ -56,6 +58,24 @@ struct Shared {
     polygon_wanted: AtomicBool,
     /// Remote endpoints with an incompatible QoS, reported once each.
     qos_reports: Mutex<QosReports>,
+    /// The node's clock (simulated under `use_sim_time`), once the node exists.
+    clock: Arc<OnceLock<NodeClock>>,
+}
+
+impl Shared {
+    /// Now, on the system clock and on the node's ROS clock.
+    fn now(&self) -> Now {
+        now_on(&self.clock)
+    }
+}
+
+/// Now, on the system clock and on `clock` (the system clock too until it is set).
+fn now_on(clock: &OnceLock<NodeClock>) -> Now {
+    let now = Now::system();
+    match clock.get() {
+        Some(clock) => Now { ros: clock.now().into(), ..now },
+        None => now,
+    }
 }
 
 /// The cell's state at start-up: the parameters, and what the history file says of the
@@ -109,9 +129,11 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         state,
         calibration_changed,
         polygon_wanted: AtomicBool::new(false),
+        clock: Arc::new(OnceLock::new()),
     };
     let options = parameters::options(&params, &qos, &shared);
     let entities = Entities::create(&env, &identity, options, &endpoints)?;
+    let _ = shared.clock.set(entities.node.clock());
     info!(
         "{fqn}: listening on {} (raw scans), serving {}; domain {}, discovery {:?}",
         endpoints.raw_scan.0, endpoints.calibrate, env.domain_id, env.discovery_range
