@@ -175,7 +175,7 @@ fn bad_input_exits_2_naming_the_problem() {
     let ok = write("good.csv", &good);
     let o = tool(&["calibrate", "--input", &ok, "--plate-side", "-1"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("--plate-side: plate side must be a positive length"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--plate-side: must be positive (greater than 0), got -1"), "{}", stderr(&o));
     let o = tool(&["calibrate", "--input", &ok, "--model", "magic"]);
     assert_eq!(o.status.code(), Some(2), "clap's own errors exit 2 too");
     let bad_params = write("bad.yaml", "tracer_calibrator:\n  ros__parameters:\n    plate.side: wide\n");
