@@ -51,7 +51,7 @@ fn namespaced_example_applies_to_its_node_only() {
     .unwrap();
     assert_eq!(c.params.get("model"), Some(ParamValue::String("paper".into())));
     let e = load(&["n", "--ros-args", "-p", "plate.side:=-2.0"]).unwrap_err();
-    assert!(e.starts_with("-p plate.side:=-2.0: plate side must be a positive length"), "{e}");
+    assert!(e.starts_with("-p plate.side:=-2.0: must be positive (greater than 0), got -2"), "{e}");
 }
 
 #[test]
@@ -65,5 +65,5 @@ fn history_file_defaults_beside_the_params_file_unless_set() {
     let c = load(&["n", "--ros-args", "-p", "params_file:=/x/p.yaml", "-p", "history_file:=''"]).unwrap();
     assert_eq!(c.params.history_file, "", "set to empty: no history");
     let e = load(&["n", "--ros-args", "-p", "plate.side:=-2.0"]).unwrap_err();
-    assert!(e.starts_with("-p plate.side:=-2.0: plate side must be a positive length"), "{e}");
+    assert!(e.starts_with("-p plate.side:=-2.0: must be positive (greater than 0), got -2"), "{e}");
 }
