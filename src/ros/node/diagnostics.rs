@@ -49,16 +49,18 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
         let waiting = e.node.clock().use_sim_time() && now.ros.to_nanos() == 0;
         let silent_since = if waiting { *clock_silent_since.get_or_insert_with(Instant::now) } else { Instant::now() };
         clock_silent_since = waiting.then_some(silent_since);
-        let mut st = shared.state.lock().expect("state lock");
-        st.clock_problem = match silent_since.elapsed() {
+        let clock_problem = match silent_since.elapsed() {
             silent if waiting && silent >= CLOCK_PATIENCE => format!(
                 "use_sim_time is true and no /clock (rosgraph_msgs/msg/Clock) has come for {:.0} s: the node's time stands at 0",
                 silent.as_secs_f64()
             ),
             _ => String::new(),
         };
-        let msg = st.diagnostics(now);
-        drop(st);
+        let msg = {
+            let mut st = shared.state.lock().expect("state lock");
+            st.clock_problem = clock_problem;
+            st.diagnostics(now)
+        };
         if let Err(err) = e.diagnostics.async_publish(msg).await {
             debug!("cannot publish diagnostics: {err:?}");
         }
