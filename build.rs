@@ -40,25 +40,6 @@ fn rust_name(ros_name: &str) -> String {
     }
 }
 
-/// The Rust type of a primitive, if `ty` is one.
-fn primitive(ty: &str) -> Option<&'static str> {
-    Some(match ty {
-        "bool" => "bool",
-        "byte" | "char" | "uint8" => "u8",
-        "int8" => "i8",
-        "int16" => "i16",
-        "uint16" => "u16",
-        "int32" => "i32",
-        "uint32" => "u32",
-        "int64" => "i64",
-        "uint64" => "u64",
-        "float32" => "f32",
-        "float64" => "f64",
-        t if t == "string" || t.starts_with("string<=") => "String",
-        _ => return None,
-    })
-}
-
 /// One interface type to generate.
 struct Type {
     /// `pkg/msg/Name` or `pkg/srv/Name_Request`.
@@ -80,7 +61,7 @@ type Traits = BTreeMap<String, (bool, bool, bool)>;
 
 fn rust_field_type(ty: &str, package: &str) -> String {
     let (base, suffix) = syntax::split_array(ty);
-    let elem = match primitive(base) {
+    let elem = match syntax::rust_primitive(base) {
         Some(p) => p.to_string(),
         None => match syntax::field_message_type(base, package).as_deref() {
             Some("builtin_interfaces/msg/Time") => "crate::interfaces::Time".to_string(),
@@ -102,7 +83,7 @@ fn rust_field_type(ty: &str, package: &str) -> String {
 fn field_traits(ty: &str, package: &str, known: &Traits) -> (bool, bool, bool) {
     let (base, suffix) = syntax::split_array(ty);
     let sequence = suffix.contains("[]") || suffix.contains("<=");
-    match primitive(base) {
+    match syntax::rust_primitive(base) {
         Some(p) => (p.starts_with('f'), p != "String" && !sequence, true),
         None => match syntax::field_message_type(base, package).as_deref() {
             // ros2-client's Time: no floats, Copy, no Default.
@@ -170,7 +151,8 @@ fn generate(t: &Type, known: &mut Traits, out: &mut String) {
     if !constants.is_empty() {
         writeln!(out, "impl {} {{", t.rust).unwrap();
         for c in constants {
-            let ty = primitive(c.ty).unwrap_or_else(|| panic!("{}: constant {} of type {}", t.ros_name, c.name, c.ty));
+            let ty = syntax::rust_primitive(c.ty)
+                .unwrap_or_else(|| panic!("{}: constant {} of type {}", t.ros_name, c.name, c.ty));
             let value = c.constant.unwrap_or_default();
             let value = if ty == "String" { format!("{value:?}") } else { value.to_string() };
             let ty = if ty == "String" { "&str" } else { ty };

@@ -236,27 +236,14 @@ fn ros_kind(ros_type: &str) -> Result<String, String> {
             format!("array of {n} {elem}")
         });
     }
-    let prim = match ros_type {
-        "bool" => "bool",
-        "byte" | "char" | "uint8" => "u8",
-        "int8" => "i8",
-        "int16" => "i16",
-        "uint16" => "u16",
-        "int32" => "i32",
-        "uint32" => "u32",
-        "int64" => "i64",
-        "uint64" => "u64",
-        "float32" => "f32",
-        "float64" => "f64",
-        "string" => "str",
-        t if t.starts_with("string<=") => "str",
-        t if t == "wstring" || t.starts_with("wstring<=") => return Err("wstring is not mirrored".into()),
-        t => {
-            let name = t.rsplit('/').next().unwrap_or(t);
-            return Ok(format!("struct {name}"));
-        }
-    };
-    Ok(prim.to_string())
+    if ros_type == "wstring" || ros_type.starts_with("wstring<=") {
+        return Err("wstring is not mirrored".into());
+    }
+    Ok(match super::syntax::rust_primitive(ros_type) {
+        Some("String") => "str".to_string(), // serde's kind of a String
+        Some(prim) => prim.to_string(),
+        None => format!("struct {}", ros_type.rsplit('/').next().unwrap_or(ros_type)),
+    })
 }
 
 /// Checks that `value` serializes exactly as the field list says: same field names, same

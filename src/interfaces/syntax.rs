@@ -137,3 +137,23 @@ pub fn normalize_type(field_type: &str, package: &str) -> String {
         None => field_type.to_string(),
     }
 }
+
+/// The Rust type of a ROS primitive field type (`float64` -> `f64`, `string<=10` ->
+/// `String`), if `ty` is one: what the generated structs hold, what their serde shape is.
+pub fn rust_primitive(ty: &str) -> Option<&'static str> {
+    Some(match ty {
+        "bool" => "bool",
+        "byte" | "char" | "uint8" => "u8",
+        "int8" => "i8",
+        "int16" => "i16",
+        "uint16" => "u16",
+        "int32" => "i32",
+        "uint32" => "u32",
+        "int64" => "i64",
+        "uint64" => "u64",
+        "float32" => "f32",
+        "float64" => "f64",
+        t if t == "string" || t.starts_with("string<=") => "String",
+        _ => return None,
+    })
+}
