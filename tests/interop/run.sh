@@ -64,36 +64,31 @@ peer_run() {
     ' "$HERE/$script" "$ROOT" "$d" "$@"
 }
 failed=()
+all=$(( $# == 0 ))
+# suite SCRIPT DISTRO WHAT FAILURE [NAME...]: a test script in a private network namespace
+# (peer_run), with the NAMEs selected for it; skipped when names were given to run.sh and
+# none is its own. Prints its time; a failure is recorded as DISTRO:FAILURE.
+suite() {
+    local script=$1 d=$2 what=$3 failure=$4
+    shift 4
+    [ "$all" -eq 1 ] || [ "$#" -gt 0 ] || return 0
+    local t0
+    t0=$(now_ms)
+    echo "run.sh: $d: $script ($what)"
+    peer_run netns.sh "$script" "$d" "$@" || failed+=("$d:$failure")
+    echo "run.sh: $d: $script $(took "$t0")"
+}
 for d in $DISTROS; do
     t0=$(now_ms)
     "$HERE/setup.sh" "$d" >/dev/null
     # The stock ros2 CLI and launch in the venv (quick when installed): test_cyclone.py's.
     "$HERE/ros2cli.sh" "$d"
     echo "run.sh: $d: setup $(took "$t0")"
-    if [ "$#" -eq 0 ] || [ "${#node_tests[@]}" -gt 0 ]; then
-        t0=$(now_ms)
-        echo "run.sh: $d: node_suite.py (test_node.py, test_records.py; ROS 2 $d rclpy, release binaries)"
-        peer_run netns.sh node_suite.py "$d" ${node_tests[@]+"${node_tests[@]}"} || failed+=("$d:node_suite")
-        echo "run.sh: $d: node_suite.py $(took "$t0")"
-    fi
-    if [ "$#" -eq 0 ] || [ "${#graph[@]}" -gt 0 ]; then
-        t0=$(now_ms)
-        echo "run.sh: $d: test_graph.py (ROS 2 $d rclpy, release binaries)"
-        peer_run netns.sh test_graph.py "$d" ${graph[@]+"${graph[@]}"} || failed+=("$d:test_graph")
-        echo "run.sh: $d: test_graph.py $(took "$t0")"
-    fi
-    if [ "$#" -eq 0 ] || [ "${#type_hash[@]}" -gt 0 ]; then
-        t0=$(now_ms)
-        echo "run.sh: $d: test_type_hash.py (ROS 2 $d rclpy, release binaries)"
-        peer_run netns.sh test_type_hash.py "$d" ${type_hash[@]+"${type_hash[@]}"} || failed+=("$d:test_type_hash")
-        echo "run.sh: $d: test_type_hash.py $(took "$t0")"
-    fi
-    if [ "$#" -eq 0 ] || [ "${#runtime[@]}" -gt 0 ]; then
-        t0=$(now_ms)
-        echo "run.sh: $d: test_runtime.py (ROS 2 $d rclpy, release binaries)"
-        peer_run netns.sh test_runtime.py "$d" ${runtime[@]+"${runtime[@]}"} || failed+=("$d:test_runtime")
-        echo "run.sh: $d: test_runtime.py $(took "$t0")"
-    fi
+    suite node_suite.py "$d" "test_node.py, test_records.py; ROS 2 $d rclpy, release binaries" node_suite \
+        ${node_tests[@]+"${node_tests[@]}"}
+    suite test_graph.py "$d" "ROS 2 $d rclpy, release binaries" test_graph ${graph[@]+"${graph[@]}"}
+    suite test_type_hash.py "$d" "ROS 2 $d rclpy, release binaries" test_type_hash ${type_hash[@]+"${type_hash[@]}"}
+    suite test_runtime.py "$d" "ROS 2 $d rclpy, release binaries" test_runtime ${runtime[@]+"${runtime[@]}"}
     if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
         if [ "$(id -u)" -ne 0 ]; then
             echo "run.sh: $d: two_hosts skipped (needs root for ip netns)"
