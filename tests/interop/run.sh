@@ -8,6 +8,8 @@
 #      - test_graph.py, the node in the ROS graph (leaving it, matching, QoS), in a private
 #        network namespace too;
 #      - test_type_hash.py, type hashes and ~/get_type_description (REP-2016), likewise;
+#      - test_first_scan.py, a new driver's first scan reaches the node at once (50 fresh
+#        rclpy peers on Fast DDS; for Jazzy also on Cyclone DDS, after cyclone.sh), likewise;
 #      - test_two_hosts.py on two "hosts", network namespaces joined by a veth pair with
 #        multicast off (tests/interop/two_hosts.sh; root only);
 #   3. tests/interop/workspace.sh DISTRO: the README's `colcon build` in a workspace over
@@ -17,7 +19,8 @@
 # Nothing leaves the machine. Prints each part's time.
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), type_hash
-# test_type_hash.py's (type_hash: all), two_hosts test_two_hosts.py's scenarios (two_hosts:
+# test_type_hash.py's (type_hash: all), first_scan test_first_scan.py's (first_scan: all;
+# first_scan_fastdds, first_scan_cyclone), two_hosts test_two_hosts.py's scenarios (two_hosts:
 # all), cyclone or mixed test_cyclone.py's (cyclone: all); the others, node_suite.py's
 # tests; with names, 3 and 4 are skipped. No names: everything.
 # Also: after 1, tests/interop/ros2cli.sh installs the stock ros2 CLI and launch into the
@@ -36,11 +39,12 @@ export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
-node_tests=() graph=() type_hash=() two_hosts=() cyclone=()
+node_tests=() graph=() type_hash=() first_scan=() two_hosts=() cyclone=()
 for a in "$@"; do
     case "$a" in
         graph*) graph+=("$a") ;;
         type_hash*) type_hash+=("$a") ;;
+        first_scan*) first_scan+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
         cyclone*|mixed*) cyclone+=("$a") ;;
         *) node_tests+=("$a") ;;
@@ -84,6 +88,17 @@ for d in $DISTROS; do
         echo "run.sh: $d: test_type_hash.py (ROS 2 $d rclpy, release binaries)"
         peer_run netns.sh test_type_hash.py "$d" ${type_hash[@]+"${type_hash[@]}"} || failed+=("$d:test_type_hash")
         echo "run.sh: $d: test_type_hash.py $(took "$t0")"
+    fi
+    if [ "$#" -eq 0 ] || [ "${#first_scan[@]}" -gt 0 ]; then
+        t0=$(now_ms)
+        # Its Cyclone DDS peers need rmw_cyclonedds_cpp (Jazzy only: see 2b); without it
+        # first_scan_cyclone says it is skipped.
+        if [ "$d" = jazzy ] && ! "$HERE/cyclone.sh" "$d"; then
+            failed+=("$d:cyclone_setup")
+        fi
+        echo "run.sh: $d: test_first_scan.py (ROS 2 $d rclpy, release binaries)"
+        peer_run netns.sh test_first_scan.py "$d" ${first_scan[@]+"${first_scan[@]}"} || failed+=("$d:test_first_scan")
+        echo "run.sh: $d: test_first_scan.py $(took "$t0")"
     fi
     if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
         if [ "$(id -u)" -ne 0 ]; then
