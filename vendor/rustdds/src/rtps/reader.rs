@@ -1424,6 +1424,21 @@ impl Reader {
   fn send_preemptive_acknack_to(&self, writer_proxy: &mut RtpsWriterProxy) {
     let flags = BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness);
     let acknack_count = writer_proxy.next_ack_nack_sequence_number();
+    // tracer_calib patch: begin (the preemptive ACKNACK in the form the writer answers)
+    // RTPS 2.5 (8.3.5.5) has an empty set based at 1 mean "nothing received". A Fast
+    // DDS writer reads that as an ordinary acknowledgement and sends nothing: a
+    // reader that matched it after its HEARTBEAT and its first samples (dropped, the
+    // writer unknown then) waits for its next periodic HEARTBEAT, 3 s for a user
+    // writer. Fast DDS takes only an empty set based at 0 as a preemptive ACKNACK and
+    // answers it with a HEARTBEAT at once; its own readers send that form (as RTI
+    // Connext's do), and Cyclone DDS accepts it from those vendors only. So: base 0
+    // to eProsima writers, the RTPS form to everyone else.
+    let base = if writer_proxy.remote_vendor_id == VendorId::EPROSIMA {
+      SequenceNumber::new(0)
+    } else {
+      SequenceNumber::new(1)
+    };
+    // tracer_calib patch: end
     let RtpsWriterProxy {
       remote_writer_guid,
       unicast_locator_list,
@@ -1434,7 +1449,7 @@ impl Reader {
       AckNack {
         reader_id: self.entity_id(),
         writer_id: remote_writer_guid.entity_id,
-        reader_sn_state: SequenceNumberSet::new_empty(SequenceNumber::new(1)),
+        reader_sn_state: SequenceNumberSet::new_empty(base), // tracer_calib patch
         count: acknack_count,
       },
       InfoDestination {
