@@ -2229,6 +2229,28 @@ impl Writer {
     self.recompute_min_datagram_payload();
   }
 
+  // tracer_calib patch: begin (match a reader from a withheld announcement)
+  // Matches a remote reader known only from an announcement that Discovery has not
+  // read yet (`DPEventLoop::match_withheld_announcements`), so that what we write
+  // now reaches it. Only a reader not matched yet and whose QoS is compatible: the
+  // announcement reaches Discovery later, in order, and `update_reader_proxy` then
+  // finds the reader matched (no second match event) or, with an incompatible QoS,
+  // reports it once, as before.
+  pub fn match_reader_early(&mut self, proxy: &RtpsReaderProxy, requested_qos: &QosPolicies) {
+    if self.like_stateless
+      || self.readers.contains_key(&proxy.remote_reader_guid)
+      || self.qos_policies.compliance_failure_wrt(requested_qos).is_some()
+    {
+      return;
+    }
+    debug!(
+      "Matching remote reader {:?} on topic={:?} from a withheld announcement",
+      proxy.remote_reader_guid, self.my_topic_name
+    );
+    self.update_reader_proxy(proxy, requested_qos);
+  }
+  // tracer_calib patch: end
+
   fn matched_reader_remove(&mut self, guid: GUID) -> Option<RtpsReaderProxy> {
     let removed = self.readers.remove(&guid);
     if let Some(ref removed_reader) = removed {
