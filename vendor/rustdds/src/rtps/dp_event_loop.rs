@@ -1088,6 +1088,10 @@ impl DPEventLoop {
         }
       }
     }
+    // tracer_calib patch: what the writer sent before it was matched
+    self
+      .message_receiver
+      .replay_unmatched(remote_writer.writer_proxy.remote_writer_guid);
   }
 
   // tracer_calib patch: begin (match the endpoints of withheld announcements)
@@ -1198,6 +1202,7 @@ impl DPEventLoop {
           );
         }
       }
+      self.message_receiver.replay_unmatched(writer_guid);
     }
   }
   // tracer_calib patch: end

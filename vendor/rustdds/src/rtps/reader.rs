@@ -462,6 +462,11 @@ impl Reader {
     }
   }
 
+  // tracer_calib patch: whether `writer` is a matched writer of this reader
+  pub fn has_matched_writer(&self, writer: GUID) -> bool {
+    !self.like_stateless && self.matched_writers.contains_key(&writer)
+  }
+
   // tracer_calib patch: begin (match a writer from a withheld announcement)
   // The endpoint announcements received but not yet handed over (see
   // `withheld_announcements`).
