@@ -2192,6 +2192,12 @@ impl Writer {
         new_proxy.resolve_path_mtu(&self.local_interfaces);
         new_proxy
       });
+    if is_new {
+      // tracer_calib patch: for `DataWriter::wait_for_matched_reader`
+      self
+        .send_buffer
+        .set_reader_matched(updated_reader_proxy.remote_reader_guid, true);
+    }
     // A reader was added or its locators changed: refresh the writer-wide
     // minimum datagram budget used for packing.
     self.recompute_min_datagram_payload();
@@ -2254,6 +2260,7 @@ impl Writer {
   fn matched_reader_remove(&mut self, guid: GUID) -> Option<RtpsReaderProxy> {
     let removed = self.readers.remove(&guid);
     if let Some(ref removed_reader) = removed {
+      self.send_buffer.set_reader_matched(guid, false); // tracer_calib patch
       info!(
         "Removed reader proxy. topic={:?} reader={:?}",
         self.topic_name(),
