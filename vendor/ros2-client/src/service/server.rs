@@ -215,9 +215,60 @@ where
       .unwrap()
       .take(&rmw_req_id)
       .unwrap_or((self.service_mapping, GUID::GUID_UNKNOWN));
+    self.wait_for_client_reader(rmw_req_id, mapping, writer);
     let resp_wrapper =
       ResponseWrapper::<Resp>::new(mapping, rmw_req_id, RepresentationIdentifier::CDR_LE, response)?;
     Ok((resp_wrapper, self.write_options(rmw_req_id, mapping, writer)))
+  }
+
+  /// PATCH (tracer_calib): how long a response waits for its client's response reader
+  /// to be matched (`wait_for_client_reader`).
+  const CLIENT_READER_WAIT: Duration = Duration::from_millis(500);
+
+  /// PATCH (tracer_calib): wait, at most `CLIENT_READER_WAIT`, until our response
+  /// writer has matched the response reader of the client that sent `rmw_req_id`.
+  ///
+  /// A client sends its first request as soon as it has matched our request reader
+  /// and response writer, which says nothing about whether we have matched its
+  /// response reader yet: the two sides discover each other on their own. A response
+  /// written before that (a VOLATILE writer) never reaches the client, which waits
+  /// for good. rmw_cyclonedds_cpp and rmw_fastrtps_cpp servers wait 100 ms for the
+  /// client's reader for the same reason (`rmw_send_response`); this waits longer,
+  /// since the alternative is a lost response. The reader is the one a Fast DDS
+  /// client names in the request (Enhanced: `writer_gid`, when it is a reader's); for
+  /// a Cyclone DDS client (a client id, not a GUID, in the request), a reader of the
+  /// requesting participant. Other requests do not wait, nor does a reader already
+  /// matched (the common case: a check under the send buffer's lock).
+  fn wait_for_client_reader(
+    &self,
+    rmw_req_id: RmwRequestId,
+    mapping: ServiceMapping,
+    request_writer: GUID,
+  ) {
+    let matched = match mapping {
+      ServiceMapping::Enhanced => {
+        let reader = GUID::from(rmw_req_id.writer_gid);
+        if !reader.entity_id.entity_kind.is_reader() {
+          return;
+        }
+        self
+          .response_sender
+          .wait_for_matched_reader(|r| r == reader, Self::CLIENT_READER_WAIT)
+      }
+      ServiceMapping::Cyclone if request_writer != GUID::GUID_UNKNOWN => {
+        let prefix = request_writer.prefix;
+        self
+          .response_sender
+          .wait_for_matched_reader(|r| r.prefix == prefix, Self::CLIENT_READER_WAIT)
+      }
+      _ => return,
+    };
+    if !matched {
+      debug!(
+        "response to {rmw_req_id:?}: the client's response reader is not matched after {:?}",
+        Self::CLIENT_READER_WAIT
+      );
+    }
   }
 
   /// PATCH (tracer_calib): the response reader of the Cyclone DDS client whose
