@@ -265,22 +265,29 @@ impl WriterSendBuffer {
   }
 
   /// tracer_calib patch: wait until some reader the Writer has matched satisfies
-  /// `accept`, at most `max_wait`. Returns whether one does.
+  /// `accept`, at most `max_wait`. Returns the matched readers that do (empty if none
+  /// did within `max_wait`).
   pub fn wait_for_matched_reader(
     &self,
     accept: impl Fn(GUID) -> bool,
     max_wait: StdDuration,
-  ) -> bool {
+  ) -> Vec<GUID> {
     let shared = &*self.shared;
     let mut inner = shared.inner.lock().unwrap();
     let deadline = Instant::now() + max_wait;
     loop {
-      if inner.matched_readers.iter().any(|r| accept(*r)) {
-        return true;
+      let accepted: Vec<GUID> = inner
+        .matched_readers
+        .iter()
+        .copied()
+        .filter(|r| accept(*r))
+        .collect();
+      if !accepted.is_empty() {
+        return accepted;
       }
       let now = Instant::now();
       if now >= deadline {
-        return false;
+        return accepted;
       }
       let (guard, _to) = shared.progress.wait_timeout(inner, deadline - now).unwrap();
       inner = guard;

@@ -136,7 +136,7 @@ where
     &self,
     accept: impl Fn(GUID) -> bool,
     max_wait: std::time::Duration,
-  ) -> bool {
+  ) -> Vec<GUID> {
     self.keyed_datawriter.wait_for_matched_reader(accept, max_wait)
   }
 
