@@ -9,7 +9,8 @@
 #        network namespace too;
 #      - test_type_hash.py, type hashes and ~/get_type_description (REP-2016), likewise;
 #      - test_first_scan.py, a new driver's first scan reaches the node at once (50 fresh
-#        rclpy peers on Fast DDS; for Jazzy also on Cyclone DDS, after cyclone.sh), likewise;
+#        rclpy peers on Fast DDS; for Jazzy also on Cyclone DDS, after cyclone.sh), and a
+#        new client's first call is answered at once (20 fresh clients), likewise;
 #      - test_two_hosts.py on two "hosts", network namespaces joined by a veth pair with
 #        multicast off (tests/interop/two_hosts.sh; root only);
 #   3. tests/interop/workspace.sh DISTRO: the README's `colcon build` in a workspace over
@@ -20,7 +21,8 @@
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), type_hash
 # test_type_hash.py's (type_hash: all), first_scan test_first_scan.py's (first_scan: all;
-# first_scan_fastdds, first_scan_cyclone), two_hosts test_two_hosts.py's scenarios (two_hosts:
+# first_scan_fastdds, first_scan_cyclone, first_scan_call_fastdds, first_scan_call_cyclone),
+# two_hosts test_two_hosts.py's scenarios (two_hosts:
 # all), cyclone or mixed test_cyclone.py's (cyclone: all); the others, node_suite.py's
 # tests; with names, 3 and 4 are skipped. No names: everything.
 # Also: after 1, tests/interop/ros2cli.sh installs the stock ros2 CLI and launch into the

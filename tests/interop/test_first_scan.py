@@ -17,9 +17,14 @@ waited for up to 6 s so that the figures show how late they were.
 
 - first_scan_fastdds: the peers on rmw_fastrtps_cpp (this process's environment);
 - first_scan_cyclone: the peers on rmw_cyclonedds_cpp (target/ros/DISTRO/cyclone_env.sh,
-  made by tests/interop/cyclone.sh; skipped with a message when it is missing).
+  made by tests/interop/cyclone.sh; skipped with a message when it is missing);
+- first_scan_call_fastdds, first_scan_call_cyclone: the same for a service client, CALL_TRIES
+  (default 20) times: a fresh rclpy process calls /calibrate as soon as the service is
+  ready; the answer must come within LIMIT (a client whose request comes before the node
+  has matched its response reader must not wait for good, nor for a repair).
 
-    python test_first_scan.py [first_scan | first_scan_fastdds | first_scan_cyclone]...
+    python test_first_scan.py [first_scan | first_scan_fastdds | first_scan_cyclone
+                               | first_scan_call_fastdds | first_scan_call_cyclone]...
 
 Run by tests/interop/run.sh inside a private network namespace (selector `first_scan`),
 with target/ros/DISTRO/env.sh sourced. Environment: FIRST_SCAN_TRIES (50),
@@ -36,6 +41,7 @@ import sys
 import time
 
 TRIES = int(os.environ.get("FIRST_SCAN_TRIES", "50"))
+CALL_TRIES = int(os.environ.get("FIRST_SCAN_CALL_TRIES", "20"))
 LIMIT = float(os.environ.get("FIRST_SCAN_LIMIT_MS", "100")) / 1000.0
 WAIT_LATE = 6.0
 
@@ -81,6 +87,31 @@ def peer_main(plate_csv, scan_id):
     sys.stdin.read()
     node.destroy_node()
     rclpy.shutdown()
+
+
+def client_main():
+    """The client: a fresh participant, one /calibrate call as soon as the service is
+    ready. Prints {"answer": seconds from the call to its answer, or null}."""
+    import rclpy
+    from rclpy.node import Node
+
+    from tracer_calib_msgs.srv import Calibrate
+
+    rclpy.init()
+    node = Node("first_call_client")
+    client = node.create_client(Calibrate, "/calibrate")
+    t0 = time.monotonic()
+    while not client.service_is_ready():
+        if time.monotonic() - t0 > 20:
+            print(json.dumps({"error": "no service within 20 s"}), flush=True)
+            return
+        rclpy.spin_once(node, timeout_sec=0.001)
+    called = time.monotonic()
+    future = client.call_async(Calibrate.Request(dry_run=True))
+    while not future.done() and time.monotonic() - called < WAIT_LATE:
+        rclpy.spin_once(node, timeout_sec=0.001)
+    answered = time.monotonic() - called if future.done() else None
+    print(json.dumps({"answer": answered, "ready_after": called - t0}), flush=True)
 
 
 def stock_node_main():
@@ -190,6 +221,26 @@ def first_scans(peer, env, label, scan_base):
         peer.node.destroy_subscription(sub)
 
 
+def first_calls(env, label):
+    """CALL_TRIES fresh clients, one call each: the latencies (seconds; None: no answer)."""
+    latencies = []
+    for k in range(CALL_TRIES):
+        out = subprocess.run(
+            ["timeout", "-s", "KILL", "60", sys.executable, os.path.abspath(__file__), "--client"],
+            env=env,
+            capture_output=True,
+            text=True,
+        )
+        lines = out.stdout.strip().splitlines()
+        assert lines, f"call try {k}: the client printed nothing (exit {out.returncode}):\n{out.stderr[-2000:]}"
+        info = json.loads(lines[-1])
+        assert "answer" in info, info
+        latencies.append(info["answer"])
+        shown = "no answer" if info["answer"] is None else f"{info['answer'] * 1e3:.1f} ms"
+        print(f"  {label} call {k + 1}: service ready after {info['ready_after'] * 1e3:.0f} ms, answer {shown}", flush=True)
+    return latencies
+
+
 def summarize(label, latencies):
     got = [x for x in latencies if x is not None]
     in_time = sum(1 for x in got if x <= LIMIT)
@@ -229,9 +280,29 @@ def test_first_scan(peer, envs, rmw, scan_base):
     return text
 
 
+def test_first_call(envs, rmw):
+    import harness as h
+
+    env = envs[rmw]
+    if env is None:
+        return "skipped: no cyclone_env.sh (tests/interop/cyclone.sh builds it)"
+    node = h.NodeProcess(f"first_call_{rmw}", [])
+    try:
+        time.sleep(1.0)  # the node up; each client then finds it as a new peer does
+        latencies = first_calls(env, f"call {rmw}")
+    finally:
+        node.stop()
+    in_time, text = summarize(f"call {rmw}", latencies)
+    assert in_time == len(latencies), text
+    return text
+
+
 def main():
     if sys.argv[1:2] == ["--peer"]:
         peer_main(sys.argv[2], int(sys.argv[3]))
+        os._exit(0)
+    if sys.argv[1:2] == ["--client"]:
+        client_main()
         os._exit(0)
     if sys.argv[1:2] == ["--stock-node"]:
         stock_node_main()
@@ -247,6 +318,8 @@ def main():
     tests = [
         ("fastdds", lambda: test_first_scan(peer, envs, "fastdds", 10000)),
         ("cyclone", lambda: test_first_scan(peer, envs, "cyclone", 20000)),
+        ("call_fastdds", lambda: test_first_call(envs, "fastdds")),
+        ("call_cyclone", lambda: test_first_call(envs, "cyclone")),
     ]
     only = [a.removeprefix("first_scan_") for a in sys.argv[1:] if a != "first_scan"]
 
