@@ -91,8 +91,14 @@ def peer_main(mode):
     client = peer.param_client("/tracer_calibrator", timeout=40)
     got = peer.param(lambda: client.get_parameters(["plate.side", "calibration.valid"]))
     assert abs(got.values[0].double_value - 0.045) < 1e-15 and got.values[1].bool_value is True, got
-    assert "tracer_calibrator" in peer.node.get_node_names()
-    print(f"peer: node found in {found:.1f} s; calibrate, contour, polygon, parameters ok", flush=True)
+    # The node's name comes with its ros_discovery_info, which may come after its
+    # endpoints (the exchange above can be over within a second).
+    peer.spin_until(lambda: "tracer_calibrator" in peer.node.get_node_names(), 10, "the node's name")
+    named = time.monotonic() - t0
+    print(
+        f"peer: node found in {found:.1f} s, named in {named:.1f} s; calibrate, contour, polygon, parameters ok",
+        flush=True,
+    )
     os._exit(0)
 
 

@@ -215,9 +215,66 @@ where
       .unwrap()
       .take(&rmw_req_id)
       .unwrap_or((self.service_mapping, GUID::GUID_UNKNOWN));
+    let waited = self.wait_for_client_reader(rmw_req_id, mapping, writer);
     let resp_wrapper =
       ResponseWrapper::<Resp>::new(mapping, rmw_req_id, RepresentationIdentifier::CDR_LE, response)?;
-    Ok((resp_wrapper, self.write_options(rmw_req_id, mapping, writer)))
+    Ok((
+      resp_wrapper,
+      self.write_options(rmw_req_id, mapping, writer, &waited),
+    ))
+  }
+
+  /// PATCH (tracer_calib): how long a response waits for its client's response reader
+  /// to be matched (`wait_for_client_reader`).
+  const CLIENT_READER_WAIT: Duration = Duration::from_millis(500);
+
+  /// PATCH (tracer_calib): wait, at most `CLIENT_READER_WAIT`, until our response
+  /// writer has matched the response reader of the client that sent `rmw_req_id`.
+  ///
+  /// A client sends its first request as soon as it has matched our request reader
+  /// and response writer, which says nothing about whether we have matched its
+  /// response reader yet: the two sides discover each other on their own. A response
+  /// written before that (a VOLATILE writer) never reaches the client, which waits
+  /// for good. rmw_cyclonedds_cpp and rmw_fastrtps_cpp servers wait 100 ms for the
+  /// client's reader for the same reason (`rmw_send_response`); this waits longer,
+  /// since the alternative is a lost response. The reader is the one a Fast DDS
+  /// client names in the request (Enhanced: `writer_gid`, when it is a reader's); for
+  /// a Cyclone DDS client (a client id, not a GUID, in the request), a reader of the
+  /// requesting participant. Other requests do not wait, nor does a reader already
+  /// matched (the common case: a check under the send buffer's lock). Returns the
+  /// readers waited for that are matched (RustDDS' own record, which the Spinner's
+  /// map and the discovery data may not show yet: see `write_options`).
+  fn wait_for_client_reader(
+    &self,
+    rmw_req_id: RmwRequestId,
+    mapping: ServiceMapping,
+    request_writer: GUID,
+  ) -> Vec<GUID> {
+    let matched = match mapping {
+      ServiceMapping::Enhanced => {
+        let reader = GUID::from(rmw_req_id.writer_gid);
+        if !reader.entity_id.entity_kind.is_reader() {
+          return Vec::new();
+        }
+        self
+          .response_sender
+          .wait_for_matched_reader(|r| r == reader, Self::CLIENT_READER_WAIT)
+      }
+      ServiceMapping::Cyclone if request_writer != GUID::GUID_UNKNOWN => {
+        let prefix = request_writer.prefix;
+        self
+          .response_sender
+          .wait_for_matched_reader(|r| r.prefix == prefix, Self::CLIENT_READER_WAIT)
+      }
+      _ => return Vec::new(),
+    };
+    if matched.is_empty() {
+      debug!(
+        "response to {rmw_req_id:?}: the client's response reader is not matched after {:?}",
+        Self::CLIENT_READER_WAIT
+      );
+    }
+    matched
   }
 
   /// PATCH (tracer_calib): the response reader of the Cyclone DDS client whose
@@ -271,11 +328,18 @@ where
   /// GUID is a reader matched with our response writer, the response goes to it
   /// alone (the others get a GAP); otherwise (other vendors, a match not seen yet)
   /// to all, as before.
+  ///
+  /// `waited`: the client's readers RustDDS has matched (`wait_for_client_reader`).
+  /// RustDDS can match a reader from its announcement before Discovery has read it
+  /// (`vendor/rustdds/PATCHES.md`), so before the Spinner's map and the discovery
+  /// data show it: then that reader is taken (for a Cyclone DDS client, if it is the
+  /// only one of its participant).
   fn write_options(
     &self,
     rmw_req_id: RmwRequestId,
     mapping: ServiceMapping,
     request_writer: GUID,
+    waited: &[GUID],
   ) -> WriteOptions {
     let options = WriteOptionsBuilder::new()
       .source_timestamp(Timestamp::now()) // always add source timestamp
@@ -285,17 +349,24 @@ where
       // But maybe it is not harmful to send it in both?
       .related_sample_identity(SampleIdentity::from(rmw_req_id));
     let matched_readers = self.matched_readers.lock().unwrap();
-    let Some(matched) = matched_readers.get(&self.response_sender.guid()) else {
-      return options.build();
-    };
+    let no_readers = BTreeSet::new();
+    let matched = matched_readers
+      .get(&self.response_sender.guid())
+      .unwrap_or(&no_readers);
     // PATCH (tracer_calib): per layout; a Cyclone DDS client's reader is found by its
-    // client id (`cyclone_client_reader`).
+    // client id (`cyclone_client_reader`), else as waited for.
+    let only_waited = match waited {
+      [reader] => Some(*reader),
+      _ => None,
+    };
     let client_reader = match mapping {
-      ServiceMapping::Enhanced => Some(GUID::from(rmw_req_id.writer_gid)),
-      ServiceMapping::Cyclone => self.cyclone_client_reader(request_writer, matched),
+      ServiceMapping::Enhanced => Some(GUID::from(rmw_req_id.writer_gid))
+        .filter(|reader| matched.contains(reader) || waited.contains(reader)),
+      ServiceMapping::Cyclone => self
+        .cyclone_client_reader(request_writer, matched)
+        .or(only_waited),
       ServiceMapping::Basic => None,
-    }
-    .filter(|reader| matched.contains(reader));
+    };
     debug!("response to {rmw_req_id:?} ({mapping:?}): to reader {client_reader:?} (None: all)");
     match client_reader {
       Some(reader) => options.to_single_reader(reader).build(),

@@ -19,6 +19,12 @@ impl VendorId {
 
   pub const THIS_IMPLEMENTATION: Self = Self::ATOSTEK;
 
+  /// eProsima (Fast DDS). tracer_calib patch: its writers answer only a preemptive
+  /// ACKNACK of their own form (`Reader::send_preemptive_acknack_to`).
+  pub const EPROSIMA: Self = Self {
+    vendor_id: [0x01, 0x0F],
+  };
+
   pub fn as_bytes(&self) -> [u8; 2] {
     self.vendor_id
   }

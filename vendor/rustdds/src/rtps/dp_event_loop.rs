@@ -23,6 +23,11 @@ use crate::{
     sedp_messages::{DiscoveredReaderData, DiscoveredWriterData},
   },
   messages::submessages::submessages::AckSubmessage,
+  messages::{
+    submessages::elements::serialized_payload::SerializedPayload, // tracer_calib patch
+    vendor_id::VendorId,                                          // tracer_calib patch
+  },
+  serialization::pl_cdr_adapters::PlCdrDeserialize, // tracer_calib patch
   network::{
     constant::SPDP_LOCALHOST_PEER_COUNT,
     udp_listener::UDPListener,
@@ -350,6 +355,8 @@ impl DPEventLoop {
                     .message_receiver
                     .handle_received_packet(&packet, origin);
                 }
+                // tracer_calib patch: endpoints announced behind a gap, matched now
+                ev_wrapper.match_withheld_announcements();
               }
               LOOP_WAKE_TOKEN => {
                 // Queues are drained below, once, for this whole iteration.
@@ -1009,6 +1016,12 @@ impl DPEventLoop {
       })
       .unwrap_or_else(|e| error!("Cannot report participant status: {e:?}"));
 
+    // tracer_calib patch: the vendor of the writer's participant, which decides the
+    // form of the preemptive ACKNACK a reader sends as it matches the writer.
+    let remote_vendor_id = discovery_db_read(&self.discovery_db)
+      .find_participant_proxy(remote_writer.writer_proxy.remote_writer_guid.prefix)
+      .map_or(VendorId::VENDOR_UNKNOWN, |p| p.vendor_id);
+
     // update writer proxies in local readers
     for reader in self.message_receiver.available_readers.values_mut() {
       if &remote_writer.publication_topic_data.topic_name == reader.topic_name() {
@@ -1068,13 +1081,131 @@ impl DPEventLoop {
           let offered_qos = remote_writer.publication_topic_data.qos();
           // Should we check if the participant has published a QoS for the topic?
           reader.update_writer_proxy(
-            RtpsWriterProxy::from_discovered_writer_data(remote_writer, &[], &[]),
+            RtpsWriterProxy::from_discovered_writer_data(remote_writer, &[], &[])
+              .with_vendor_id(remote_vendor_id), // tracer_calib patch
             &offered_qos,
           );
         }
       }
     }
+    // tracer_calib patch: what the writer sent before it was matched
+    self
+      .message_receiver
+      .replay_unmatched(remote_writer.writer_proxy.remote_writer_guid);
   }
+
+  // tracer_calib patch: begin (match the endpoints of withheld announcements)
+  // Our endpoints match a remote participant's endpoints only when Discovery reads
+  // their announcements, and Discovery reads each SEDP stream (publications,
+  // subscriptions) in order. A participant's SEDP history (the endpoints it created
+  // before it knew us) comes only when we ask for it, after its NACK response delay
+  // (Fast DDS: 100 ms, more when its event thread is busy), and every announcement
+  // after it waits. A writer announced meanwhile sends its first samples to our
+  // readers before they know it: they are dropped, and come back only by repair.
+  // A reader announced meanwhile is not sent what we write for it (a service's
+  // response to the client whose request we just read). So the endpoints of
+  // announcements that wait behind a gap are matched now, from the announcement
+  // itself, with the participant's default locators as Discovery would fill them
+  // in. Discovery still reads every announcement in order later and updates these
+  // proxies (the matched endpoint is found, no second match event); a dispose
+  // always comes in order.
+  fn match_withheld_announcements(&mut self) {
+    self.match_withheld_publications();
+    self.match_withheld_subscriptions();
+  }
+
+  // The participant of `guid`'s vendor and default locators, if it is known.
+  fn participant_vendor_and_locators(
+    &self,
+    guid: GUID,
+  ) -> Option<(VendorId, Vec<Locator>, Vec<Locator>)> {
+    if guid.prefix == self.domain_info.domain_participant_guid.prefix {
+      return None; // our own endpoints are matched by Discovery
+    }
+    let db = discovery_db_read(&self.discovery_db);
+    db.find_participant_proxy(guid.prefix).map(|p| {
+      (
+        p.vendor_id,
+        p.default_unicast_locators.clone(),
+        p.default_multicast_locators.clone(),
+      )
+    })
+  }
+
+  fn take_withheld_announcements(&mut self, reader: EntityId) -> Vec<SerializedPayload> {
+    let payloads = self
+      .message_receiver
+      .reader_mut(reader)
+      .map(Reader::take_withheld_announcements)
+      .unwrap_or_default();
+    // With security, matching needs Discovery's checks: leave it to Discovery.
+    #[cfg(feature = "security")]
+    if self.security_plugins_opt.is_some() {
+      return Vec::new();
+    }
+    payloads
+  }
+
+  fn match_withheld_subscriptions(&mut self) {
+    for payload in self.take_withheld_announcements(EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_READER) {
+      let drd = match DiscoveredReaderData::from_pl_cdr_bytes(
+        &payload.value,
+        payload.representation_identifier,
+      ) {
+        Ok(drd) => drd,
+        Err(e) => {
+          debug!("match_withheld_subscriptions: cannot read an announcement: {e:?}");
+          continue;
+        }
+      };
+      // not known yet: nowhere to send
+      let Some((_vendor_id, unicast, multicast)) =
+        self.participant_vendor_and_locators(drd.reader_proxy.remote_reader_guid)
+      else {
+        continue;
+      };
+      let requested_qos = drd.subscription_topic_data.qos();
+      let proxy = RtpsReaderProxy::from_discovered_reader_data(&drd, &unicast, &multicast);
+      for writer in self.writers.values_mut() {
+        if drd.subscription_topic_data.topic_name() == writer.topic_name() {
+          writer.match_reader_early(&proxy, &requested_qos);
+        }
+      }
+    }
+  }
+
+  fn match_withheld_publications(&mut self) {
+    for payload in self.take_withheld_announcements(EntityId::SEDP_BUILTIN_PUBLICATIONS_READER) {
+      let dwd = match DiscoveredWriterData::from_pl_cdr_bytes(
+        &payload.value,
+        payload.representation_identifier,
+      ) {
+        Ok(dwd) => dwd,
+        Err(e) => {
+          debug!("match_withheld_publications: cannot read an announcement: {e:?}");
+          continue;
+        }
+      };
+      let writer_guid = dwd.writer_proxy.remote_writer_guid;
+      // not known yet: nowhere to send an ACKNACK
+      let Some((vendor_id, unicast, multicast)) = self.participant_vendor_and_locators(writer_guid)
+      else {
+        continue;
+      };
+      let offered_qos = dwd.publication_topic_data.qos();
+      for reader in self.message_receiver.available_readers.values_mut() {
+        if &dwd.publication_topic_data.topic_name == reader.topic_name() {
+          reader.match_writer_early(
+            RtpsWriterProxy::from_discovered_writer_data(&dwd, &unicast, &multicast)
+              .with_vendor_id(vendor_id),
+            &offered_qos,
+          );
+        }
+      }
+      self.message_receiver.replay_unmatched(writer_guid);
+    }
+  }
+  // tracer_calib patch: end
 
   fn remote_writer_lost(&mut self, writer_guid: GUID) {
     for reader in self.message_receiver.available_readers.values_mut() {

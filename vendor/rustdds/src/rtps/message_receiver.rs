@@ -1,8 +1,9 @@
 use std::{
   cell::RefCell,
-  collections::{btree_map::Entry, BTreeMap},
+  collections::{btree_map::Entry, BTreeMap, VecDeque}, // tracer_calib patch: VecDeque
   rc::Rc,
   sync::mpsc::TrySendError,
+  time::{Duration, Instant}, // tracer_calib patch
 };
 
 use enumflags2::BitFlags;
@@ -37,6 +38,22 @@ use crate::dds::ddsdata::DDSData;
 use crate::structure::sequence_number::SequenceNumber;
 
 const RTPS_MESSAGE_HEADER_SIZE: usize = 20;
+
+// tracer_calib patch: begin (samples of a writer not matched yet)
+// How many DATA / DATA_FRAG submessages of user writers that no local reader has
+// matched yet are kept, and for how long, to be handed over when a reader matches
+// the writer (`MessageReceiver::replay_unmatched`).
+const UNMATCHED_KEEP_COUNT: usize = 64;
+const UNMATCHED_KEEP_TIME: Duration = Duration::from_secs(2);
+
+struct UnmatchedSubmessage {
+  received: Instant,
+  writer: GUID,
+  source_vendor_id: VendorId,
+  source_timestamp: Option<Timestamp>,
+  submessage: WriterSubmessage,
+}
+// tracer_calib patch: end
 
 // Secure submessage receiving state machine:
 //
@@ -135,6 +152,8 @@ pub(crate) struct MessageReceiver {
 
   submessage_count: usize, // Used in tests and error messages only?
   secure_receiver_state: Option<SecureReceiverState>,
+  // tracer_calib patch: samples of writers no reader has matched yet, oldest first
+  unmatched: VecDeque<UnmatchedSubmessage>,
   #[cfg(feature = "security")]
   secure_rtps_wrapped: Option<SecureWrapping>,
   #[cfg(feature = "security")]
@@ -169,6 +188,7 @@ impl MessageReceiver {
 
       submessage_count: 0,
       secure_receiver_state: None,
+      unmatched: VecDeque::new(), // tracer_calib patch
       #[cfg(feature = "security")]
       secure_rtps_wrapped: None,
       #[cfg(feature = "security")]
@@ -391,6 +411,7 @@ impl MessageReceiver {
         match submessage.body {
           SubmessageBody::Interpreter(m) => self.handle_interpreter_submessage(m),
           SubmessageBody::Writer(submessage) => {
+            self.keep_if_unmatched(&submessage); // tracer_calib patch
             let security_plugins_clone = self.security_plugins.clone();
             let receiver_entity_id = submessage.receiver_entity_id();
 
@@ -1074,6 +1095,119 @@ impl MessageReceiver {
       }
     }
   }
+
+  // tracer_calib patch: begin (samples of a writer not matched yet)
+  // A remote writer that has matched one of our readers sends it samples at once,
+  // and its announcement (SEDP) may reach us after them, or be read after them: the
+  // reader does not know the writer yet and drops them (RTPS 8.4.12.1: a stateful
+  // reader accepts only matched writers), and they come back only by repair, after
+  // a HEARTBEAT-ACKNACK round or, if the writer's HEARTBEAT came before the match,
+  // its next periodic one. Cyclone DDS even sends a new writer's first sample before
+  // its announcement. So the DATA and DATA_FRAG submessages of user writers that no
+  // reader has matched are kept for a while (UNMATCHED_KEEP_COUNT, _TIME) and handed
+  // over when a reader matches the writer.
+  fn keep_if_unmatched(&mut self, submessage: &WriterSubmessage) {
+    if self.security_plugins.is_some()
+      || !matches!(
+        submessage,
+        WriterSubmessage::Data(..) | WriterSubmessage::DataFrag(..)
+      )
+      || (self.dest_guid_prefix != self.own_guid_prefix
+        && self.dest_guid_prefix != GuidPrefix::UNKNOWN)
+    {
+      return;
+    }
+    let writer = GUID::new(self.source_guid_prefix, submessage.sender_entity_id());
+    if !writer.entity_id.kind().is_user_defined() {
+      return;
+    }
+    let target = submessage.receiver_entity_id();
+    let matched = if target == EntityId::UNKNOWN {
+      self
+        .available_readers
+        .values()
+        .any(|r| r.has_matched_writer(writer))
+    } else {
+      match self.available_readers.get(&target) {
+        Some(reader) => reader.has_matched_writer(writer),
+        None => return, // no such reader of ours
+      }
+    };
+    if matched {
+      return;
+    }
+    let now = Instant::now();
+    self.expire_unmatched(now);
+    if self.unmatched.len() >= UNMATCHED_KEEP_COUNT {
+      self.unmatched.pop_front();
+    }
+    // A copy of the payload: a slice would keep the whole receive buffer chunk.
+    let mut submessage = submessage.clone();
+    match &mut submessage {
+      WriterSubmessage::Data(data, _) => {
+        data.serialized_payload = data.serialized_payload.as_deref().map(Bytes::copy_from_slice);
+      }
+      WriterSubmessage::DataFrag(frag, _) => {
+        frag.serialized_payload = Bytes::copy_from_slice(&frag.serialized_payload);
+      }
+      _ => (),
+    }
+    self.unmatched.push_back(UnmatchedSubmessage {
+      received: now,
+      writer,
+      source_vendor_id: self.source_vendor_id,
+      source_timestamp: self.source_timestamp,
+      submessage,
+    });
+  }
+
+  fn expire_unmatched(&mut self, now: Instant) {
+    while self
+      .unmatched
+      .front()
+      .is_some_and(|u| now.duration_since(u.received) > UNMATCHED_KEEP_TIME)
+    {
+      self.unmatched.pop_front();
+    }
+  }
+
+  // A reader has just matched `writer`: hand over what it sent before, in order,
+  // as if it arrived now (to the readers that have matched it).
+  pub fn replay_unmatched(&mut self, writer: GUID) {
+    self.expire_unmatched(Instant::now());
+    if !self.unmatched.iter().any(|u| u.writer == writer) {
+      return;
+    }
+    let (mine, rest): (VecDeque<_>, VecDeque<_>) = std::mem::take(&mut self.unmatched)
+      .into_iter()
+      .partition(|u| u.writer == writer);
+    self.unmatched = rest;
+    debug!(
+      "Handing over {} submessages of {writer:?} received before it was matched",
+      mine.len()
+    );
+    for u in mine {
+      self.reset();
+      self.source_guid_prefix = writer.prefix;
+      self.dest_guid_prefix = self.own_guid_prefix;
+      self.source_vendor_id = u.source_vendor_id;
+      self.source_timestamp = u.source_timestamp;
+      let target = u.submessage.receiver_entity_id();
+      let targets: Vec<EntityId> = self
+        .available_readers
+        .values()
+        .filter(|r| {
+          (target == EntityId::UNKNOWN || r.entity_id() == target) && r.has_matched_writer(writer)
+        })
+        .map(Reader::entity_id)
+        .collect();
+      for t in targets {
+        self.handle_writer_submessage(t, u.submessage.clone());
+      }
+    }
+    self.reset();
+  }
+  // tracer_calib patch: end
 
   pub fn notify_data_to_readers(&mut self, readers: Vec<EntityId>) {
     for eid in readers {

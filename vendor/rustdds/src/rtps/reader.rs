@@ -151,6 +151,13 @@ pub(crate) struct Reader {
 
   #[allow(dead_code)] // to avoid warning if no security feature
   security_plugins: Option<SecurityPluginsHandle>,
+
+  // tracer_calib patch: endpoint announcements (SEDP publications or subscriptions)
+  // this reader has received but cannot hand over yet, an earlier sample of their
+  // writer still missing. The event loop takes them (`take_withheld_announcements`)
+  // to match the endpoints they announce at once
+  // (`DPEventLoop::match_withheld_announcements`).
+  withheld_announcements: Vec<SerializedPayload>,
 }
 
 // If we are assembling a fragment, but it does not receive any updates
@@ -214,6 +221,7 @@ impl Reader {
       participant_status_sender,
 
       security_plugins: i.security_plugins,
+      withheld_announcements: Vec::new(), // tracer_calib patch
     }
   }
   // TODO: check if it's necessary to implement different handlers for discovery
@@ -453,6 +461,38 @@ impl Reader {
       }
     }
   }
+
+  // tracer_calib patch: whether `writer` is a matched writer of this reader
+  pub fn has_matched_writer(&self, writer: GUID) -> bool {
+    !self.like_stateless && self.matched_writers.contains_key(&writer)
+  }
+
+  // tracer_calib patch: begin (match a writer from a withheld announcement)
+  // The endpoint announcements received but not yet handed over (see
+  // `withheld_announcements`).
+  pub fn take_withheld_announcements(&mut self) -> Vec<SerializedPayload> {
+    std::mem::take(&mut self.withheld_announcements)
+  }
+
+  // Matches a remote writer known only from an announcement that Discovery has
+  // not read yet, so that its samples are not dropped meanwhile. Only a writer not
+  // matched yet and whose QoS is compatible: the announcement reaches Discovery
+  // later, in order, and `update_writer_proxy` then finds the writer matched (no
+  // second match event) or, with an incompatible QoS, reports it once, as before.
+  pub fn match_writer_early(&mut self, proxy: RtpsWriterProxy, offered_qos: &QosPolicies) {
+    if self.like_stateless
+      || self.matched_writers.contains_key(&proxy.remote_writer_guid)
+      || offered_qos.compliance_failure_wrt(&self.qos_policy).is_some()
+    {
+      return;
+    }
+    debug!(
+      "Matching remote writer {:?} on topic={:?} from a withheld announcement",
+      proxy.remote_writer_guid, self.topic_name
+    );
+    self.update_writer_proxy(proxy, offered_qos);
+  }
+  // tracer_calib patch: end
 
   // return value counts how many new proxies were added
   fn matched_writer_update(&mut self, proxy: RtpsWriterProxy) -> i32 {
@@ -759,6 +799,23 @@ impl Reader {
     } else {
       // stateless reader: nothing to do before making cache change
     }
+
+    // tracer_calib patch: begin (an endpoint announcement withheld behind a gap)
+    // The SEDP readers hand their samples to Discovery in order. A sample that an
+    // earlier, missing one holds back still names an endpoint that exists now: keep
+    // its payload for the event loop to match that endpoint at once.
+    if (self.my_guid.entity_id == EntityId::SEDP_BUILTIN_PUBLICATIONS_READER
+      || self.my_guid.entity_id == EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_READER)
+      && !self.like_stateless
+      && self
+        .matched_writer(writer_guid)
+        .is_none_or(|wp| wp.all_ackable_before() <= writer_sn)
+    {
+      if let DDSData::Data { serialized_payload } = &dds_data {
+        self.withheld_announcements.push(serialized_payload.clone());
+      }
+    }
+    // tracer_calib patch: end
 
     self.make_cache_change(
       dds_data,
@@ -1424,6 +1481,21 @@ impl Reader {
   fn send_preemptive_acknack_to(&self, writer_proxy: &mut RtpsWriterProxy) {
     let flags = BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness);
     let acknack_count = writer_proxy.next_ack_nack_sequence_number();
+    // tracer_calib patch: begin (the preemptive ACKNACK in the form the writer answers)
+    // RTPS 2.5 (8.3.5.5) has an empty set based at 1 mean "nothing received". A Fast
+    // DDS writer reads that as an ordinary acknowledgement and sends nothing: a
+    // reader that matched it after its HEARTBEAT and its first samples (dropped, the
+    // writer unknown then) waits for its next periodic HEARTBEAT, 3 s for a user
+    // writer. Fast DDS takes only an empty set based at 0 as a preemptive ACKNACK and
+    // answers it with a HEARTBEAT at once; its own readers send that form (as RTI
+    // Connext's do), and Cyclone DDS accepts it from those vendors only. So: base 0
+    // to eProsima writers, the RTPS form to everyone else.
+    let base = if writer_proxy.remote_vendor_id == VendorId::EPROSIMA {
+      SequenceNumber::new(0)
+    } else {
+      SequenceNumber::new(1)
+    };
+    // tracer_calib patch: end
     let RtpsWriterProxy {
       remote_writer_guid,
       unicast_locator_list,
@@ -1434,7 +1506,7 @@ impl Reader {
       AckNack {
         reader_id: self.entity_id(),
         writer_id: remote_writer_guid.entity_id,
-        reader_sn_state: SequenceNumberSet::new_empty(SequenceNumber::new(1)),
+        reader_sn_state: SequenceNumberSet::new_empty(base), // tracer_calib patch
         count: acknack_count,
       },
       InfoDestination {

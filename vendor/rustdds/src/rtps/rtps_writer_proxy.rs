@@ -6,6 +6,7 @@ use log::{debug, error, info, trace, warn};
 
 use crate::{
   discovery::sedp_messages::DiscoveredWriterData,
+  messages::vendor_id::VendorId, // tracer_calib patch
   rtps::constant::MAX_TRACKED_CHANGES_PER_WRITER,
   structure::{
     guid::{EntityId, GUID},
@@ -75,6 +76,11 @@ pub(crate) struct RtpsWriterProxy {
   // These are used for quick tracking of
   last_received_sequence_number: SequenceNumber,
   last_received_timestamp: Timestamp,
+
+  // tracer_calib patch: the vendor of the remote writer's participant (its SPDP
+  // announcement's PID_VENDORID), VENDOR_UNKNOWN if not known. It decides the form
+  // of the preemptive ACKNACK (`Reader::send_preemptive_acknack_to`).
+  pub remote_vendor_id: VendorId,
 }
 
 impl RtpsWriterProxy {
@@ -97,7 +103,14 @@ impl RtpsWriterProxy {
       ack_base: SequenceNumber::new(1),
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
+      remote_vendor_id: VendorId::VENDOR_UNKNOWN, // tracer_calib patch
     }
+  }
+
+  // tracer_calib patch: the remote participant's vendor (see `remote_vendor_id`).
+  pub fn with_vendor_id(mut self, vendor_id: VendorId) -> Self {
+    self.remote_vendor_id = vendor_id;
+    self
   }
 
   pub fn next_ack_nack_sequence_number(&mut self) -> i32 {
@@ -116,6 +129,10 @@ impl RtpsWriterProxy {
     self.unicast_locator_list = other.unicast_locator_list;
     self.multicast_locator_list = other.multicast_locator_list;
     self.remote_group_entity_id = other.remote_group_entity_id;
+    // tracer_calib patch: keep a known vendor
+    if other.remote_vendor_id != VendorId::VENDOR_UNKNOWN {
+      self.remote_vendor_id = other.remote_vendor_id;
+    }
   }
 
   // This is used to check for DEADLINE policy
@@ -331,6 +348,7 @@ impl RtpsWriterProxy {
       ack_base: SequenceNumber::default(),
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
+      remote_vendor_id: VendorId::VENDOR_UNKNOWN, // tracer_calib patch
     }
   } // fn
 

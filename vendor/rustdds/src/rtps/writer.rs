@@ -1119,6 +1119,18 @@ impl Writer {
   /// a HEARTBEAT was sent to prompt repair), so the caller can reschedule the
   /// next periodic heartbeat sooner. Returns `false` when all readers are
   /// caught up.
+  // tracer_calib patch: the last sequence number a HEARTBEAT announces: the last
+  // sample this Writer has sent (or, without push mode, announced), not the last one
+  // written. A sample its DataWriter has just written (another thread) is sent by
+  // `process_pending` with a HEARTBEAT of its own. Announced before it is sent, it
+  // is lost to a reader that has just matched us and takes its first HEARTBEAT as
+  // where its volatile stream begins (Cyclone DDS: everything up to the HEARTBEAT's
+  // last is history to it): seen with a service response written the moment the
+  // client's reader matched, between the match and the reader's initial HEARTBEAT.
+  fn heartbeat_last_sn(&self) -> SequenceNumber {
+    min(self.last_sent, self.send_buffer.last_change_sequence_number())
+  }
+
   pub fn handle_heartbeat_tick(&mut self, is_manual_assertion: bool) -> bool {
     if self.like_stateless {
       info!(
@@ -1157,7 +1169,7 @@ impl Writer {
         .heartbeat_msg(
           self.entity_id(), // from Writer
           self.send_buffer.first_change_sequence_number(),
-          self.send_buffer.last_change_sequence_number(),
+          self.heartbeat_last_sn(), // tracer_calib patch
           self.next_heartbeat_count(),
           self.endianness,
           EntityId::UNKNOWN, // to Reader
@@ -1350,7 +1362,7 @@ impl Writer {
               .heartbeat_msg(
                 self.entity_id(),
                 self.send_buffer.first_change_sequence_number(),
-                last_seq,
+                self.heartbeat_last_sn(), // tracer_calib patch
                 self.next_heartbeat_count(),
                 self.endianness,
                 reader_guid.entity_id,
@@ -2090,7 +2102,7 @@ impl Writer {
           if self.is_reliable() && !self.like_stateless {
             let new_reader_guid = reader_proxy.remote_reader_guid;
             let first = self.send_buffer.first_change_sequence_number();
-            let last = self.send_buffer.last_change_sequence_number();
+            let last = self.heartbeat_last_sn(); // tracer_calib patch
             let hb_message = MessageBuilder::new()
               .ts_msg(self.endianness, Some(Timestamp::now()))
               .heartbeat_msg(
@@ -2192,6 +2204,12 @@ impl Writer {
         new_proxy.resolve_path_mtu(&self.local_interfaces);
         new_proxy
       });
+    if is_new {
+      // tracer_calib patch: for `DataWriter::wait_for_matched_reader`
+      self
+        .send_buffer
+        .set_reader_matched(updated_reader_proxy.remote_reader_guid, true);
+    }
     // A reader was added or its locators changed: refresh the writer-wide
     // minimum datagram budget used for packing.
     self.recompute_min_datagram_payload();
@@ -2229,9 +2247,32 @@ impl Writer {
     self.recompute_min_datagram_payload();
   }
 
+  // tracer_calib patch: begin (match a reader from a withheld announcement)
+  // Matches a remote reader known only from an announcement that Discovery has not
+  // read yet (`DPEventLoop::match_withheld_announcements`), so that what we write
+  // now reaches it. Only a reader not matched yet and whose QoS is compatible: the
+  // announcement reaches Discovery later, in order, and `update_reader_proxy` then
+  // finds the reader matched (no second match event) or, with an incompatible QoS,
+  // reports it once, as before.
+  pub fn match_reader_early(&mut self, proxy: &RtpsReaderProxy, requested_qos: &QosPolicies) {
+    if self.like_stateless
+      || self.readers.contains_key(&proxy.remote_reader_guid)
+      || self.qos_policies.compliance_failure_wrt(requested_qos).is_some()
+    {
+      return;
+    }
+    debug!(
+      "Matching remote reader {:?} on topic={:?} from a withheld announcement",
+      proxy.remote_reader_guid, self.my_topic_name
+    );
+    self.update_reader_proxy(proxy, requested_qos);
+  }
+  // tracer_calib patch: end
+
   fn matched_reader_remove(&mut self, guid: GUID) -> Option<RtpsReaderProxy> {
     let removed = self.readers.remove(&guid);
     if let Some(ref removed_reader) = removed {
+      self.send_buffer.set_reader_matched(guid, false); // tracer_calib patch
       info!(
         "Removed reader proxy. topic={:?} reader={:?}",
         self.topic_name(),

@@ -1,6 +1,6 @@
 use std::{
   cmp::max,
-  collections::BTreeMap,
+  collections::{BTreeMap, BTreeSet}, // tracer_calib patch: BTreeSet
   sync::{Arc, Condvar, Mutex},
   time::{Duration as StdDuration, Instant},
 };
@@ -78,6 +78,10 @@ struct Inner {
   // KEEP_ALL and built-in writers): only the periodic cache cleaning evicts.
   keep_last_depth: Option<usize>,
 
+  // tracer_calib patch: the remote readers the Writer has matched, kept by the
+  // Writer (`set_reader_matched`), for `wait_for_matched_reader`.
+  matched_readers: BTreeSet<GUID>,
+
   // Wakers of async producers / ack-waiters parked because the window was full
   // or acknowledgements were still pending. Drained (woken) on any advance.
   wakers: Vec<Waker>,
@@ -138,7 +142,8 @@ impl WriterSendBuffer {
           backlog_limit: backlog_limit.max(1),
           sent_frontier: SequenceNumber::new(0),
           max_retain: max_retain.max(1),
-          keep_last_depth: None, // tracer_calib patch
+          keep_last_depth: None,           // tracer_calib patch
+          matched_readers: BTreeSet::new(), // tracer_calib patch
           wakers: Vec::new(),
         }),
         progress: Condvar::new(),
@@ -242,6 +247,51 @@ impl WriterSendBuffer {
   /// tracer_calib patch: the number of samples the buffer holds now.
   pub fn retained_len_now(&self) -> usize {
     self.shared.inner.lock().unwrap().changes.len()
+  }
+
+  /// tracer_calib patch: the Writer has matched (`true`) or lost (`false`) the
+  /// remote reader `reader`.
+  pub fn set_reader_matched(&self, reader: GUID, matched: bool) {
+    let shared = &*self.shared;
+    let mut inner = shared.inner.lock().unwrap();
+    let changed = if matched {
+      inner.matched_readers.insert(reader)
+    } else {
+      inner.matched_readers.remove(&reader)
+    };
+    if changed {
+      Self::wake_all(&mut inner, &shared.progress);
+    }
+  }
+
+  /// tracer_calib patch: wait until some reader the Writer has matched satisfies
+  /// `accept`, at most `max_wait`. Returns the matched readers that do (empty if none
+  /// did within `max_wait`).
+  pub fn wait_for_matched_reader(
+    &self,
+    accept: impl Fn(GUID) -> bool,
+    max_wait: StdDuration,
+  ) -> Vec<GUID> {
+    let shared = &*self.shared;
+    let mut inner = shared.inner.lock().unwrap();
+    let deadline = Instant::now() + max_wait;
+    loop {
+      let accepted: Vec<GUID> = inner
+        .matched_readers
+        .iter()
+        .copied()
+        .filter(|r| accept(*r))
+        .collect();
+      if !accepted.is_empty() {
+        return accepted;
+      }
+      let now = Instant::now();
+      if now >= deadline {
+        return accepted;
+      }
+      let (guard, _to) = shared.progress.wait_timeout(inner, deadline - now).unwrap();
+      inner = guard;
+    }
   }
 
   // Wake every parked producer / ack-waiter. Called after any state change that

@@ -130,6 +130,16 @@ where
     self.keyed_datawriter.wait_for_acknowledgments(max_wait)
   }
 
+  /// tracer_calib patch: see
+  /// [`with_key::DataWriter::wait_for_matched_reader`](crate::with_key::DataWriter::wait_for_matched_reader).
+  pub fn wait_for_matched_reader(
+    &self,
+    accept: impl Fn(GUID) -> bool,
+    max_wait: std::time::Duration,
+  ) -> Vec<GUID> {
+    self.keyed_datawriter.wait_for_matched_reader(accept, max_wait)
+  }
+
   /// tracer_calib patch: how many samples this writer's history holds now; see
   /// [`with_key::DataWriter::history_sample_count`](crate::with_key::DataWriter::history_sample_count).
   pub fn history_sample_count(&self) -> usize {

@@ -762,6 +762,22 @@ where
     self.send_buffer.retained_len_now()
   }
 
+  /// tracer_calib patch: wait until this writer has matched a remote reader for
+  /// which `accept` (given the reader's GUID) is true, at most `max_wait`; returns
+  /// the matched readers for which it is (empty: none within `max_wait`). Blocks the
+  /// calling thread. For a sample meant for one reader
+  /// (`WriteOptionsBuilder::to_single_reader`) that may not have matched yet, such as
+  /// a service response to a client whose response reader was discovered after its
+  /// request: on a VOLATILE writer, a sample written before the match never reaches
+  /// that reader.
+  pub fn wait_for_matched_reader(
+    &self,
+    accept: impl Fn(GUID) -> bool,
+    max_wait: std::time::Duration,
+  ) -> Vec<GUID> {
+    self.send_buffer.wait_for_matched_reader(accept, max_wait)
+  }
+
   /// Placeholder only — not implemented. **Will panic if called.**
   ///
   /// # Panics
