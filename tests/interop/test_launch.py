@@ -19,8 +19,8 @@ types them:
   its contour seen by `ros2 topic echo`, `ros2 service call /calibrate` with a scan_id
   never received (a clear failure) and with the plate's (the fit), a lens contour
   corrected, `/diagnostics` echoed, then Ctrl-C: the calibration is in the params file;
-- parameters: `ros2 param list/get/set/describe/dump`, refusals, then Ctrl-C: the value
-  set is in the params file;
+- parameters: `ros2 param list/get/set/describe/dump`, refusals, `ros2 param load` (not
+  on Kilted: see the test), then Ctrl-C: the values set are in the params file;
 - ros2_run: `ros2 run tracer_calib tracer_calib_node` with remaps and `-p`, checked through
   the graph and a scan, then Ctrl-C; an unknown executable refused;
 - edging_cell: `edging_cell.launch.xml` (two cells), checked with rclpy: each calibrates
@@ -31,8 +31,9 @@ types them:
 
 Ctrl-C is SIGINT to the process group of `ros2 launch` (or `ros2 run`), as a terminal sends
 it to its foreground job: the launch and every process it started must be gone within 5 s.
-Each of them runs under `setpriv --pdeathsig INT`, so that a test process that dies does
-not leave a launch behind (run.sh also kills whatever is left in the network namespace).
+Each of them runs under `setpriv --pdeathsig INT`: if the test process dies, a launch gets
+Ctrl-C and stops its nodes (`ros2 run` leaves its node to the terminal's signal: run.sh
+kills whatever is left in the network namespace).
 
 No `ros2 daemon`: every verb that has it is given --no-daemon; after each test, a daemon
 process left in this network namespace fails the test (and is stopped). Launch and rcl
