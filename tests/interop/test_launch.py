@@ -586,8 +586,8 @@ def test_parameters():
         assert param_get(node, "model") == ("String value is", "paper")
         assert param_get(node, "plate.side") == ("Double value is", "0.045")
 
-        # Descriptors (descriptions, ranges) are not filled in yet: the command works and
-        # names each parameter with its type.
+        # The command works and names each parameter with its type (what the descriptors
+        # hold, descriptions and ranges, is not checked here).
         out = ros2("param", "describe", "--no-daemon", node, "model", "plate.side").stdout
         assert re.findall(r"^Parameter name: (\S+)\n  Type: (\w+)$", out, re.M) == [("model", "string"), ("plate.side", "double")], out
 
