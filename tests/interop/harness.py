@@ -39,7 +39,8 @@ ELLIPSE = dict(cx=0.0008, cy=-0.0005, a=0.025, b=0.015)
 
 
 def simulate(name, shape, noise=5e-6, seed=1, **kw):
-    """A scan from `tracer_calib simulate`, as (steps, counts)."""
+    """A scan from `tracer_calib simulate`, as (steps, counts). `meters_per_count`: the
+    encoder's (the tool's default, 1 µm, unless given)."""
     path = os.path.join(WORK, name + ".csv")
     args = dict(
         shape=shape,
@@ -51,6 +52,8 @@ def simulate(name, shape, noise=5e-6, seed=1, **kw):
         seed=seed,
         out=path,
     )
+    if "meters_per_count" in kw:
+        args["meters_per_count"] = kw["meters_per_count"]
     if shape == "ellipse":
         args.update(width=2 * ELLIPSE["a"], height=2 * ELLIPSE["b"], center_x=ELLIPSE["cx"], center_y=ELLIPSE["cy"])
     cmd = [TOOL_BIN, "simulate"] + [f"--{k.replace('_', '-')}={v}" for k, v in args.items()]

@@ -15,11 +15,13 @@
 # with `pip install --no-deps --no-build-isolation` after the pure-Python packages they
 # need (tests/interop/requirements-cli.txt, pinned). Then, with target/ros/DISTRO/env.sh
 # sourced, `ros2 ...` and `ros2 launch ...` are the stock commands. The CLI starts a
-# `ros2 daemon` that outlives a command: pass --no-daemon (or ROS2CLI_NO_DAEMON=1 where
-# a verb has no flag), or `ros2 daemon stop` afterwards.
+# `ros2 daemon` that outlives a command: pass --no-daemon to every verb that has it (this
+# ros2cli reads no environment variable for it; a verb without the flag that asks the
+# graph, e.g. `ros2 service type`, starts one), or `ros2 daemon stop` afterwards.
 #
-# The sources are the Jazzy branches; the same install works in Kilted's venv (checked by
-# hand: `ros2 service call /calibrate` and `ros2 param get` against the node).
+# The sources are the Jazzy branches; the same install works in Kilted's venv
+# (test_launch.py runs them against the installed package for both distributions; with
+# Kilted's rclpy, `ros2 param load` sets the parameters but then fails to list them).
 #
 # Idempotent: keyed on the tarballs, the requirements, this script and the venv itself
 # (a venv made afresh by setup.sh gets it again). Prints one line per distribution.
@@ -47,7 +49,7 @@ for a in "$@"; do
     case "$a" in
         --force) FORCE=1 ;;
         kilted|jazzy) DISTROS+=("$a") ;;
-        -h|--help) sed -n '2,25p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,27p' "$0"; exit 0 ;;
         *) echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2 ;;
     esac
 done
@@ -111,10 +113,13 @@ for d in "${DISTROS[@]}"; do
     # Check: the commands load (no DDS participant: --help and the ament index only).
     if ! out=$(. "$ROS_DIR/env.sh" && timeout -s KILL 120 bash -c '
             set -e
-            ros2 --help >/dev/null
+            verbs=$(ros2 --help | awk "/^Commands:/ { on = 1; next } on && /^  [a-z]/ { print \$1 }" | tr "\n" " ")
+            [ "$verbs" = "daemon interface launch lifecycle node param pkg run service topic " ] ||
+                { echo "ros2 verbs: $verbs"; exit 1; }
             ros2 pkg prefix rcl_interfaces >/dev/null
             ros2 interface show rcl_interfaces/srv/GetParameters >/dev/null
             ros2 launch --help >/dev/null
+            ros2 lifecycle --help >/dev/null
             python -c "import composition_interfaces.srv, launch_ros, launch_xml, launch_yaml"
         ' 2>&1); then
         exec 9>&-

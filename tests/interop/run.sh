@@ -1,6 +1,10 @@
 #!/usr/bin/env bash
 # The real-ROS-2-peer tests, once per ROS 2 distribution (Kilted, then Jazzy, the LTS):
-#   1. tests/interop/setup.sh DISTRO: rclpy + tracer_calib_msgs (quick when up to date);
+#   1. tests/interop/setup.sh DISTRO: rclpy + tracer_calib_msgs (quick when up to date),
+#      then tests/interop/ros2cli.sh DISTRO: the stock `ros2` command line (ros2cli: node,
+#      topic, service, param, interface, pkg, run, lifecycle) and launch runtime (launch,
+#      launch_xml, launch_yaml, launch_ros, ros2launch), from ../shared/ros2-src/, into the
+#      distribution's venv (quick when installed);
 #   2. against the release binaries (in cargo's target directory: scripts/target_dir.sh),
 #      with the peer's environment target/ros/DISTRO/env.sh:
 #      - node_suite.py (test_node.py's tests, then test_records.py's) in a private network
@@ -16,8 +20,12 @@
 #        multicast off (tests/interop/two_hosts.sh; root only);
 #   3. tests/interop/workspace.sh DISTRO: the README's `colcon build` in a workspace over
 #      the distribution's wheels, and what it installs;
-#   4. test_launch.py against that workspace (install/setup.bash sourced): the launch files
-#      as `ros2 launch` would run them, `ros2 run`, with the installed interfaces.
+#   4. test_launch.py against that workspace, in a private network namespace, in the
+#      environment of a shell that sourced ROS 2 and the workspace's install/setup.bash:
+#      the real `ros2 launch` of each launch file, `ros2 run`, `ros2 service call`,
+#      `ros2 param`, `ros2 topic`, `ros2 node`, Ctrl-C of a launch; no `ros2 daemon` left.
+#      Whatever is still running in that namespace after it (a launch, a node, a daemon)
+#      is listed, killed, and fails the step.
 # Nothing leaves the machine. Prints each part's time.
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), type_hash
@@ -25,8 +33,9 @@
 # rcl_param_rules test_runtime.py's (runtime: all), first_scan test_first_scan.py's
 # (first_scan: all; first_scan_fastdds, first_scan_cyclone, first_scan_call_fastdds,
 # first_scan_call_cyclone), two_hosts test_two_hosts.py's scenarios (two_hosts:
-# all), cyclone or mixed test_cyclone.py's (cyclone: all); the others, node_suite.py's
-# tests; with names, 3 and 4 are skipped. No names: everything.
+# all), cyclone or mixed test_cyclone.py's (cyclone: all), launch test_launch.py's
+# (launch_NAME: its test NAME; launch: all, with 3 before it); the others, node_suite.py's
+# tests. With names, 3 and 4 run only for launch names. No names: everything.
 # Also: after 1, tests/interop/ros2cli.sh installs the stock ros2 CLI and launch into the
 # venv; (2b, after 2, Jazzy) tests/interop/cyclone.sh builds rmw_cyclonedds_cpp (cached
 # outside the clone), and test_cyclone.py runs with the node's peers on Cyclone DDS, and
@@ -43,9 +52,11 @@ export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
-node_tests=() graph=() type_hash=() runtime=() first_scan=() two_hosts=() cyclone=()
+node_tests=() graph=() type_hash=() runtime=() first_scan=() two_hosts=() cyclone=() launch=()
 for a in "$@"; do
     case "$a" in
+        launch) launch+=(all) ;;
+        launch_*) launch+=("${a#launch_}") ;;
         graph*) graph+=("$a") ;;
         type_hash*) type_hash+=("$a") ;;
         runtime | sim_time* | replay_clock | describe | rcl_param_rules) runtime+=("$a") ;;
@@ -87,7 +98,8 @@ suite() {
 for d in $DISTROS; do
     t0=$(now_ms)
     "$HERE/setup.sh" "$d" >/dev/null
-    # The stock ros2 CLI and launch in the venv (quick when installed): test_cyclone.py's.
+    # The stock ros2 CLI and launch in the venv (quick when installed): test_cyclone.py's
+    # and test_launch.py's.
     "$HERE/ros2cli.sh" "$d"
     echo "run.sh: $d: setup $(took "$t0")"
     suite node_suite.py "$d" "test_node.py, test_records.py; ROS 2 $d rclpy, release binaries" node_suite \
@@ -135,7 +147,7 @@ for d in $DISTROS; do
             failed+=("$d:cyclone_setup")
         fi
     fi
-    [ "$#" -eq 0 ] || continue
+    [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ] || continue
     t0=$(now_ms)
     if ! "$HERE/workspace.sh" "$d"; then
         failed+=("$d:workspace")
@@ -143,17 +155,33 @@ for d in $DISTROS; do
     fi
     echo "run.sh: $d: workspace $(took "$t0")"
     t0=$(now_ms)
-    echo "run.sh: $d: test_launch.py (installed workspace, ROS 2 $d rclpy)"
+    echo "run.sh: $d: test_launch.py (installed workspace; the stock ros2 CLI and launch, ROS 2 $d)"
+    names=()
+    for n in ${launch[@]+"${launch[@]}"}; do [ "$n" = all ] || names+=("$n"); done
     # The environment of a shell that sourced ROS 2 and the workspace, plus the loopback-only
-    # DDS settings of the tests.
+    # DDS settings of the tests. Then whatever is left running in the namespace.
     # shellcheck disable=SC2016
     if ! "$HERE/netns.sh" env -i HOME="$HOME" PATH="$PATH" bash -c '
         . "$1/target/ros/$2/ros_setup.sh"
         . "$1/target/colcon_ws/$2/install/setup.bash"
         export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
         export FASTDDS_DEFAULT_PROFILES_FILE="$1/target/ros/$2/fastdds_localhost.xml"
-        exec timeout -s KILL 300 python "$0"
-    ' "$HERE/test_launch.py" "$ROOT" "$d"; then
+        script=$0
+        shift 2
+        rc=0
+        timeout -s KILL 600 python "$script" "$@" || rc=$?
+        me=$(readlink /proc/$$/ns/net)
+        left=()
+        for p in /proc/[0-9]*; do
+            pid=${p#/proc/}
+            [ "$pid" != $$ ] && [ "$(readlink "$p/ns/net" 2>/dev/null)" = "$me" ] || continue
+            cmd=$(tr "\0" " " <"$p/cmdline" 2>/dev/null) && [ -n "$cmd" ] || continue
+            echo "run.sh: left running in the test namespace: $pid $cmd" >&2
+            left+=("$pid")
+        done
+        [ "${#left[@]}" -eq 0 ] || { kill -KILL "${left[@]}" 2>/dev/null; rc=1; }
+        exit "$rc"
+    ' "$HERE/test_launch.py" "$ROOT" "$d" ${names[@]+"${names[@]}"}; then
         failed+=("$d:test_launch")
     fi
     echo "run.sh: $d: test_launch.py $(took "$t0")"

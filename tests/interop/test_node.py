@@ -2,7 +2,7 @@
 with the tracer_calib_msgs package built from msg/ by rosidl.
 
 What `ros2 topic pub`, `ros2 service call` and `ros2 param` do, done with rclpy directly
-(no ros2 CLI wheels exist): publish RawScan messages of simulated scans, call /calibrate
+(the stock commands themselves run in test_launch.py): publish RawScan messages of simulated scans, call /calibrate
 with the generated Calibrate type, receive Contour, PolygonStamped and DiagnosticArray,
 list/get/set parameters with rclpy's parameter client, and load the YAML the node
 persisted into an rclpy node with --params-file.

@@ -170,9 +170,10 @@ for f in tracer_calib/share/tracer_calib/package.xml tracer_calib/share/tracer_c
          setup.bash; do
     [ -e "$I/$f" ] || die "not installed: $I/$f"
 done
-out=$(in_ros_env "$WS" ". install/setup.bash; python '$HERE/ros2_run.py' --which tracer_calib tracer_calib_node" 2>&1) ||
-    die "the ament index does not find tracer_calib_node: $out"
-[ "$out" = "$I/tracer_calib/lib/tracer_calib/tracer_calib_node" ] || die "the ament index finds tracer_calib_node at $out"
+# (`ros2 run` and `ros2 launch` themselves: test_launch.py.)
+out=$(in_ros_env "$WS" ". install/setup.bash; python -c 'from ament_index_python.packages import get_package_prefix as p; print(p(\"tracer_calib\"))'" 2>&1) ||
+    die "the ament index does not find tracer_calib: $out"
+[ "$out" = "$I/tracer_calib" ] || die "the ament index finds tracer_calib at $out"
 # The crate's [patch.crates-io] path entries (vendor/...) were honoured: the node was built
 # from the workspace copy's vendor/ sources (cargo's dep-info lists every source file).
 if [ ! -L "$WS/src/tracer_calib" ]; then

@@ -168,6 +168,8 @@ fn to_yaml_round_trips() {
         ParamValue::Double(1.0),
         ParamValue::Double(0.045),
         ParamValue::Double(1e-6),
+        ParamValue::Double(5e-7),
+        ParamValue::Double(1e16),
         ParamValue::Double(-1.25e21),
         ParamValue::Double(f64::MAX),
         ParamValue::Double(f64::MIN_POSITIVE),
@@ -205,6 +207,13 @@ fn to_yaml_round_trips() {
     let nan = ParamValue::parse_yaml(&ParamValue::Double(f64::NAN).to_yaml()).unwrap();
     assert!(matches!(nan, ParamValue::Double(d) if d.is_nan()));
     assert_eq!(ParamValue::Double(1.0).to_yaml(), "1.0");
+    // Floats in YAML 1.1 too (PyYAML: `ros2 param load`): a '.', and a signed exponent.
+    assert_eq!(ParamValue::Double(1e-6).to_yaml(), "1.0e-6");
+    assert_eq!(ParamValue::Double(5e-7).to_yaml(), "5.0e-7");
+    assert_eq!(ParamValue::Double(-1.25e21).to_yaml(), "-1.25e+21");
+    assert_eq!(ParamValue::Double(f64::MAX).to_yaml(), "1.7976931348623157e+308");
+    assert_eq!(ParamValue::Double(0.045).to_yaml(), "0.045");
+    assert_eq!(ParamValue::DoubleArray(vec![1e-6, 2e22]).to_yaml(), "[1.0e-6, 2.0e+22]");
     assert_eq!(ParamValue::String("full".into()).to_yaml(), "full");
     assert_eq!(ParamValue::String("true".into()).to_yaml(), "'true'");
     assert_eq!(ParamValue::DoubleArray(vec![1.0, 2.5]).to_yaml(), "[1.0, 2.5]");
