@@ -29,8 +29,12 @@ mod syntax;
 const DEFAULT_BY_HAND: &[&str] = &["std_msgs/msg/Header", "tracer_calib_msgs/srv/Calibrate_Response"];
 
 /// Rust names of types whose ROS names would clash with another type's (`KeyValue` is
-/// diagnostic_msgs' too).
-const RUST_NAMES: &[(&str, &str)] = &[("type_description_interfaces/msg/KeyValue", "TypeKeyValue")];
+/// diagnostic_msgs' too) or say too little on their own (lifecycle_msgs' `State`).
+const RUST_NAMES: &[(&str, &str)] = &[
+    ("type_description_interfaces/msg/KeyValue", "TypeKeyValue"),
+    ("lifecycle_msgs/msg/State", "LifecycleState"),
+    ("lifecycle_msgs/msg/Transition", "LifecycleTransition"),
+];
 
 /// The Rust struct name of a message type `pkg/msg/Name`.
 fn rust_name(ros_name: &str) -> String {

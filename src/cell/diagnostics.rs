@@ -31,6 +31,8 @@ impl NodeState {
         let age = now.wall.duration_since(self.in_force.applied_at).unwrap_or(Duration::ZERO);
         let age_days = age.as_secs_f64() / 86_400.0;
         let mut warnings = Vec::new();
+        // Said in the message without raising the level.
+        let mut notes = Vec::new();
         if p.calibration_valid && p.max_age_days > 0.0 && age_days > p.max_age_days {
             warnings.push(format!(
                 "calibration overdue: applied {} ({age_days:.2} days ago), calibration.max_age_days is {}",
@@ -50,17 +52,20 @@ impl NodeState {
         if !self.clock_problem.is_empty() {
             warnings.push(self.clock_problem.clone());
         }
+        if !self.is_active() {
+            notes.push(format!(
+                "lifecycle state {}: scans are taken, no contour is published, /calibrate is refused",
+                self.lifecycle_label()
+            ));
+        }
         if self.stats.qos_incompatible > 0 {
             warnings.push(format!(
                 "{} endpoint(s) with incompatible QoS, last: {}",
                 self.stats.qos_incompatible, self.stats.last_qos_incompatible
             ));
         }
-        let (level, message) = if warnings.is_empty() {
-            (level, message)
-        } else {
-            (level.max(DiagnosticStatus::WARN), format!("{message}; {}", warnings.join("; ")))
-        };
+        let level = if warnings.is_empty() { level } else { level.max(DiagnosticStatus::WARN) };
+        let message = std::iter::once(message).chain(notes).chain(warnings).collect::<Vec<_>>().join("; ");
         let kv = |k: &str, v: String| KeyValue { key: k.to_string(), value: v };
         let s = &self.stats;
         DiagnosticArray {
@@ -102,6 +107,7 @@ impl NodeState {
                     kv("last_fit", s.last_fit_message.clone()),
                     kv("scans_received", s.scans_received.to_string()),
                     kv("scans_rejected", s.scans_rejected.to_string()),
+                    kv("scans_held", s.scans_held.to_string()),
                     kv("contours_published", s.contours_published.to_string()),
                     kv("calibrations_applied", s.calibrations_applied.to_string()),
                     kv("calibrations_failed", s.calibrations_failed.to_string()),
@@ -111,6 +117,7 @@ impl NodeState {
                     kv("requests_unreadable", s.requests_unreadable.to_string()),
                     kv("last_qos_incompatible", s.last_qos_incompatible.clone()),
                     kv("use_sim_time", p.use_sim_time.to_string()),
+                    kv("lifecycle_state", self.lifecycle_label().to_string()),
                     kv("ros_time", format!("{:.3}", now.ros.to_nanos() as f64 * 1e-9)),
                 ],
             }],

@@ -14,7 +14,9 @@
 //! - [`calibrate`]: a calibrate request fitted, applied, recorded and persisted;
 //! - [`diagnostics`]: the `/diagnostics` report;
 //! - [`stats`]: the counts it reports (every rejection counted in one place);
-//! - [`in_force`]: what is known of the calibration in force.
+//! - [`in_force`]: what is known of the calibration in force;
+//! - [`lifecycle`]: the managed node's state machine (rcl_lifecycle's), and [`managed`]: what
+//!   each state lets through, and the node's callbacks.
 
 use std::collections::VecDeque;
 use std::path::Path;
@@ -29,6 +31,8 @@ pub mod calibrate;
 pub mod diagnostics;
 pub mod in_force;
 pub mod intake;
+pub mod lifecycle;
+pub mod managed;
 pub mod scans;
 pub mod stats;
 
@@ -37,6 +41,7 @@ mod tests;
 
 pub use calibrate::{CalibrateOutcome, response_for};
 pub use in_force::InForce;
+pub use managed::HistoryRead;
 pub use scans::{Corrected, PLATE_SCANS_KEPT};
 pub use stats::Stats;
 
@@ -82,6 +87,8 @@ pub struct NodeState {
     /// What is wrong with the node's clock (simulated time with no `/clock`), for
     /// /diagnostics; empty if nothing.
     pub clock_problem: String,
+    /// A managed node's life cycle (`managed: true`); `None`: unmanaged, always active.
+    pub lifecycle: Option<lifecycle::Lifecycle>,
     corrector: Option<Corrector>,
     plates: VecDeque<scans::PlateScan>,
 }
@@ -103,6 +110,7 @@ impl NodeState {
             history_problem: String::new(),
             extra_params: Vec::new(),
             clock_problem: String::new(),
+            lifecycle: None,
             corrector: None,
             plates: VecDeque::new(),
         }

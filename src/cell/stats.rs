@@ -9,6 +9,8 @@ use crate::interfaces::RawScan;
 pub struct Stats {
     pub scans_received: u64,
     pub scans_rejected: u64,
+    /// Scans taken while a managed node was not active: not corrected, nothing published.
+    pub scans_held: u64,
     pub contours_published: u64,
     pub calibrations_applied: u64,
     pub calibrations_failed: u64,

@@ -358,3 +358,59 @@ fn sim_time_stamps_and_records() {
     assert!(d.status[0].message.contains("no /clock"), "{}", d.status[0].message);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_managed_node_holds_scans_until_active_and_reads_its_history_when_configured() {
+    use super::lifecycle::{Lifecycle, Request, State};
+    let dir = temp_dir("managed");
+    let history = dir.join("m.history.jsonl");
+    let params = Parameters {
+        params_file: dir.join("m.yaml").display().to_string(),
+        history_file: history.display().to_string(),
+        ..Parameters::default()
+    };
+    // An unmanaged node records a calibration; its parameters are the managed node's.
+    let m = Mounting::new(0.02, 0.004, 0.001);
+    let mut first = NodeState::new("/m".into(), params.clone());
+    first.on_raw_scan(&plate_msg(1, &m), true).unwrap();
+    assert!(first.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false }).response.success);
+    assert!(first.is_active() && first.calibrate_refused().is_none());
+    let params = first.params.clone();
+
+    let mut st = NodeState::new("/m".into(), params);
+    st.lifecycle = Some(Lifecycle::new());
+    assert!(!st.is_active());
+    assert_eq!(st.in_force.source, "parameters", "unconfigured: the history is not read yet");
+    st.hold_raw_scan();
+    assert_eq!((st.stats.scans_received, st.stats.scans_held, st.stats.contours_published), (1, 1, 0));
+    let refused = st.calibrate_refused().unwrap();
+    assert!(!refused.success && refused.message.contains("the node is unconfigured (managed)"), "{}", refused.message);
+    let d = st.diagnostics(Now::system());
+    assert_eq!(diag_value(&d, "lifecycle_state"), "unconfigured");
+    assert_eq!(diag_value(&d, "scans_held"), "1");
+    assert!(d.status[0].message.contains("lifecycle state unconfigured: scans are taken"), "{}", d.status[0].message);
+
+    let label = |l: &'static str| Request { id: 0, label: l };
+    let mut read = None;
+    let walk = st.change_lifecycle(&label("configure"), Now::system(), &mut read).unwrap();
+    assert!(walk.success);
+    assert!(read.unwrap().note.contains("1 calibration record(s)"));
+    assert_eq!((st.in_force.source, st.history_records), ("history", 1), "configure read the history");
+    // Not offered from inactive: refused, nothing changes.
+    let e = st.change_lifecycle(&label("configure"), Now::system(), &mut None).unwrap_err();
+    assert!(e.contains("from current state inactive"), "{e}");
+    assert_eq!(st.lifecycle.as_ref().unwrap().current(), State::INACTIVE);
+    st.change_lifecycle(&label("activate"), Now::system(), &mut None).unwrap();
+    assert!(st.is_active() && st.calibrate_refused().is_none());
+    assert_eq!(st.on_raw_scan(&plate_msg(2, &m), true).unwrap().contour.scan_id, 2);
+    st.change_lifecycle(&label("deactivate"), Now::system(), &mut None).unwrap();
+    st.change_lifecycle(&label("cleanup"), Now::system(), &mut None).unwrap();
+    assert_eq!((st.in_force.source, st.history_records), ("parameters", 0), "cleanup forgot what configure read");
+    assert!(st.calibrate_refused().unwrap().message.contains("unconfigured"));
+    st.change_lifecycle(&label("shutdown"), Now::system(), &mut None).unwrap();
+    assert_eq!(st.lifecycle_label(), "finalized");
+    assert!(st.calibrate_refused().unwrap().message.contains("restart it"));
+    // An unmanaged node has no life cycle to change.
+    assert!(first.change_lifecycle(&label("configure"), Now::system(), &mut None).is_err());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

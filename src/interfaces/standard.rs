@@ -3,7 +3,8 @@
 //! `standard/srv/<package>/<Service>.srv`; the structs are generated from them (`build.rs`).
 //! Jazzy's are the same but for a longer comment in `builtin_interfaces/msg/Time.msg` (the
 //! same hash). `type_description_interfaces/msg/KeyValue` is [`TypeKeyValue`]
-//! (`diagnostic_msgs`' is [`KeyValue`]).
+//! (`diagnostic_msgs`' is [`KeyValue`]); `lifecycle_msgs/msg/State` and `Transition` are
+//! [`LifecycleState`] and [`LifecycleTransition`].
 
 use super::{Definition, InterfaceName, RosMsg};
 

@@ -7,6 +7,10 @@
 //! (`Header` in the own package, `pkg/Type`, `pkg/msg/Type`), possibly followed by `[]`,
 //! `[N]` or `[<=N]`.
 //!
+//! A definition without fields (`GetState_Request`, an empty `.msg`) gets the one field rosidl
+//! gives it, `uint8 structure_needs_at_least_one_member` ([`PLACEHOLDER_FIELD`]): it is on the
+//! wire (one octet) and in the type's description and hash.
+//!
 //! This file uses nothing but `std`: the build script (`build.rs`) includes it too, to
 //! generate the message structs from the same texts with the same parser.
 
@@ -15,6 +19,9 @@ pub const PRIMITIVES: &[&str] = &[
     "bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64",
     "uint64", "string", "wstring",
 ];
+
+/// The field rosidl adds to a structure that has none (C and IDL have no empty structs).
+pub const PLACEHOLDER_FIELD: &str = "structure_needs_at_least_one_member";
 
 /// One line of a definition that declares something: a field or a constant.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -46,7 +53,8 @@ fn comment_of(line: &str) -> Option<&str> {
 }
 
 /// Reads a definition text (one part of a `.srv`: see [`split_srv`]); a `---` line is
-/// skipped. A line that is not `TYPE NAME...` is an error naming it.
+/// skipped. A line that is not `TYPE NAME...` is an error naming it. A definition with no
+/// field gets rosidl's [`PLACEHOLDER_FIELD`], a `uint8`, after its constants.
 pub fn parse(text: &str) -> Result<Parsed<'_>, String> {
     let mut parsed = Parsed::default();
     let mut above: Vec<&str> = Vec::new();
@@ -87,6 +95,15 @@ pub fn parse(text: &str) -> Result<Parsed<'_>, String> {
                 };
                 Member { ty, name, constant: None, default, comments }
             }
+        });
+    }
+    if parsed.members.iter().all(|m| m.constant.is_some()) {
+        parsed.members.push(Member {
+            ty: "uint8",
+            name: PLACEHOLDER_FIELD,
+            constant: None,
+            default: None,
+            comments: Vec::new(),
         });
     }
     Ok(parsed)

@@ -416,6 +416,9 @@ mod tests {
         names.push(InterfaceName::srv("tracer_calib_msgs", "Calibrate"));
         names.push(InterfaceName::srv("type_description_interfaces", "GetTypeDescription"));
         names.push(InterfaceName::srv("rcl_interfaces", "GetParameters"));
+        // An empty request: rosidl's placeholder field.
+        names.push(InterfaceName::srv("lifecycle_msgs", "GetState"));
+        names.push(InterfaceName::srv("lifecycle_msgs", "GetAvailableTransitions"));
         let mut described = 0;
         for name in names {
             let type_name = name.ros_name();

@@ -12,7 +12,8 @@
 #      - test_graph.py, the node in the ROS graph (leaving it, matching, QoS), in a private
 #        network namespace too;
 #      - test_type_hash.py, type hashes and ~/get_type_description (REP-2016), likewise;
-#      - test_runtime.py, sim time, parameter descriptors, `-p` rules as rcl reads them;
+#      - test_runtime.py, sim time, parameter descriptors, the managed (lifecycle) node,
+#        `-p` rules as rcl reads them;
 #      - test_first_scan.py, a new driver's first scan reaches the node at once (50 fresh
 #        rclpy peers on Fast DDS; for Jazzy also on Cyclone DDS, after cyclone.sh), and a
 #        new client's first call is answered at once (20 fresh clients), likewise;
@@ -30,7 +31,7 @@
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), type_hash
 # test_type_hash.py's (type_hash: all), runtime or sim_time, replay_clock, describe,
-# rcl_param_rules test_runtime.py's (runtime: all), first_scan test_first_scan.py's
+# lifecycle, rcl_param_rules test_runtime.py's (runtime: all), first_scan test_first_scan.py's
 # (first_scan: all; first_scan_fastdds, first_scan_cyclone, first_scan_call_fastdds,
 # first_scan_call_cyclone), two_hosts test_two_hosts.py's scenarios (two_hosts:
 # all), cyclone or mixed test_cyclone.py's (cyclone: all), launch test_launch.py's
@@ -59,7 +60,7 @@ for a in "$@"; do
         launch_*) launch+=("${a#launch_}") ;;
         graph*) graph+=("$a") ;;
         type_hash*) type_hash+=("$a") ;;
-        runtime | sim_time* | replay_clock | describe | rcl_param_rules) runtime+=("$a") ;;
+        runtime | sim_time* | replay_clock | describe | lifecycle | rcl_param_rules) runtime+=("$a") ;;
         first_scan*) first_scan+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
         cyclone*|mixed*) cyclone+=("$a") ;;

@@ -12,6 +12,8 @@ types them:
 - default_launch: `ros2 launch tracer_calib tracer_calib.launch.xml`, its defaults: the
   node command line launch_ros builds, the installed params file read and left as it was,
   `ros2 service call /calibrate` without a plate scan answered with a failure;
+- managed_launch: `tracer_calib_managed.launch.xml`: the node unconfigured, `ros2 lifecycle
+  nodes/get/set` configure and activate it (activate first refused), then a contour;
 - graph: `ros2 node list/info`, `ros2 topic list -t`, `ros2 topic info -v` (the type
   hashes rosidl gives the installed interfaces), `ros2 service list -t`, `ros2 lifecycle
   nodes` (the node is not a managed node);
@@ -454,6 +456,35 @@ def test_default_launch():
     return f"(Ctrl-C: {took:.2f} s)"
 
 
+def test_managed_launch():
+    """tracer_calib_managed.launch.xml: the node starts unconfigured (a scan gives no
+    contour, /calibrate is refused naming the state); `ros2 lifecycle set` configures and
+    activates it, and the next scan's contour comes; Ctrl-C."""
+    params = copy_config("tracer_calib.yaml", "managed_tracer.yaml")
+    fqn = "/m/tracer"
+    with launched("managed_launch", "launch", "tracer_calib", "tracer_calib_managed.launch.xml", "namespace:=/m",
+                  "node_name:=tracer", f"params_file:={params}") as launch, \
+            ContourEcho("managed", "/m/contour") as echo:
+        ((_, argv),) = launch.nodes(1)
+        assert argv[argv.index("--params-file"):][:6] == ["--params-file", params, "--log-level", "warn",
+                                                         "-p", "managed:=true"], argv
+        node_listed(fqn, launch)
+        assert ros2("lifecycle", "nodes", "--no-daemon").stdout.split() == [fqn]
+        assert ros2("lifecycle", "get", "--no-daemon", fqn).stdout.strip() == "unconfigured [1]"
+        r = calibrate("/m/calibrate")
+        assert not r["success"] and "the node is unconfigured (managed)" in r["message"], r
+        out = ros2("lifecycle", "set", "--no-daemon", fqn, "activate", ok=False)
+        assert out.returncode != 0 and "Unknown transition requested" in out.text, out.text
+        for transition, state in (("configure", "inactive [2]"), ("activate", "active [3]")):
+            assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", fqn, transition).stdout
+            assert ros2("lifecycle", "get", "--no-daemon", fqn).stdout.strip() == state
+        lens = h.simulate("managed_lens", "ellipse", seed=61)
+        contour, lens_s = publish_scan("/m/raw_scan", 41, RawScan.TARGET_LENS, lens, echo, launch)
+        assert contour["scan_id"] == 41, contour
+        took = launch.interrupt()
+    return f"(scan to contour once active: {lens_s:.1f} s; Ctrl-C: {took:.2f} s)"
+
+
 def test_graph():
     """The node's endpoints as `ros2 node info`, `topic list -t`, `topic info -v` and
     `service list -t` show them, with the type hashes of the installed interfaces."""
@@ -772,6 +803,7 @@ def main():
     tests = [
         ("installed", test_installed),
         ("default_launch", test_default_launch),
+        ("managed_launch", test_managed_launch),
         ("graph", test_graph),
         ("calibrate", test_calibrate),
         ("parameters", test_parameters),

@@ -18,6 +18,11 @@ peer environment (target/ros/DISTRO/env.sh). Prints one line per test.
   a set outside a range or of a read-only parameter refused with rclcpp's reason;
   the README's `-p qos_overrides./raw_scan.subscription.reliability:=best_effort` starts
   the node.
+- lifecycle: `-p managed:=true`: the full walk with `ros2 lifecycle` (nodes, get, list,
+  set) and with the services themselves (a transition by label alone, one by id, one the
+  state does not offer: refused, nothing changes); contours only while active, scans
+  held and counted on /diagnostics otherwise, /calibrate refused naming the state; every
+  transition event seen by an rclpy subscriber; an unmanaged node has no lifecycle.
 - rcl_param_rules: tests/data/rcl_param_rules.json (what the Rust tests check our parser
   against) is what rcl itself reads, through rclpy: each rule taken or refused as the file
   says, with the name, type and value it gives.
@@ -38,6 +43,8 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from lifecycle_msgs.msg import Transition, TransitionEvent
+from lifecycle_msgs.srv import ChangeState, GetAvailableStates, GetAvailableTransitions, GetState
 from rcl_interfaces.msg import Log, ParameterType
 from rosgraph_msgs.msg import Clock
 from tracer_calib_msgs.msg import Calibration, Contour, RawScan
@@ -251,6 +258,138 @@ def test_describe(peer):
     return f"{len(names)} described" + ("" if cli is not None else "; no ros2 CLI installed")
 
 
+def ros2_cli_may_fail(*args):
+    """A real `ros2` command (no daemon) that may fail: (exit code, stdout + stderr)."""
+    out = subprocess.run(
+        ["timeout", "-s", "KILL", "60", "ros2", *args], capture_output=True, text=True,
+        env=dict(os.environ, ROS2CLI_NO_DAEMON="1"),
+    )
+    return out.returncode, out.stdout + out.stderr
+
+
+def test_lifecycle(peer):
+    fqn = "/managed_tracer"
+    node = h.NodeProcess("lifecycle", ["-r", "__node:=managed_tracer", "-p", "managed:=true"])
+    # An unmanaged node beside it (its topics elsewhere): no lifecycle services.
+    plain = h.NodeProcess("lifecycle_plain", ["-r", "__node:=plain_tracer", "-r", "raw_scan:=plain_scan",
+                                              "-r", "contour:=plain_contour", "-r", "calibrate:=plain_calibrate"])
+    try:
+        events = []
+        peer.node.create_subscription(TransitionEvent, f"{fqn}/transition_event", events.append, QoSProfile(depth=50))
+        contours = peer.subscribe(Contour, "/contour")
+        diags = peer.subscribe(DiagnosticArray, "/diagnostics")
+        pub = peer.publisher("/raw_scan")
+
+        def client(srv, name):
+            c = peer.node.create_client(srv, f"{fqn}/{name}")
+            peer.spin_until(c.service_is_ready, 20, f"{fqn}/{name}")
+            return c
+
+        get_state, change = client(GetState, "get_state"), client(ChangeState, "change_state")
+        states, available = client(GetAvailableStates, "get_available_states"), client(GetAvailableTransitions, "get_available_transitions")
+        graph = client(GetAvailableTransitions, "get_transition_graph")
+
+        def state():
+            s = peer.retry(lambda: get_state.call_async(GetState.Request()), "get_state").current_state
+            return s.label
+
+        def transition(tid=0, label=""):
+            req = ChangeState.Request(transition=Transition(id=tid, label=label))
+            return peer.retry(lambda: change.call_async(req), "change_state").success
+
+        def held():
+            status = diag_of(diags, fqn)
+            return int(value(status[-1][1], "scans_held")) if status else 0
+
+        def scan_held(scan_id, target, shape):
+            """A scan published while not active: counted as held, no contour."""
+            before = held()
+            pub.publish(h.raw_scan(scan_id, target, *h.simulate(f"lifecycle_{scan_id}", shape, seed=scan_id)))
+            peer.spin_until(lambda: held() > before, 10, f"scans_held above {before} on /diagnostics")
+            assert not any(c.scan_id == scan_id for c in contours), f"a contour of scan {scan_id} while {state()}"
+
+        assert state() == "unconfigured"
+        all_states = peer.retry(lambda: states.call_async(GetAvailableStates.Request()), "states").available_states
+        assert [(s.id, s.label) for s in all_states][:5] == [
+            (0, "unknown"), (1, "unconfigured"), (2, "inactive"), (3, "active"), (4, "finalized")], all_states
+        assert len(all_states) == 11
+        g = peer.retry(lambda: graph.call_async(GetAvailableTransitions.Request()), "graph").available_transitions
+        assert len(g) == 25 and (g[0].transition.label, g[0].start_state.label, g[0].goal_state.label) == (
+            "configure", "unconfigured", "configuring"), g[0]
+        have_cli = shutil.which("ros2") is not None
+        if have_cli:
+            out = ros2_cli("lifecycle", "nodes", "--no-daemon")
+            assert out.split() == [fqn], out
+            assert ros2_cli("lifecycle", "get", "--no-daemon", fqn).strip() == "unconfigured [1]"
+        # Unconfigured: scans held, /calibrate refused naming the state.
+        peer.wait_matched(pub)
+        scan_held(1, RawScan.TARGET_CALIBRATION_PLATE, "plate")
+        r = peer.call("/calibrate", Calibrate.Request(scan_id=0))
+        assert not r.success and "unconfigured" in r.message and "configure" in r.message, r.message
+        # Not offered from here: refused, nothing changes.
+        assert not transition(tid=Transition.TRANSITION_ACTIVATE)
+        assert state() == "unconfigured"
+        if have_cli:
+            rc, out = ros2_cli_may_fail("lifecycle", "set", "--no-daemon", fqn, "activate")
+            assert rc != 0 and "Unknown transition requested" in out and "configure [1]" in out, (rc, out)
+            out = ros2_cli("lifecycle", "set", "--no-daemon", fqn, "configure")
+            assert "Transitioning successful" in out, out
+        else:
+            assert transition(tid=Transition.TRANSITION_CONFIGURE)
+        assert state() == "inactive"
+        offered = peer.retry(lambda: available.call_async(GetAvailableTransitions.Request()), "available")
+        assert sorted((t.transition.id, t.transition.label) for t in offered.available_transitions) == [
+            (2, "cleanup"), (3, "activate"), (6, "shutdown")], offered
+        if have_cli:
+            out = ros2_cli("lifecycle", "list", "--no-daemon", fqn)
+            assert "activate [3]" in out and "Start: inactive" in out, out
+        scan_held(2, RawScan.TARGET_LENS, "ellipse")
+        # Activate by label alone (id 0), as `ros2 service call ... "{transition: {label: activate}}"`.
+        assert transition(label="activate")
+        assert state() == "active"
+        r, lens = h.calibrate_then_lens(peer, 10, "lifecycle_active", 11,
+                                        lambda i: peer.call("/calibrate", Calibrate.Request(scan_id=i)))
+        assert r.success, r.message
+        assert lens.scan_id == 11
+        if have_cli:
+            assert "Transitioning successful" in ros2_cli("lifecycle", "set", "--no-daemon", fqn, "deactivate")
+        else:
+            assert transition(tid=Transition.TRANSITION_DEACTIVATE)
+        assert state() == "inactive"
+        scan_held(20, RawScan.TARGET_LENS, "ellipse")
+        r = peer.call("/calibrate", Calibrate.Request(scan_id=0))
+        assert not r.success and "inactive" in r.message, r.message
+        assert transition(tid=Transition.TRANSITION_CLEANUP)
+        assert state() == "unconfigured"
+        if have_cli:
+            assert "Transitioning successful" in ros2_cli("lifecycle", "set", "--no-daemon", fqn, "shutdown")
+        else:
+            assert transition(tid=Transition.TRANSITION_UNCONFIGURED_SHUTDOWN)
+        assert state() == "finalized"
+        r = peer.call("/calibrate", Calibrate.Request(scan_id=0))
+        assert not r.success and "finalized" in r.message, r.message
+        expected = [
+            ("unconfigured", "configuring"), ("configuring", "inactive"),
+            ("inactive", "activating"), ("activating", "active"),
+            ("active", "deactivating"), ("deactivating", "inactive"),
+            ("inactive", "cleaningup"), ("cleaningup", "unconfigured"),
+            ("unconfigured", "shuttingdown"), ("shuttingdown", "finalized"),
+        ]
+        peer.spin_until(lambda: len(events) >= len(expected), 10, lambda: f"{len(expected)} transition events, got {len(events)}")
+        seen = [(e.start_state.label, e.goal_state.label) for e in events]
+        assert seen == expected, seen
+        assert [e.transition.id for e in events] == [1, 10, 3, 30, 4, 40, 2, 20, 5, 50], events
+        assert all(abs(e.timestamp * 1e-9 - time.time()) < 120 for e in events), [e.timestamp for e in events]
+        peer.spin_until(lambda: value(diag_of(diags, fqn)[-1][1], "lifecycle_state") == "finalized", 5,
+                        "lifecycle_state finalized on /diagnostics")
+        node.check_alive()
+        plain.check_alive()
+    finally:
+        node.stop()
+        plain.stop()
+    return f"{len(events)} transition events, 3 scans held" + ("" if have_cli else "; no ros2 CLI installed")
+
+
 def test_rcl_param_rules(_peer):
     with open(os.path.join(ROOT, "tests/data/rcl_param_rules.json")) as f:
         cases = json.load(f)
@@ -304,6 +443,7 @@ def main():
         ("sim_time_no_clock", lambda: test_sim_time_no_clock(peer)),
         ("replay_clock", lambda: test_replay_clock(peer)),
         ("describe", lambda: test_describe(peer)),
+        ("lifecycle", lambda: test_lifecycle(peer)),
         ("rcl_param_rules", lambda: test_rcl_param_rules(peer)),
     ]
     only = [a for a in sys.argv[1:] if a != "runtime"]

@@ -3,7 +3,8 @@
 node (issue 20, item 2):
 
 - endpoint_hashes: every endpoint of the node (its topics, /calibrate, the parameter
-  services, ~/get_type_description, /rosout, /parameter_events, /clock, ros_discovery_info)
+  services, ~/get_type_description, /rosout, /parameter_events, /clock, ros_discovery_info,
+  and, the node being managed, the lifecycle services and ~/transition_event)
   announces a RIHS01 hash that rclpy reads, equal to the one rosidl generated for its type
   (the `.json` of the wheels and of the colcon build of msg/); a service's request and
   reply topics carry the request's and the response's hash, as rmw_fastrtps and
@@ -76,10 +77,16 @@ EXPECTED = [
     )
     for d, suffix, kind in (("rq", "Request", "sub"), ("rr", "Reply", "pub"))
 ]
+# A managed node's (the node runs with -p managed:=true here).
+EXPECTED += [(f"rt/{NODE}/transition_event", "pub")] + [
+    (f"{d}/{NODE}/{s}{suffix}", kind)
+    for s in ("change_state", "get_state", "get_available_states", "get_available_transitions", "get_transition_graph")
+    for d, suffix, kind in (("rq", "Request", "sub"), ("rr", "Reply", "pub"))
+]
 
 
 def test_endpoint_hashes(peer):
-    node = t.NodeProcess("type_hash_endpoints", [])
+    node = t.NodeProcess("type_hash_endpoints", ["-p", "managed:=true"])
     try:
         contour = []
 

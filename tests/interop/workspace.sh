@@ -164,6 +164,7 @@ done
 for f in tracer_calib/share/tracer_calib/package.xml tracer_calib/share/tracer_calib/config/tracer_calib.yaml \
          tracer_calib/share/tracer_calib/config/cell1_tracer.yaml tracer_calib/share/tracer_calib/config/cell2_tracer.yaml \
          tracer_calib/share/tracer_calib/launch/tracer_calib.launch.xml tracer_calib/share/tracer_calib/launch/edging_cell.launch.xml \
+         tracer_calib/share/tracer_calib/launch/tracer_calib_managed.launch.xml \
          tracer_calib/share/ament_index/resource_index/packages/tracer_calib \
          tracer_calib_msgs/share/ament_index/resource_index/packages/tracer_calib_msgs \
          tracer_calib_msgs/share/tracer_calib_msgs/srv/Calibrate.srv \

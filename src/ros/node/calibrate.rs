@@ -30,7 +30,14 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
             }
         };
         debug!("calibrate request {id:?}: scan_id {}, dry_run {}", req.scan_id, req.dry_run);
-        let outcome = shared.state.lock().expect("state lock").on_calibrate_at(&req, shared.now());
+        let outcome = {
+            let mut st = shared.state.lock().expect("state lock");
+            match st.calibrate_refused() {
+                // A managed node that is not active: refused, naming its state.
+                Some(response) => crate::cell::CalibrateOutcome { response, applied: None },
+                None => st.on_calibrate_at(&req, shared.now()),
+            }
+        };
         if let Some(m) = &outcome.applied {
             parameters::mirror_calibration(node, m);
             let _ = shared.calibration_changed.try_send(());

@@ -9,6 +9,7 @@
 //! | publisher | `/diagnostics`, 1 Hz | reliable, keep last 10 |
 //! | publisher | `calibration` (the calibration in force) | reliable, transient local, keep last 1 |
 //! | service | `~/get_type_description` (REP-2016) | reliable, keep last 10 |
+//! | services, publisher | `~/change_state`, ... `~/transition_event` (managed only: [`super::lifecycle`]) | reliable, keep last 10 |
 //!
 //! Every endpoint, ros2-client's own included, announces its type's hash
 //! ([`crate::rmw::dds::context`]).
@@ -35,6 +36,7 @@ use ros2_client::{
     qos::{Durability, History, WhenFull},
 };
 
+use super::lifecycle::LifecycleEntities;
 use crate::interfaces::{
     Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
@@ -52,7 +54,7 @@ use crate::ros::qos_overrides::{QosOverrides, Side};
 /// would lose one. A request is a few bytes, so the bound is generous.
 const CALIBRATE_QUEUE: usize = 1000;
 
-fn reliable(depth: usize) -> QosProfile {
+pub(super) fn reliable(depth: usize) -> QosProfile {
     QosProfile::publisher_default()
         .reliability_reliable(WhenFull::DEFAULT)
         .durability(Durability::Volatile)
@@ -130,6 +132,8 @@ pub(super) struct Entities {
     pub calibration: Publisher<msgs::Calibration>,
     pub calibrate: Server<CalibrateRequest, CalibrateResponse>,
     pub type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
+    /// The lifecycle services and events of a managed node.
+    pub lifecycle: Option<LifecycleEntities>,
     /// The types of the node's endpoints, which `type_description` describes.
     pub types_in_use: TypesInUse,
     spinner: smol::Task<ros2_client::CreateResult<()>>,
@@ -138,12 +142,14 @@ pub(super) struct Entities {
 impl Entities {
     /// The DDS participant (`ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE` and
     /// `ROS_STATIC_PEERS` as rmw_fastrtps reads them: [`crate::rmw::dds`]), the node with its
-    /// parameters (`options`), its endpoints, and its spinner running.
+    /// parameters (`options`), its endpoints (and the lifecycle's if `managed`), and its
+    /// spinner running.
     pub fn create(
         env: &RosEnv,
         identity: &NodeIdentity,
         options: NodeOptions,
         endpoints: &Endpoints,
+        managed: bool,
     ) -> Result<Self, String> {
         let participant = crate::rmw::dds::participant_from_env(env)?;
         let (ctx, types_in_use) = crate::rmw::dds::context(participant)?;
@@ -184,6 +190,8 @@ impl Entities {
                 reliable(10),
             )
             .map_err(mk)?;
+        let lifecycle =
+            if managed { Some(LifecycleEntities::create(&mut node, &identity.fully_qualified_name())?) } else { None };
         let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
         Ok(Entities {
             ctx,
@@ -195,6 +203,7 @@ impl Entities {
             calibration,
             calibrate,
             type_description,
+            lifecycle,
             types_in_use,
             spinner,
         })
@@ -215,10 +224,11 @@ impl Entities {
             calibration,
             calibrate,
             type_description,
+            lifecycle,
             types_in_use: _,
             spinner,
         } = self;
-        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description));
+        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description, lifecycle));
         drop(node);
         std::thread::sleep(Duration::from_millis(150));
         smol::block_on(spinner.cancel());

@@ -10,6 +10,7 @@
 //! | [`diagnostics`] | `/diagnostics` at 1 Hz |
 //! | [`graph`] | matches (polygons only when someone listens) and incompatible QoS |
 //! | [`type_description`] | `~/get_type_description` (REP-2016) |
+//! | [`lifecycle`] | a managed node's lifecycle services and transition events |
 //!
 //! The parameters ([`parameters`]) are served by ros2-client's parameter services, with
 //! the cell's validation. Each loop reads the [`Entities`] and the [`Shared`] state and
@@ -21,6 +22,7 @@ mod config;
 mod diagnostics;
 mod entities;
 mod graph;
+mod lifecycle;
 mod parameters;
 mod rate_limit;
 mod scans;
@@ -38,7 +40,6 @@ use ros2_client::NodeClock;
 
 use crate::cell::{NodeState, Now};
 use crate::params::file as params_file;
-use crate::records;
 pub use config::Config;
 use entities::{Endpoints, Entities};
 use graph::QosReports;
@@ -79,31 +80,27 @@ fn now_on(clock: &OnceLock<NodeClock>) -> Now {
 }
 
 /// The cell's state at start-up: the parameters, and what the history file says of the
-/// calibration in force.
+/// calibration in force. A managed node starts unconfigured: it reads the history when
+/// configured.
 fn initial_state(fqn: &str, params: &crate::params::Parameters) -> NodeState {
     let mut initial = NodeState::new(fqn.to_string(), params.clone());
-    if params.history_file.is_empty() {
-        return initial;
-    }
-    match records::file::read(std::path::Path::new(&params.history_file)) {
-        Ok(history) => {
-            for skipped in &history.skipped {
-                warn!("{skipped}");
-            }
-            initial.adopt_history(&history);
-            info!(
-                "{}: {} calibration record(s); the calibration in force comes from the {}",
-                params.history_file,
-                history.records.len(),
-                initial.in_force.source
-            );
-        }
-        Err(e) => {
-            warn!("{e}");
-            initial.history_problem = e;
-        }
+    if params.managed {
+        initial.lifecycle = Some(crate::cell::lifecycle::Lifecycle::new());
+        info!("{fqn}: managed (lifecycle) node, unconfigured");
+    } else {
+        log_history_read(&initial.read_history());
     }
     initial
+}
+
+/// What reading the history file gave, in the log.
+fn log_history_read(read: &crate::cell::HistoryRead) {
+    for w in &read.warnings {
+        warn!("{w}");
+    }
+    if !read.note.is_empty() {
+        info!("{}", read.note);
+    }
 }
 
 /// Run the node until `shutdown` resolves (SIGINT/SIGTERM in the binary).
@@ -132,7 +129,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         clock: Arc::new(OnceLock::new()),
     };
     let options = parameters::options(&params, &qos, &shared);
-    let entities = Entities::create(&env, &identity, options, &endpoints)?;
+    let entities = Entities::create(&env, &identity, options, &endpoints, params.managed)?;
     let _ = shared.clock.set(entities.node.clock());
     info!(
         "{fqn}: listening on {} (raw scans), serving {}; domain {}, discovery {:?}",
@@ -164,6 +161,12 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         calibration::run(e, shared, calibration_changes).await;
         error!("the calibration change stream ended")
     }));
+    if let Some(l) = &e.lifecycle {
+        loops.push(Box::pin(async move {
+            lifecycle::run(l, shared).await;
+            error!("the lifecycle request streams ended")
+        }));
+    }
     loops.push(Box::pin(async {
         shutdown.await;
         info!("{fqn}: shutting down")

@@ -10,7 +10,9 @@ use super::{Entities, RateLimit, Shared};
 
 /// Each raw scan through the cell ([`crate::cell::NodeState::on_raw_scan`]): the contour
 /// published, or the rejection counted and warned about (rate-limited). A message that does
-/// not even decode is counted like a malformed scan. Ends when the subscription's stream does.
+/// not even decode is counted like a malformed scan. A managed node that is not active takes
+/// each scan and only counts it ([`crate::cell::NodeState::hold_raw_scan`]). Ends when the
+/// subscription's stream does.
 pub(super) async fn run(e: &Entities, shared: &Shared) {
     let mut stream = std::pin::pin!(e.raw_scans.async_stream());
     let mut limit = RateLimit::new(Duration::from_secs(1));
@@ -27,7 +29,15 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
         };
         // The polygon (for RViz) only when someone listens to it.
         let with_polygon = shared.polygon_wanted.load(Ordering::Relaxed);
-        let outcome = shared.state.lock().expect("state lock").on_raw_scan(&msg, with_polygon);
+        let outcome = {
+            let mut st = shared.state.lock().expect("state lock");
+            if !st.is_active() {
+                // A managed node not active: taken and counted, nothing published.
+                st.hold_raw_scan();
+                continue;
+            }
+            st.on_raw_scan(&msg, with_polygon)
+        };
         match outcome {
             Ok(out) => {
                 if let Err(err) = e.contours.async_publish(out.contour).await {
