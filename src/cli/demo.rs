@@ -115,6 +115,19 @@ impl Drop for NodeProcess {
     }
 }
 
+/// The demo node's own state directory (its params and history files, left for the user to
+/// read): made empty at the start, so a directory left by an earlier demo whose process id
+/// this one reuses cannot start the node calibrated.
+struct StateDir(std::path::PathBuf);
+impl StateDir {
+    fn new() -> Result<Self, String> {
+        let dir = std::env::temp_dir().join(format!("tracer_calib_demo_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        Ok(StateDir(dir))
+    }
+}
+
 fn qos() -> QosProfile {
     QosProfile::publisher_default()
         .reliability_reliable(WhenFull::DEFAULT)
@@ -154,9 +167,8 @@ fn demo(args: &Args) -> Result<(), String> {
     if !node_bin.exists() {
         return Err(format!("{} not found: build it first (cargo build --release --bins)", node_bin.display()));
     }
-    let state_dir = std::env::temp_dir().join(format!("tracer_calib_demo_{}", std::process::id()));
-    std::fs::create_dir_all(&state_dir).map_err(|e| e.to_string())?;
-    let params_path = state_dir.join("tracer_calibrator.yaml");
+    let state_dir = StateDir::new()?;
+    let params_path = state_dir.0.join("tracer_calibrator.yaml");
     let started = Instant::now();
     let node = Command::new(&node_bin)
         .args(["--ros-args", "-p"])
