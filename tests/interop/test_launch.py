@@ -29,6 +29,8 @@ types them:
   and corrects a lens on its own topics; Ctrl-C, each calibration in its own params file;
 - missing_params_file: the node stops with one line naming the file, and launch ends;
 - yaml_include: a YAML launch file (launch_yaml) including tracer_calib.launch.xml;
+- lifecycle_node_launch: launch_ros' `LifecycleNode` in a Python launch file, its event
+  handlers configuring and then activating the node on its transition events;
 - daemon: `ros2 daemon start`, `ros2 node list` through it, `ros2 daemon stop`.
 
 Ctrl-C is SIGINT to the process group of `ros2 launch` (or `ros2 run`), as a terminal sends
@@ -778,6 +780,47 @@ def test_yaml_include():
     return f"(Ctrl-C: {took:.2f} s)"
 
 
+def test_lifecycle_node_launch():
+    """launch_ros' LifecycleNode (a Python launch file, as a cell's bring-up writes one): its
+    event handlers configure the node, then, on the transition event into inactive,
+    activate it; `ros2 lifecycle get` says active; Ctrl-C."""
+    params = copy_config("tracer_calib.yaml", "lc_tracer.yaml")
+    path = h.params_file("managed_cell.launch.py", f"""import launch
+import launch.events
+from launch.actions import EmitEvent, LogInfo, RegisterEventHandler
+from launch_ros.actions import LifecycleNode
+from launch_ros.event_handlers import OnStateTransition
+from launch_ros.events.lifecycle import ChangeState
+from lifecycle_msgs.msg import Transition
+
+
+def generate_launch_description():
+    node = LifecycleNode(package="tracer_calib", executable="tracer_calib_node", name="tracer",
+                         namespace="/lc", output="screen",
+                         ros_arguments=["--params-file", {params!r}, "-p", "managed:=true"])
+    def change(transition):
+        return EmitEvent(event=ChangeState(lifecycle_node_matcher=launch.events.matches_action(node),
+                                           transition_id=transition))
+    return launch.LaunchDescription([
+        RegisterEventHandler(OnStateTransition(target_lifecycle_node=node, goal_state="inactive",
+                                               entities=[change(Transition.TRANSITION_ACTIVATE)])),
+        RegisterEventHandler(OnStateTransition(target_lifecycle_node=node, goal_state="active",
+                                               entities=[LogInfo(msg="TRACER IS ACTIVE")])),
+        node,
+        change(Transition.TRANSITION_CONFIGURE),
+    ])
+""")
+    with launched("lifecycle_node_launch", "launch", path) as launch:
+        launch.nodes(1)
+        t0 = time.monotonic()
+        wait_for(lambda: "TRACER IS ACTIVE" in launch.output(), 30, "launch's handler of the transition to active",
+                 [launch])
+        to_active = time.monotonic() - t0
+        assert ros2("lifecycle", "get", "--no-daemon", "/lc/tracer").stdout.strip() == "active [3]"
+        took = launch.interrupt()
+    return f"(started to active: {to_active:.1f} s; Ctrl-C: {took:.2f} s)"
+
+
 def test_daemon():
     """The ros2 daemon, started on purpose: `ros2 node list` through it sees the node;
     `ros2 daemon stop` ends it."""
@@ -811,6 +854,7 @@ def main():
         ("edging_cell", lambda: test_edging_cell(peer)),
         ("missing_params_file", test_missing_params_file),
         ("yaml_include", test_yaml_include),
+        ("lifecycle_node_launch", test_lifecycle_node_launch),
         ("daemon", test_daemon),
     ]
     tests = [(name, no_daemon_left(fn)) for name, fn in tests]
