@@ -13,7 +13,8 @@ preload; Fast DDS peers are subprocesses with the Fast DDS environment of env.sh
   corrected; the node logs no unreadable request.
 - cyclone_parameters: rclpy's parameter client on Cyclone lists, gets and sets the
   node's parameters (a bad value refused with its reason).
-- cyclone_cli: the real `ros2 service call`, `ros2 param get/set` and `ros2 topic info -v`
+- cyclone_cli: the real `ros2 lifecycle get/set` (a managed node configured and activated),
+  `ros2 service call`, `ros2 param get/set` and `ros2 topic info -v`
   from a Cyclone environment (when tests/interop/ros2cli.sh has installed them): the
   node's type hash read from USER_DATA, rosidl's; no type-hash warning from Cyclone.
 - mixed_cell: a Cyclone client process and a Fast DDS client process, 30 /calibrate calls
@@ -131,7 +132,9 @@ def test_cyclone_parameters(peer):
 def test_cyclone_cli(peer):
     if not shutil.which("ros2"):
         return "skipped: no ros2 command (tests/interop/ros2cli.sh installs it)"
-    node = tn.NodeProcess("cyclone_cli")
+    # Managed: `ros2 lifecycle` on Cyclone DDS too (GetState's request is rosidl's one-octet
+    # placeholder, behind Cyclone's request header).
+    node = tn.NodeProcess("cyclone_cli", ["-p", "managed:=true"])
     env = dict(CYCLONE_ENV, ROS2CLI_NO_DAEMON="1")
 
     def ros2(*args):
@@ -142,6 +145,10 @@ def test_cyclone_cli(peer):
         return out.stdout
 
     try:
+        assert ros2("lifecycle", "get", "--no-daemon", "/tracer_calibrator").strip() == "unconfigured [1]"
+        for transition, state in (("configure", "inactive [2]"), ("activate", "active [3]")):
+            assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", "/tracer_calibrator", transition)
+            assert ros2("lifecycle", "get", "--no-daemon", "/tracer_calibrator").strip() == state
         send_plate_scans(peer, [(5, 4)])
         out = ros2("service", "call", "/calibrate", "tracer_calib_msgs/srv/Calibrate", "{dry_run: true}")
         assert "success=True" in out and "scan 5:" in out, out
