@@ -139,7 +139,8 @@ fn replay(args: &Args) -> Result<String, String> {
     timeline.sort_by_key(|(t, _, _)| *t);
 
     let env = RosEnv::from_env().map_err(|e| e.to_string())?;
-    let participant = crate::rmw::dds::participant_from_env(&env)?;
+    let security = crate::rmw::security::resolve(&env.security, None).map_err(|e| e.to_string())?;
+    let participant = crate::rmw::dds::participant_from_env(&env, &security)?;
     let (ctx, _) = crate::rmw::dds::context(participant)?;
     let mut node = ctx
         .new_node(NodeName::new("/", "tracer_calib_replay").unwrap(), NodeOptions::new().enable_rosout(false))

@@ -24,6 +24,7 @@ use std::sync::{Arc, Mutex};
 use rustdds::{DomainParticipant, DomainParticipantBuilder};
 
 use super::env::{DiscoveryRange, RosEnv};
+use super::security::{Security, Strategy};
 
 /// Participant ids probed at each static peer: how many ROS processes (DDS participants)
 /// a peer host may run and still be found, the range rmw_fastrtps probes on localhost.
@@ -131,8 +132,9 @@ impl DiscoveryPlan {
         DiscoveryPlan { multicast, same_host, discover_others, loopback_only, static_peers, warnings }
     }
 
-    /// The DDS participant for `domain_id`, configured by this plan.
-    pub fn participant(&self, domain_id: u32) -> Result<DomainParticipant, String> {
+    /// The DDS participant for `domain_id`, configured by this plan, made secure with the
+    /// enclave of `security` ([`Security::Enclave`]; otherwise an open participant).
+    pub fn participant(&self, domain_id: u32, security: &Security) -> Result<DomainParticipant, String> {
         let domain = u16::try_from(domain_id).map_err(|_| format!("ROS_DOMAIN_ID {domain_id} is out of range"))?;
         let mut builder = DomainParticipantBuilder::new(domain)
             .multicast(self.multicast)
@@ -143,15 +145,60 @@ impl DiscoveryPlan {
         if self.loopback_only {
             builder = builder.with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)]);
         }
-        builder.build().map_err(|e| format!("cannot create the DDS participant: {e:?}"))
+        if let Security::Enclave { name, dir, strategy } = security {
+            builder = secure(builder, name, dir, *strategy)?;
+        }
+        builder.build().map_err(|e| match security {
+            Security::Enclave { name, .. } => {
+                format!("SECURITY ERROR: enclave '{name}': cannot create the secure DDS participant: {e:?}")
+            }
+            _ => format!("cannot create the DDS participant: {e:?}"),
+        })
     }
 }
 
-/// The participant for the process environment `env`, its warnings logged (each once).
-pub fn participant_from_env(env: &RosEnv) -> Result<DomainParticipant, String> {
+/// The builder with DDS Security's built-in plugins (PKI-DH, access control, AES-GCM) on
+/// the enclave's files (sros2's names; the private key is not password-protected).
+#[cfg(feature = "security")]
+fn secure(
+    builder: DomainParticipantBuilder,
+    name: &str,
+    dir: &std::path::Path,
+    _strategy: Strategy,
+) -> Result<DomainParticipantBuilder, String> {
+    log::info!("security: enclave '{name}' in {}", dir.display());
+    Ok(builder
+        .builtin_security(rustdds::DomainParticipantSecurityConfigFiles::with_ros_default_names(dir, String::new())))
+}
+
+/// Without the `security` feature no participant can be secure: under `Enforce` an enclave
+/// is an error, otherwise a warning and an open participant.
+#[cfg(not(feature = "security"))]
+fn secure(
+    builder: DomainParticipantBuilder,
+    name: &str,
+    _dir: &std::path::Path,
+    strategy: Strategy,
+) -> Result<DomainParticipantBuilder, String> {
+    let why = "this build of tracer_calib has no DDS Security (cargo feature `security`)";
+    match strategy {
+        Strategy::Enforce => Err(format!("SECURITY ERROR: enclave '{name}': {why}")),
+        Strategy::Permissive => {
+            log::warn!("security is enabled (enclave '{name}'), but {why}; running without security");
+            Ok(builder)
+        }
+    }
+}
+
+/// The participant for the process environment `env`, its warnings logged (each once),
+/// secured as `security` says.
+pub fn participant_from_env(env: &RosEnv, security: &Security) -> Result<DomainParticipant, String> {
     let plan = DiscoveryPlan::new(env, &system_lookup);
     for w in &plan.warnings {
         log::warn!("{w}");
+    }
+    if let Security::Unsecured { warning } = security {
+        log::warn!("{warning}");
     }
     log::info!(
         "discovery: {:?}, multicast {}, same host {}, static peers {:?}",
@@ -160,7 +207,7 @@ pub fn participant_from_env(env: &RosEnv) -> Result<DomainParticipant, String> {
         plan.same_host,
         plan.static_peers
     );
-    plan.participant(env.domain_id)
+    plan.participant(env.domain_id, security)
 }
 
 /// The ROS types of the endpoints made through a context (`pkg/msg/Type`, and for a
@@ -216,6 +263,7 @@ mod tests {
             discovery_range: range,
             static_peers: peers.iter().map(|s| s.to_string()).collect(),
             warnings: vec![],
+            security: Default::default(),
         }
     }
 

@@ -2,8 +2,10 @@
 //!
 //! [`RosEnv`] reads `ROS_DOMAIN_ID` (0..=232), `ROS_AUTOMATIC_DISCOVERY_RANGE` (an unknown value
 //! means localhost, as in rcl), the deprecated `ROS_LOCALHOST_ONLY=1` (honoured, as in Jazzy) and
-//! `ROS_STATIC_PEERS`.
+//! `ROS_STATIC_PEERS`, and the SROS2 variables (`ROS_SECURITY_*`, resolved by
+//! [`super::security`]).
 
+use super::security::SecurityEnv;
 use crate::params::value::c_strtoll;
 
 /// An unusable ROS environment variable.
@@ -49,6 +51,9 @@ pub struct RosEnv {
     pub static_peers: Vec<String>,
     /// Things to log as warnings (an unknown discovery range, a deprecated variable).
     pub warnings: Vec<String>,
+    /// `ROS_SECURITY_ENABLE`, `ROS_SECURITY_STRATEGY`, `ROS_SECURITY_KEYSTORE`,
+    /// `ROS_SECURITY_ENCLAVE_OVERRIDE`, as given.
+    pub security: SecurityEnv,
 }
 
 /// `ROS_DOMAIN_ID`: unset or empty -> 0; else an integer (C `strtoul` base 0 forms: `7`,
@@ -103,7 +108,8 @@ impl RosEnv {
             discovery_range = DiscoveryRange::Localhost;
             static_peers.clear();
         }
-        Ok(RosEnv { domain_id, discovery_range, static_peers, warnings })
+        let security = SecurityEnv::from_lookup(&get);
+        Ok(RosEnv { domain_id, discovery_range, static_peers, warnings, security })
     }
 
     /// Reads the real process environment.
@@ -164,7 +170,13 @@ mod tests {
         let e = env(&[]).unwrap();
         assert_eq!(
             e,
-            RosEnv { domain_id: 0, discovery_range: DiscoveryRange::Subnet, static_peers: vec![], warnings: vec![] }
+            RosEnv {
+                domain_id: 0,
+                discovery_range: DiscoveryRange::Subnet,
+                static_peers: vec![],
+                warnings: vec![],
+                security: SecurityEnv::default()
+            }
         );
         let e = env(&[
             ("ROS_DOMAIN_ID", "17"),

@@ -3,6 +3,7 @@
 //!
 //! - [`env`]: the ROS environment (`ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE`,
 //!   `ROS_STATIC_PEERS`, `ROS_LOCALHOST_ONLY`), read as rcl reads it;
+//! - [`security`]: the SROS2 enclave (`ROS_SECURITY_*`, `--enclave`), found as rcl finds it;
 //! - [`dds`]: the DDS participant those make, with rmw_fastrtps' discovery rules.
 //!
 //! It knows the interface layer's names, never the cell's logic: the node shell
@@ -11,5 +12,7 @@
 
 pub mod dds;
 pub mod env;
+pub mod security;
 
 pub use env::{DiscoveryRange, EnvError, RosEnv};
+pub use security::{Security, SecurityError};

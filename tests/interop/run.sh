@@ -34,13 +34,17 @@
 # lifecycle, rcl_param_rules test_runtime.py's (runtime: all), first_scan test_first_scan.py's
 # (first_scan: all; first_scan_fastdds, first_scan_cyclone, first_scan_call_fastdds,
 # first_scan_call_cyclone), two_hosts test_two_hosts.py's scenarios (two_hosts:
-# all), cyclone or mixed test_cyclone.py's (cyclone: all), launch test_launch.py's
+# all), cyclone or mixed test_cyclone.py's (cyclone: all), security or secure_* or
+# insecure_* or *_missing_enclave test_security.py's (security: all), launch test_launch.py's
 # (launch_NAME: its test NAME; launch: all, with 3 before it); the others, node_suite.py's
 # tests. With names, 3 and 4 run only for launch names. No names: everything.
 # Also: after 1, tests/interop/ros2cli.sh installs the stock ros2 CLI and launch into the
 # venv; (2b, after 2, Jazzy) tests/interop/cyclone.sh builds rmw_cyclonedds_cpp (cached
 # outside the clone), and test_cyclone.py runs with the node's peers on Cyclone DDS, and
-# on both DDS at once.
+# on both DDS at once; (2c, Jazzy) test_security.py, SROS2 with a secure Cyclone DDS peer
+# (tests/interop/sros2.sh installs `ros2 security`), against the node built with the
+# cargo feature `security` into cargo's target directory's security/ (built here when
+# selected by name; in a run without names it runs only if that build is there).
 #   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -53,7 +57,7 @@ export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
-node_tests=() graph=() type_hash=() runtime=() first_scan=() two_hosts=() cyclone=() launch=()
+node_tests=() graph=() type_hash=() runtime=() first_scan=() two_hosts=() cyclone=() security=() launch=()
 for a in "$@"; do
     case "$a" in
         launch) launch+=(all) ;;
@@ -64,6 +68,7 @@ for a in "$@"; do
         first_scan*) first_scan+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
         cyclone*|mixed*) cyclone+=("$a") ;;
+        security|secure_*|insecure_*|*_missing_enclave) security+=("$a") ;;
         *) node_tests+=("$a") ;;
     esac
 done
@@ -147,6 +152,32 @@ for d in $DISTROS; do
         else
             failed+=("$d:cyclone_setup")
         fi
+    fi
+    # 2c. SROS2 (test_security.py): the secure build of the node, `ros2 security`, and a
+    # secure Cyclone DDS peer (Debian's Cyclone security plugins). Jazzy only, as 2b.
+    secure_node="$TRACER_TARGET_DIR/security/release/tracer_calib_node"
+    if [ "${#security[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
+        echo "run.sh: $d: test_security.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
+    elif [ "${#security[@]}" -gt 0 ] || { [ "$#" -eq 0 ] && [ "$d" = jazzy ] && [ -x "$secure_node" ]; }; then
+        t0=$(now_ms)
+        if [ "${#security[@]}" -gt 0 ] && ! (cd "$ROOT" && cargo build --release --locked --features security \
+                --bins --target-dir "$TRACER_TARGET_DIR/security"); then
+            failed+=("$d:security_build")
+        elif "$HERE/cyclone.sh" "$d" && "$HERE/sros2.sh" "$d"; then
+            echo "run.sh: $d: test_security.py (secure node, ROS 2 $d rclpy on Cyclone DDS with security)"
+            # shellcheck disable=SC2016
+            TRACER_CALIB_NODE_SECURE="$secure_node" "$HERE/netns.sh" bash -c '
+                . "$1/target/ros/$2/env.sh"
+                . "$1/target/ros/$2/cyclone_env.sh"
+                shift 2
+                exec timeout -s KILL 600 python "$0" "$@"
+            ' "$HERE/test_security.py" "$ROOT" "$d" ${security[@]+"${security[@]}"} || failed+=("$d:test_security")
+            echo "run.sh: $d: test_security.py $(took "$t0")"
+        else
+            failed+=("$d:security_setup")
+        fi
+    elif [ "$#" -eq 0 ] && [ "$d" = jazzy ]; then
+        echo "run.sh: $d: test_security.py skipped (no $secure_node: run.sh security builds it)"
     fi
     [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ] || continue
     t0=$(now_ms)

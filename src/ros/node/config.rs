@@ -6,7 +6,7 @@ use log::{debug, warn};
 use super::DEFAULT_NODE_NAME;
 use crate::params::{Parameters, file as params_file, names};
 use crate::records;
-use crate::rmw::RosEnv;
+use crate::rmw::{RosEnv, Security, security};
 use crate::ros::args::RosArgs;
 use crate::ros::names::NodeIdentity;
 use crate::ros::qos_overrides::{self, QosOverrides};
@@ -21,13 +21,17 @@ pub struct Config {
     pub params: Parameters,
     /// `qos_overrides.*` parameters (params files and `-p`).
     pub qos: QosOverrides,
+    /// SROS2: the enclave (`ROS_SECURITY_*` and `--enclave`, as rcl finds it).
+    pub security: Security,
 }
 
 impl Config {
     /// Defaults, then every `--params-file` in order, then `-p` overrides. A file that
     /// does not parse or has a wrong type stops the node (the error names the file,
-    /// line and key); the file is not touched.
+    /// line and key); the file is not touched. Security enforced without a usable enclave
+    /// stops it too (one line naming the enclave and the reason).
     pub fn load(args: RosArgs, env: RosEnv) -> Result<Config, String> {
+        let security = security::resolve(&env.security, args.enclave.as_deref()).map_err(|e| e.to_string())?;
         let identity = args.node_identity(DEFAULT_NODE_NAME, "/").map_err(|e| e.to_string())?;
         let fqn = identity.fully_qualified_name();
         let mut params = Parameters::default();
@@ -64,6 +68,6 @@ impl Config {
         if !history_file_set {
             params.history_file = records::file::default_path(&params.params_file);
         }
-        Ok(Config { identity, args, env, params, qos })
+        Ok(Config { identity, args, env, params, qos, security })
     }
 }

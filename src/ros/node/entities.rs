@@ -42,8 +42,8 @@ use crate::interfaces::{
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
     tracer_calib_msgs as msgs,
 };
-use crate::rmw::RosEnv;
 use crate::rmw::dds::TypesInUse;
+use crate::rmw::{RosEnv, Security};
 use crate::ros::args::RosArgs;
 use crate::ros::names::{NodeIdentity, ros2_name};
 use crate::ros::qos_overrides::{QosOverrides, Side};
@@ -141,17 +141,19 @@ pub(super) struct Entities {
 
 impl Entities {
     /// The DDS participant (`ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE` and
-    /// `ROS_STATIC_PEERS` as rmw_fastrtps reads them: [`crate::rmw::dds`]), the node with its
+    /// `ROS_STATIC_PEERS` as rmw_fastrtps reads them: [`crate::rmw::dds`]; secured with
+    /// `security`'s enclave: [`crate::rmw::security`]), the node with its
     /// parameters (`options`), its endpoints (and the lifecycle's if `managed`), and its
     /// spinner running.
     pub fn create(
         env: &RosEnv,
+        security: &Security,
         identity: &NodeIdentity,
         options: NodeOptions,
         endpoints: &Endpoints,
         managed: bool,
     ) -> Result<Self, String> {
-        let participant = crate::rmw::dds::participant_from_env(env)?;
+        let participant = crate::rmw::dds::participant_from_env(env, security)?;
         let (ctx, types_in_use) = crate::rmw::dds::context(participant)?;
         let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
         let mut node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node: {e:?}"))?;

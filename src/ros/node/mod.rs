@@ -105,7 +105,7 @@ fn log_history_read(read: &crate::cell::HistoryRead) {
 
 /// Run the node until `shutdown` resolves (SIGINT/SIGTERM in the binary).
 pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> Result<(), String> {
-    let Config { identity, args, env, params, mut qos } = config;
+    let Config { identity, args, env, params, mut qos, security } = config;
     for w in &env.warnings {
         warn!("{w}");
     }
@@ -129,7 +129,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         clock: Arc::new(OnceLock::new()),
     };
     let options = parameters::options(&params, &qos, &shared);
-    let entities = Entities::create(&env, &identity, options, &endpoints, params.managed)?;
+    let entities = Entities::create(&env, &security, &identity, options, &endpoints, params.managed)?;
     let _ = shared.clock.set(entities.node.clock());
     info!(
         "{fqn}: listening on {} (raw scans), serving {}; domain {}, discovery {:?}",

@@ -105,6 +105,15 @@ pub(crate) struct SecureDiscovery {
 
   cached_key_exchange_messages_for_resend: HashSet<ParticipantVolatileMessageSecure>,
 
+  // tracer_calib patch (security): the built-in key exchange messages sent to a
+  // newly authenticated remote, sent again on the next resend ticks (the count left).
+  // Sent right after our final handshake message, they can reach the remote before it
+  // has processed that message and matched its volatile secure reader with our
+  // writer; Cyclone DDS then drops them, and its reader, VOLATILE, never asks for
+  // them again: no participant key, every RTPS-protected message from us refused
+  // ("decoding rtps message ... failed"), discovery stuck (about 1 start in 5 here).
+  repeated_key_exchange_messages: Vec<(ParticipantVolatileMessageSecure, u8)>,
+
   // In the key, first GUID is local endpoint's, second is remote endpoint's
   cached_received_key_exchange_messages: HashMap<(GUID, GUID), ParticipantVolatileMessageSecure>,
   user_data_endpoints_with_keys_already_sent_to: HashSet<GUID>,
@@ -253,6 +262,7 @@ impl SecureDiscovery {
       generic_message_helper: ParticipantGenericMessageHelper::new(),
       handshake_states: HashMap::new(),
       cached_key_exchange_messages_for_resend: HashSet::new(),
+      repeated_key_exchange_messages: Vec::new(), // tracer_calib patch (security)
       stored_authentication_messages: HashMap::new(),
       cached_received_key_exchange_messages: HashMap::new(),
       user_data_endpoints_with_keys_already_sent_to: HashSet::new(),
@@ -1559,6 +1569,16 @@ impl SecureDiscovery {
       }
     }
     self.cached_key_exchange_messages_for_resend = msgs_still_to_cache;
+
+    // tracer_calib patch (security): the built-in key exchange, once more per tick
+    let mut repeats = std::mem::take(&mut self.repeated_key_exchange_messages);
+    for (msg, left) in repeats.iter_mut() {
+      if self.send_key_exchange_message(key_exchange_writer, msg).is_ok() {
+        *left -= 1;
+      }
+    }
+    repeats.retain(|(_, left)| *left > 0);
+    self.repeated_key_exchange_messages = repeats;
   }
 
   fn reset_stored_message_resend_counter(&mut self, remote_guid_prefix: &GuidPrefix) {
@@ -2192,6 +2212,8 @@ impl SecureDiscovery {
           self.cached_key_exchange_messages_for_resend.insert(message);
         } else {
           debug!("Sent participant crypto tokens to {remote_guid_prefix:?}.");
+          // tracer_calib patch (security): and again on the next ticks
+          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS));
         }
       }
     }
@@ -2236,6 +2258,8 @@ impl SecureDiscovery {
                 "Sent built-in writer {local_writer_guid:?} crypto tokens to remote \
                  {remote_guid_prefix:?}."
               );
+          // tracer_calib patch (security): and again on the next ticks
+          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS));
             }
           }
         }
@@ -2282,6 +2306,8 @@ impl SecureDiscovery {
                 "Sent built-in reader {local_reader_guid:?} crypto tokens to remote \
                  {remote_guid_prefix:?}."
               );
+          // tracer_calib patch (security): and again on the next ticks
+          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS));
             }
           }
         }
@@ -2843,3 +2869,7 @@ impl ParticipantGenericMessageHelper {
     }
   }
 }
+
+// tracer_calib patch (security): how many times the built-in key exchange is sent
+// again, one resend tick (a second) apart; see `repeated_key_exchange_messages`.
+const KEY_EXCHANGE_REPEATS: u8 = 2;

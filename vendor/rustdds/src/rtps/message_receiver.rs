@@ -623,8 +623,12 @@ impl MessageReceiver {
         | EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_READER
         | EntityId::P2P_BUILTIN_PARTICIPANT_VOLATILE_SECURE_READER => (),
         // Otherwise we have to reject
+        // tracer_calib patch (security): debug, not error. A Cyclone DDS peer keeps
+        // heartbeating (and acknowledging) the non-secure built-in endpoints of ours it
+        // matched before authentication, unprotected, several times a second: dropping
+        // them is right, an ERROR line for each flooded the node's log.
         other => {
-          return error!(
+          return debug!(
             "Received an unprotected message containing a writer submessage for the reader \
              {other:?} in an rtps-protected domain."
           )
@@ -872,8 +876,12 @@ impl MessageReceiver {
         | EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_WRITER
         | EntityId::P2P_BUILTIN_PARTICIPANT_VOLATILE_SECURE_WRITER => (),
         // Otherwise we have to reject
+        // tracer_calib patch (security): debug, not error. A Cyclone DDS peer keeps
+        // heartbeating (and acknowledging) the non-secure built-in endpoints of ours it
+        // matched before authentication, unprotected, several times a second: dropping
+        // them is right, an ERROR line for each flooded the node's log.
         other => {
-          return error!(
+          return debug!(
             "Received an unprotected message containing a reader submessage for the writer \
              {other:?} in an rtps-protected domain."
           )

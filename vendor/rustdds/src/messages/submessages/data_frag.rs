@@ -269,8 +269,13 @@ impl DataFrag {
       _ => {}
     }
 
+    // tracer_calib patch (security): with the `security` feature, the payload may be
+    // encoded (each fragment encrypted on its own, as Cyclone DDS does: a CryptoHeader,
+    // the ciphertext and a CryptoFooter, 44 bytes more than fragmentSize); the size is
+    // checked after decoding (MessageReceiver::decode_and_handle_datafrag). Checked here,
+    // every fragment of a Cyclone writer with payload protection was discarded.
     let max_payload_bytes = (count_u32 as usize) * (fragment_size as usize);
-    if datafrag.serialized_payload.len() > max_payload_bytes {
+    if cfg!(not(feature = "security")) && datafrag.serialized_payload.len() > max_payload_bytes {
       return Err(io::Error::new(
         io::ErrorKind::InvalidData,
         format!(

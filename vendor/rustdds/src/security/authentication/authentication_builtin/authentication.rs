@@ -29,7 +29,7 @@ use crate::{
 };
 use super::{
   types::{
-    parse_signature_algo_name_to_ring, BuiltinAuthenticatedPeerCredentialToken,
+    parse_signature_algo_name_to_ring, without_nul, BuiltinAuthenticatedPeerCredentialToken,
     BuiltinIdentityToken, DH_MODP_KAGREE_ALGO_NAME, ECDH_KAGREE_ALGO_NAME,
     QOS_IDENTITY_CA_PROPERTY_NAME, QOS_IDENTITY_CERTIFICATE_PROPERTY_NAME,
     QOS_PASSWORD_PROPERTY_NAME, QOS_PRIVATE_KEY_PROPERTY_NAME,
@@ -530,7 +530,7 @@ impl Authentication for AuthenticationBuiltin {
 
     // "Verifies Cert1 with the configured Identity CA"
     // So Cert1 is now `request.c_id`
-    let cert1 = Certificate::from_pem(request.c_id.as_ref())?;
+    let cert1 = Certificate::from_pem(without_nul(request.c_id.as_ref()))?; // tracer_calib patch (security)
 
     // Verify that 1's identity cert checks out against CA.
     cert1.verify_signed_by_certificate(&local_info.identity_ca)?;
@@ -553,9 +553,11 @@ impl Authentication for AuthenticationBuiltin {
 
     // Check which key agreement algorithm the remote has chosen & generate our own
     // key pair
-    let dh2_keys = if request.c_kagree_algo == *DH_MODP_KAGREE_ALGO_NAME {
+    // tracer_calib patch (security): without_nul
+    let requested_kagree_algo = without_nul(&request.c_kagree_algo);
+    let dh2_keys = if requested_kagree_algo == DH_MODP_KAGREE_ALGO_NAME.as_bytes() {
       DHKeys::new_modp_keys()?
-    } else if request.c_kagree_algo == *ECDH_KAGREE_ALGO_NAME {
+    } else if requested_kagree_algo == ECDH_KAGREE_ALGO_NAME.as_bytes() {
       DHKeys::new_ec_keys(&self.secure_random_generator)?
     } else {
       return Err(create_security_error_and_log!(
@@ -673,7 +675,8 @@ impl Authentication for AuthenticationBuiltin {
 
     // Store remote's ID certificate and permissions doc
     remote_info.identity_certificate_opt = Some(cert1);
-    remote_info.signed_permissions_xml_opt = Some(request.c_perm);
+    // tracer_calib patch (security): without_nul
+    remote_info.signed_permissions_xml_opt = Some(Bytes::copy_from_slice(without_nul(&request.c_perm)));
 
     // Create a new handshake handle & map it to remotes identity handle
     let new_handshake_handle = self.get_new_handshake_handle();
@@ -720,7 +723,7 @@ impl Authentication for AuthenticationBuiltin {
 
         // "Verifies Cert2 with the configured Identity CA"
         // So Cert2 is now `request.c_id`
-        let cert2 = Certificate::from_pem(reply.c_id.as_ref())?;
+        let cert2 = Certificate::from_pem(without_nul(reply.c_id.as_ref()))?; // tracer_calib patch (security)
 
         // Verify that 2's identity cert checks out against CA.
         cert2.verify_signed_by_certificate(&local_info.identity_ca)?;
@@ -796,6 +799,15 @@ impl Authentication for AuthenticationBuiltin {
         // Note: We already verified above that hash_c1-recomputed vs. hash_c1-stored
         // match and hash_c2 recomputed vs received (if any) match.
 
+        // tracer_calib patch (security): the reply's dh1 is optional (Cyclone DDS
+        // leaves it out); the signature covers our own DH1, which it must echo if given.
+        let my_dh1 = dh1.public_key_bytes()?;
+        if reply.dh1.as_ref().is_some_and(|d| *d != my_dh1) {
+          return Err(create_security_error_and_log!(
+            "Diffie-Hellman parameter DH1 mismatch in the handshake reply"
+          ));
+        }
+
         let cc2_properties: Vec<BinaryProperty> = vec![
           BinaryProperty::with_propagate(
             "hash_c2",
@@ -810,7 +822,7 @@ impl Authentication for AuthenticationBuiltin {
             "challenge1",
             Bytes::copy_from_slice(reply.challenge1.as_ref()),
           ),
-          BinaryProperty::with_propagate("dh1", Bytes::copy_from_slice(reply.dh1.as_ref())),
+          BinaryProperty::with_propagate("dh1", Bytes::copy_from_slice(my_dh1.as_ref())),
           BinaryProperty::with_propagate("hash_c1", Bytes::copy_from_slice(hash_c1.as_ref())),
         ];
 
@@ -828,7 +840,8 @@ impl Authentication for AuthenticationBuiltin {
         // Verify that the key agreement algo in the reply is as we expect
         let kagree_algo_in_reply = reply.c_kagree_algo;
         let expected_kagree_algo = dh1.kagree_algo_name_str();
-        if kagree_algo_in_reply != expected_kagree_algo {
+        // tracer_calib patch (security): without_nul
+        if without_nul(&kagree_algo_in_reply) != expected_kagree_algo.as_bytes() {
           return Err(create_security_error_and_log!(
             "Unexpected key agreement algorithm: {kagree_algo_in_reply:?} in \
              HandshakeReplyMessageToken. Expected {expected_kagree_algo}"
@@ -898,7 +911,8 @@ impl Authentication for AuthenticationBuiltin {
 
         // Store remote's ID certificate and permissions doc
         remote_info.identity_certificate_opt = Some(cert2);
-        remote_info.signed_permissions_xml_opt = Some(reply.c_perm);
+        // tracer_calib patch (security): without_nul
+        remote_info.signed_permissions_xml_opt = Some(Bytes::copy_from_slice(without_nul(&reply.c_perm)));
 
         Ok((
           ValidationOutcome::OkFinalMessage,
@@ -941,7 +955,8 @@ impl Authentication for AuthenticationBuiltin {
         }
 
         // sanity check
-        if dh1_public != final_token.dh1 {
+        // tracer_calib patch (security): dh1 and dh2 optional (Cyclone DDS leaves them out)
+        if final_token.dh1.as_ref().is_some_and(|d| *d != dh1_public) {
           return Err(create_security_error_and_log!(
             "Diffie-Hellman parameter DH1 mismatch on authentication final receive"
           ));
@@ -949,7 +964,7 @@ impl Authentication for AuthenticationBuiltin {
 
         // sanity check
         let dh2_public_key = dh2.public_key_bytes()?;
-        if dh2_public_key.as_ref() != final_token.dh2.as_ref() {
+        if final_token.dh2.as_ref().is_some_and(|d| d.as_ref() != dh2_public_key.as_ref()) {
           return Err(create_security_error_and_log!(
             "Diffie-Hellman parameter DH2 mismatch on authentication final receive"
           ));

@@ -303,12 +303,22 @@ pub const ECDH_KAGREE_ALGO_NAME: &str = "ECDH+prime256v1-CEUM";
 pub const RSA_SIGNATURE_ALGO_NAME: &[u8] = b"RSASSA-PSS-SHA256";
 pub const ECDSA_SIGNATURE_ALGO_NAME: &[u8] = b"ECDSA-SHA256";
 
+// tracer_calib patch (security): Cyclone DDS puts the handshake's string properties
+// (c.dsign_algo, c.kagree_algo, c.id, c.perm) on the wire with their C string
+// terminator, and accepts them with or without it (its `str_octseq_equal`). A value
+// is compared, and parsed, without one trailing NUL; the hashes and signatures cover
+// the bytes as received.
+pub(crate) fn without_nul(value: &[u8]) -> &[u8] {
+  value.strip_suffix(&[0]).unwrap_or(value)
+}
+
 // Recognize standard string constatns and convert to
 // corresponging algorithm identifiers in ring library.
 pub(crate) fn parse_signature_algo_name_to_ring(
   algo_name: &[u8],
 ) -> SecurityResult<&'static dyn ring::signature::VerificationAlgorithm> {
-  match algo_name {
+  match without_nul(algo_name) {
+    // tracer_calib patch (security): without_nul
     RSA_SIGNATURE_ALGO_NAME => Ok(&ring::signature::RSA_PSS_2048_8192_SHA256),
     ECDSA_SIGNATURE_ALGO_NAME => Ok(&ring::signature::ECDSA_P256_SHA256_ASN1),
     _other =>
@@ -423,9 +433,9 @@ impl BuiltinHandshakeMessageToken {
       .challenge2
       .ok_or_else(|| create_security_error_and_log!("challenge2 not found"))
       .and_then(|b| Challenge::try_from(b.as_ref()))?;
-    let dh1 = self
-      .dh1
-      .ok_or_else(|| create_security_error_and_log!("dh1 not found"))?;
+    // tracer_calib patch (security): dh1 is optional in a reply (Table 50), and
+    // Cyclone DDS leaves it out.
+    let dh1 = self.dh1;
     let dh2 = self
       .dh2
       .ok_or_else(|| create_security_error_and_log!("dh2 not found"))?;
@@ -468,12 +478,10 @@ impl BuiltinHandshakeMessageToken {
       .challenge2
       .ok_or_else(|| create_security_error_and_log!("challenge2 not found"))
       .and_then(|b| Challenge::try_from(b.as_ref()))?;
-    let dh1 = self
-      .dh1
-      .ok_or_else(|| create_security_error_and_log!("dh1 not found"))?;
-    let dh2 = self
-      .dh2
-      .ok_or_else(|| create_security_error_and_log!("dh2 not found"))?;
+    // tracer_calib patch (security): dh1 and dh2 are optional in a final message
+    // (Table 51), and Cyclone DDS leaves them out.
+    let dh1 = self.dh1;
+    let dh2 = self.dh2;
     let signature = self
       .signature
       .ok_or_else(|| create_security_error_and_log!("signature not found"))?;
@@ -515,7 +523,7 @@ pub(in crate::security) struct HandshakeReply {
   pub hash_c2: Option<Sha256>,
   pub challenge1: Challenge,
   pub challenge2: Challenge,
-  pub dh1: Bytes,
+  pub dh1: Option<Bytes>, // tracer_calib patch (security): optional
   pub dh2: Bytes,
   pub signature: Bytes,
 }
@@ -526,8 +534,8 @@ pub(in crate::security) struct HandshakeFinal {
   pub hash_c2: Option<Sha256>,
   pub challenge1: Challenge,
   pub challenge2: Challenge,
-  pub dh1: Bytes,
-  pub dh2: Bytes,
+  pub dh1: Option<Bytes>, // tracer_calib patch (security): optional
+  pub dh2: Option<Bytes>, // tracer_calib patch (security): optional
   pub signature: Bytes,
 }
 

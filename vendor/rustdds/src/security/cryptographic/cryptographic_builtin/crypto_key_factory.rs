@@ -26,12 +26,21 @@ impl CryptographicBuiltin {
     local_endpoint_crypto_handle: EndpointCryptoHandle,
   ) -> EndpointCryptoHandle {
     // If a corresponding handle exists, get and return
+    // tracer_calib patch (security): ... unless it is already taken by another
+    // remote endpoint of that participant. A handle was kept per (local endpoint,
+    // remote participant), so a second writer (or reader) of one remote participant
+    // matched with the same local endpoint (two clients of a service in one rclpy
+    // process, a publisher made again) failed to register ("The CryptoHandle .. was
+    // already associated with receiver-specific encode key materials") and was never
+    // matched. Such an endpoint now gets a handle of its own (the map keeps the
+    // latest).
     if let Some(remote_endpoint_crypto_handle) = self
       .matched_remote_endpoint
       .get(&local_endpoint_crypto_handle)
       .and_then(|remote_participant_to_remote_endpoint| {
         remote_participant_to_remote_endpoint.get(&remote_participant_crypto_handle)
       })
+      .filter(|handle| !self.receiver_specific_encode_key_materials.contains_key(*handle))
     {
       *remote_endpoint_crypto_handle
     } else {

@@ -290,6 +290,24 @@ impl TryFrom<Vec<CryptoToken>> for KeyMaterial_AES_GCM_GMAC_seq {
 impl TryFrom<KeyMaterial_AES_GCM_GMAC_seq> for Vec<CryptoToken> {
   type Error = SecurityError;
   fn try_from(key_materials: KeyMaterial_AES_GCM_GMAC_seq) -> Result<Self, Self::Error> {
+    // tracer_calib patch (security): of a submessage and a payload key material, a
+    // token only for the protected one(s). A writer whose metadata is protected and
+    // whose payload is not (the secure discovery writers under a governance with
+    // discovery protection) had a second token of transformation kind NONE, which
+    // Cyclone DDS refuses ("Invalid Crypto token": a NONE key is accepted only for
+    // an endpoint with no protection), and with it the whole token sequence.
+    // Cyclone sends the same: the message key if metadata is protected, the payload
+    // key if the payload is, and a single token serves both scopes (`select`).
+    let none = BuiltinCryptoTransformationKind::CRYPTO_TRANSFORMATION_KIND_NONE;
+    let key_materials = match key_materials {
+      KeyMaterial_AES_GCM_GMAC_seq::Two(message, payload) if payload.transformation_kind == none => {
+        KeyMaterial_AES_GCM_GMAC_seq::One(message)
+      }
+      KeyMaterial_AES_GCM_GMAC_seq::Two(message, payload) if message.transformation_kind == none => {
+        KeyMaterial_AES_GCM_GMAC_seq::One(payload)
+      }
+      other => other,
+    };
     Vec::from(key_materials)
       .iter()
       .map(|key_material| CryptoToken::try_from(key_material.clone()))
