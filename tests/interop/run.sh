@@ -45,6 +45,12 @@
 # (tests/interop/sros2.sh installs `ros2 security`), against the node built with the
 # cargo feature `security` into cargo's target directory's security/ (built here when
 # selected by name; in a run without names it runs only if that build is there).
+# Only when named (not part of a run without names): zenoh or zenoh_NAME, Jazzy only
+# (2d): tests/interop/zenoh.sh builds rmw_zenoh_cpp and its router rmw_zenohd (cached
+# outside the clone; 8-14 min and ~0.26 GB of crates the first time, 0.1 s after), and
+# test_zenoh.py runs stock rclpy peers on rmw_zenoh_cpp through the router in a private
+# network namespace (~4 s), with the stock ros2 CLI on Zenoh. Issue 23's groundwork: the
+# node is not on Zenoh yet, so these check the peer only and need no release binaries.
 #   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -54,10 +60,7 @@ trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
 . "$ROOT/scripts/target_dir.sh"
 export TRACER_CALIB_NODE="$TRACER_RELEASE_DIR/tracer_calib_node"
 export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
-for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
-    [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
-done
-node_tests=() graph=() type_hash=() runtime=() first_scan=() two_hosts=() cyclone=() security=() launch=()
+node_tests=() graph=() type_hash=() runtime=() first_scan=() two_hosts=() cyclone=() security=() zenoh=() launch=()
 for a in "$@"; do
     case "$a" in
         launch) launch+=(all) ;;
@@ -69,9 +72,16 @@ for a in "$@"; do
         two_hosts*) two_hosts+=("$a") ;;
         cyclone*|mixed*) cyclone+=("$a") ;;
         security|secure_*|insecure_*|*_missing_enclave) security+=("$a") ;;
+        zenoh*) zenoh+=("$a") ;;
         *) node_tests+=("$a") ;;
     esac
 done
+# The release binaries, unless only test_zenoh.py's tests are named (they start no node yet).
+if [ "$#" -eq 0 ] || [ "${#zenoh[@]}" -lt "$#" ]; then
+    for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
+        [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
+    done
+fi
 now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
 # A test script with the distribution's peer environment: SCRIPT DISTRO [NAME...]
@@ -178,6 +188,28 @@ for d in $DISTROS; do
         fi
     elif [ "$#" -eq 0 ] && [ "$d" = jazzy ]; then
         echo "run.sh: $d: test_security.py skipped (no $secure_node: run.sh security builds it)"
+    fi
+    # 2d. Stock rmw_zenoh peers (test_zenoh.py), only when named. Jazzy only: the rmw_zenoh
+    # tarball is Jazzy's release (0.2.10).
+    if [ "${#zenoh[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
+        echo "run.sh: $d: test_zenoh.py skipped (rmw_zenoh_cpp is built for jazzy only)"
+    elif [ "${#zenoh[@]}" -gt 0 ]; then
+        t0=$(now_ms)
+        if "$HERE/zenoh.sh" "$d"; then
+            echo "run.sh: $d: rmw_zenoh_cpp $(took "$t0")"
+            t0=$(now_ms)
+            echo "run.sh: $d: test_zenoh.py (ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd)"
+            # shellcheck disable=SC2016
+            "$HERE/netns.sh" bash -c '
+                . "$1/target/ros/$2/env.sh"
+                . "$1/target/ros/$2/zenoh_env.sh"
+                shift 2
+                exec timeout -s KILL 600 python "$0" "$@"
+            ' "$HERE/test_zenoh.py" "$ROOT" "$d" "${zenoh[@]}" || failed+=("$d:test_zenoh")
+            echo "run.sh: $d: test_zenoh.py $(took "$t0")"
+        else
+            failed+=("$d:zenoh_setup")
+        fi
     fi
     [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ] || continue
     t0=$(now_ms)

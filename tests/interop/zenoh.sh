@@ -1,0 +1,234 @@
+#!/usr/bin/env bash
+# A stock rmw_zenoh peer: zenoh-c, zenoh-cpp, rmw_zenoh_cpp 0.2.10 and its router rmw_zenohd
+# built from source for the Jazzy wheel venv, and an environment file that puts an rclpy
+# process on rmw_zenoh_cpp (issue 23).
+#
+#   tests/interop/zenoh.sh [--force] jazzy     (after tests/interop/setup.sh jazzy)
+#
+# Sources (../shared/ros2-src/, or $TRACER_ROS2_SRC): rmw_zenoh.tar.gz (rmw_zenoh_cpp
+# 0.2.10, Jazzy's release), zenoh-c.tar.gz and zenoh-cpp.tar.gz (the commits it pins). The
+# recipe is ../shared/notes/ros2-peer.md, "A stock rmw_zenoh peer":
+#   - zenoh-c (Rust, cargo through its CMake) with the published zenoh 1.8.0 crates from the
+#     Rust registry instead of zenoh's git main (`cargo update -w`, also for the
+#     opaque-types crate its build.rs builds offline), thin LTO off (codegen units 16), the
+#     stable toolchain (cargo >= 1.88), features shared-memory + zenoh/transport_serial;
+#   - zenoh-cpp, header only, installed with CMake;
+#   - a stand-in zenoh_cpp_vendorConfig.cmake (the vendor package would download both);
+#   - rmw_zenoh_cpp with CMake against the venv (needs ros-jazzy-ament-cmake-include-
+#     directories, pinned in requirements-jazzy.txt).
+# apt: g++ make patchelf liblttng-ust-dev (installed here when missing; cmake is the venv's).
+# Crates are downloaded by cargo into its usual CARGO_HOME (~/.cargo, ~0.26 GB) the first time.
+# Everything lands in a cache outside the clone:
+#
+#   ${TRACER_CACHE:-~/.cache/tracer_calib}/zenoh-<sha256 of the three tarballs' sha256s>-jazzy/
+#       install/lib/librmw_zenoh_cpp.so, libzenohc.so     the RMW and zenoh-c
+#       install/lib/rmw_zenoh_cpp/rmw_zenohd              the router
+#       install/share/rmw_zenoh_cpp/config/*.json5         its default configurations
+#       shim/librmw_fastrtps_cpp.so                        the RMW under rmw_fastrtps_cpp's SONAME
+#       key                                                what it was built from (KEY below)
+#
+# A fresh machine builds it (~8 min on 2 cores, 3.5 GB of build tree removed afterwards),
+# a rerun reuses it; it is rebuilt when a tarball, the venv's pinned wheels (the lock file)
+# or this recipe change (`--force`: always). The key also records the cargo that built it,
+# but a rerun does not compare it (that would start rustup: not "well under a second").
+# Then it writes
+#
+#   target/ros/jazzy/zenoh_env.sh   source it AFTER target/ros/jazzy/env.sh: the process (and
+#                                   everything it starts) is on rmw_zenoh_cpp; it defines
+#                                   `tracer_zenoh_router [ARGS]`, which runs rmw_zenohd in
+#                                   the foreground listening on tcp/127.0.0.1:7447 only
+#                                   (rmw_zenohd's default is tcp/[::]:7447), and exports
+#                                   TRACER_ZENOHD (its path) for programs that start it.
+#
+# Sessions (rmw_zenoh's default session config) connect to tcp/localhost:7447, listen on
+# tcp/localhost:0 and do no multicast scouting: nothing leaves the loopback. Run peers and
+# router inside tests/interop/netns.sh all the same.
+#
+# Why the shim: as for Cyclone DDS (tests/interop/cyclone.sh), the wheels' librcl*.so and
+# rclpy link librmw_fastrtps_cpp.so directly; a copy of librmw_zenoh_cpp.so with that SONAME,
+# LD_PRELOADed, with RMW_IMPLEMENTATION=rmw_zenoh_cpp, takes its place.
+#
+# Jazzy only: rmw_zenoh.tar.gz is Jazzy's release. Prints one line with its time. Exit
+# status 0 when the build works (an rclpy process on it says rmw_zenoh_cpp); a failed build
+# says why (log kept in the cache directory's parent).
+set -euo pipefail
+
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+ROOT=$(cd "$HERE/../.." && pwd)
+SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
+TARBALLS=("$SRC_DIR/rmw_zenoh.tar.gz" "$SRC_DIR/zenoh-c.tar.gz" "$SRC_DIR/zenoh-cpp.tar.gz")
+CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
+JOBS=${ROS_SETUP_JOBS:-2}
+# Bump when the way it is built changes.
+RECIPE=1
+
+FORCE=0
+DISTROS=()
+for a in "$@"; do
+    case "$a" in
+        --force) FORCE=1 ;;
+        jazzy) DISTROS+=("$a") ;;
+        kilted) echo "zenoh.sh: kilted: rmw_zenoh.tar.gz is Jazzy's release (0.2.10); only jazzy is built" >&2; exit 2 ;;
+        -h|--help) sed -n '2,53p' "$0"; exit 0 ;;
+        *) echo "usage: $0 [--force] jazzy" >&2; exit 2 ;;
+    esac
+done
+[ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] jazzy" >&2; exit 2; }
+for t in "${TARBALLS[@]}"; do
+    [ -f "$t" ] || { echo "zenoh.sh: no $t (set TRACER_ROS2_SRC)" >&2; exit 1; }
+done
+
+# Work in a clean environment even when a target/ros/*/env.sh is sourced in this shell.
+unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH LD_PRELOAD AMENT_PREFIX_PATH CMAKE_PREFIX_PATH \
+    VIRTUAL_ENV PYTHONHOME _ROS_WHEELS_BOOTSTRAP_COMPLETE RMW_IMPLEMENTATION \
+    ZENOH_CONFIG_OVERRIDE ZENOH_SESSION_CONFIG_URI ZENOH_ROUTER_CONFIG_URI
+
+now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
+took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
+
+T_START=$(now_ms)
+# The key is computed first: a cached build needs neither apt nor cargo to be looked at.
+sums=""
+for t in "${TARBALLS[@]}"; do sums+="$(basename "$t")=$(sha256sum "$t" | cut -c1-64) "; done
+TAR_SHA=$(printf '%s' "$sums" | sha256sum | cut -c1-64)
+
+failed=()
+for d in "${DISTROS[@]}"; do
+    t0=$T_START  # (one distribution: its time includes hashing the tarballs)
+    ROS_DIR=$ROOT/target/ros/$d
+    VENV=$ROS_DIR/venv
+    [ -x "$VENV/bin/python" ] || { echo "zenoh.sh: $d: no $VENV: run tests/interop/setup.sh $d first" >&2; failed+=("$d"); continue; }
+    LOCK=$HERE/requirements-$d.lock
+    CACHE=$CACHE_TOP/zenoh-$TAR_SHA-$d
+    # The cargo that built it is recorded in the key file, not compared (see above).
+    KEY_BASE="tarballs=$sums distro=$d lock=$(sha256sum "$LOCK" | cut -c1-64) recipe=$RECIPE"
+    mkdir -p "$CACHE_TOP"
+    exec 8>"$CACHE.lock"
+    flock 8
+    if [ "$FORCE" = 0 ] && [ -f "$CACHE/key" ] && [ "$(sed 's/ cargo=.*//' "$CACHE/key")" = "$KEY_BASE" ] \
+        && [ -f "$CACHE/shim/librmw_fastrtps_cpp.so" ] && [ -x "$CACHE/install/lib/rmw_zenoh_cpp/rmw_zenohd" ]; then
+        status=cached
+    else
+        # Debian build dependencies, apt-get only for what is missing.
+        APT_PKGS=()
+        for p in g++ make patchelf liblttng-ust-dev; do
+            dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || APT_PKGS+=("$p")
+        done
+        if [ "${#APT_PKGS[@]}" -gt 0 ]; then
+            [ "$(id -u)" -eq 0 ] || { echo "zenoh.sh: missing ${APT_PKGS[*]} and not root: apt-get install -y ${APT_PKGS[*]}" >&2; exit 1; }
+            ta=$(now_ms)
+            if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${APT_PKGS[@]}"; } \
+                >"$CACHE_TOP/apt.log" 2>&1; then
+                tail -n 30 "$CACHE_TOP/apt.log" >&2
+                echo "zenoh.sh: apt-get install ${APT_PKGS[*]} failed" >&2
+                exit 1
+            fi
+            echo "zenoh.sh: apt-get install ${APT_PKGS[*]} $(took "$ta")"
+        fi
+        export RUSTUP_TOOLCHAIN=stable
+        CARGO_V=$(cargo --version 2>/dev/null) || { echo "zenoh.sh: no cargo (rustup's stable, >= 1.88, builds zenoh-c)" >&2; exit 1; }
+        KEY="$KEY_BASE cargo=$CARGO_V"
+        rm -rf "$CACHE" "$CACHE.tmp"
+        work=$CACHE.tmp
+        mkdir -p "$work/src"
+        log=$CACHE_TOP/zenoh-$d.log
+        for t in "${TARBALLS[@]}"; do tar -xzf "$t" -C "$work/src"; done
+        # The venv's shared libraries (ros_*.libs: the wheels' vendored dependencies).
+        libdirs=$VENV/lib$(cd "$VENV/lib/python3.11/site-packages" && for x in ros_*.libs; do [ -d "$x" ] && printf ':%s' "$PWD/$x"; done; true)
+        P=$work/install
+        echo "zenoh.sh: $d: building zenoh-c, zenoh-cpp, rmw_zenoh_cpp (several minutes; log: $log)"
+        if ! ( set -e
+               export PATH="$VENV/bin:$PATH" _ROS_WHEELS_BOOTSTRAP_COMPLETE=1 LD_LIBRARY_PATH="$libdirs"
+               export CARGO_PROFILE_RELEASE_LTO=off CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 CARGO_BUILD_JOBS="$JOBS"
+               cd "$work/src/zenoh-c"
+               # zenoh from the registry (1.8.0), not git main ("1.8.0 plus fixes").
+               files=(Cargo.toml Cargo.toml.in build-resources/opaque-types/Cargo.toml)
+               sed -i 's#version = "1.8.0", git = "https://github.com/eclipse-zenoh/zenoh.git", branch = "main"#version = "=1.8.0"#' "${files[@]}"
+               if grep -n '^[^#]*git = "https://github.com/eclipse-zenoh' "${files[@]}"; then
+                   echo "zenoh.sh: zenoh-c still names zenoh's git (recipe out of date)"; exit 1
+               fi
+               nice -n 10 cargo update -w || exit
+               (cd build-resources/opaque-types && cp ../../Cargo.lock . && nice -n 10 cargo update -w) || exit
+               cd "$work"
+               # (set -e does not apply inside `if`: each step says `|| exit`)
+               nice -n 10 cmake -S src/zenoh-c -B build/zc -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$P" \
+                   -DZENOHC_BUILD_WITH_UNSTABLE_API=TRUE \
+                   "-DZENOHC_CARGO_FLAGS=--features=shared-memory zenoh/transport_serial" || exit
+               nice -n 10 cmake --build build/zc -j "$JOBS" || exit
+               cmake --install build/zc || exit
+               nice -n 10 cmake -S src/zenoh-cpp -B build/zcxx -DCMAKE_INSTALL_PREFIX="$P" \
+                   -DZENOHCXX_ZENOHC=OFF -DZENOHCXX_ENABLE_TESTS=OFF -DZENOHCXX_ENABLE_EXAMPLES=OFF || exit
+               cmake --install build/zcxx || exit
+               # Stand-in for the zenoh_cpp_vendor package (which would download and build both).
+               mkdir -p "$P/share/zenoh_cpp_vendor/cmake"
+               printf '%s\n' 'include(CMakeFindDependencyMacro)' 'find_dependency(zenohc)' \
+                   'find_dependency(zenohcxx)' 'set(zenoh_cpp_vendor_FOUND TRUE)' \
+                   >"$P/share/zenoh_cpp_vendor/cmake/zenoh_cpp_vendorConfig.cmake"
+               AMENT_PREFIX_PATH="$VENV" nice -n 10 cmake -S src/rmw_zenoh/rmw_zenoh_cpp -B build/rmw \
+                   -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
+                   -DCMAKE_PREFIX_PATH="$P;$VENV" -DCMAKE_INSTALL_PREFIX="$P" \
+                   -DPython3_EXECUTABLE="$VENV/bin/python" || exit
+               nice -n 10 cmake --build build/rmw -j "$JOBS" || exit
+               cmake --install build/rmw || exit
+             ) >"$log" 2>&1; then
+            echo "zenoh.sh: $d: building zenoh-c/zenoh-cpp/rmw_zenoh_cpp failed; last lines of $log:" >&2
+            tail -n 25 "$log" >&2
+            rm -rf "$work"
+            exec 8>&-
+            failed+=("$d")
+            continue
+        fi
+        rm -rf "$work/src" "$work/build"
+        mkdir -p "$work/shim"
+        cp "$work/install/lib/librmw_zenoh_cpp.so" "$work/shim/librmw_fastrtps_cpp.so"
+        patchelf --set-soname librmw_fastrtps_cpp.so "$work/shim/librmw_fastrtps_cpp.so"
+        echo "$KEY" >"$work/key"
+        mv "$work" "$CACHE"
+        status="built in $(took "$t0")"
+    fi
+    exec 8>&-
+
+    # The environment file (rewritten only when its text changes).
+    env_sh=$ROS_DIR/zenoh_env.sh
+    tmp=$(mktemp "$env_sh.XXXXXX")
+    cat >"$tmp" <<EOF
+# Written by tests/interop/zenoh.sh -- do not edit. Source it AFTER target/ros/$d/env.sh:
+#   . target/ros/$d/env.sh; . target/ros/$d/zenoh_env.sh
+# Puts this shell's ROS 2 processes on Zenoh (rmw_zenoh_cpp 0.2.10, zenoh-c 1.8.0) instead of
+# Fast DDS: the RMW built from rmw_zenoh.tar.gz, zenoh-c.tar.gz, zenoh-cpp.tar.gz, preloaded
+# under rmw_fastrtps_cpp's SONAME, which the wheels link. Peers need a router:
+#   tracer_zenoh_router &        # rmw_zenohd on tcp/127.0.0.1:7447 (run inside netns.sh)
+# or, from another program: ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]' \$TRACER_ZENOHD
+TRACER_ZENOH_DIR='$CACHE'
+export TRACER_ZENOH_DIR
+export TRACER_ZENOHD="\$TRACER_ZENOH_DIR/install/lib/rmw_zenoh_cpp/rmw_zenohd"
+export LD_LIBRARY_PATH="\$TRACER_ZENOH_DIR/install/lib\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}"
+export LD_PRELOAD="\$TRACER_ZENOH_DIR/shim/librmw_fastrtps_cpp.so"
+export RMW_IMPLEMENTATION=rmw_zenoh_cpp
+# rmw_zenoh finds its config/*.json5 through AMENT_PREFIX_PATH.
+export AMENT_PREFIX_PATH="\$TRACER_ZENOH_DIR/install\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}"
+unset FASTDDS_DEFAULT_PROFILES_FILE
+# The router in the foreground, on the loopback only (its default: tcp/[::]:7447). Extra
+# overrides: ZENOH_CONFIG_OVERRIDE='a=b' tracer_zenoh_router (joined with ';').
+tracer_zenoh_router() {
+    ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]'\${ZENOH_CONFIG_OVERRIDE:+";\$ZENOH_CONFIG_OVERRIDE"} \\
+        "\$TRACER_ZENOHD" "\$@"
+}
+EOF
+    if [ -f "$env_sh" ] && cmp -s "$tmp" "$env_sh"; then rm -f "$tmp"; else mv -f "$tmp" "$env_sh"; fi
+
+    # Check (after a build only; a rerun trusts the key): an rclpy process on it says it is
+    # on rmw_zenoh_cpp (no session is opened).
+    if [ "$status" != cached ] && { ! out=$(. "$ROS_DIR/env.sh" && . "$env_sh" && timeout -s KILL 60 python -c '
+from rclpy.utilities import get_rmw_implementation_identifier as rmw
+print(rmw())' 2>&1) || [ "$out" != rmw_zenoh_cpp ]; }; then
+        echo "zenoh.sh: $d: rclpy is not on rmw_zenoh_cpp with $env_sh: $out" >&2
+        failed+=("$d")
+        continue
+    fi
+    echo "zenoh.sh: $d: rmw_zenoh_cpp $status ($CACHE) $(took "$t0")"
+done
+if [ "${#failed[@]}" -gt 0 ]; then
+    echo "zenoh.sh: failed: ${failed[*]}" >&2
+    exit 1
+fi
