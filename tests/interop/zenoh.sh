@@ -34,11 +34,14 @@
 # Then it writes
 #
 #   target/ros/jazzy/zenoh_env.sh   source it AFTER target/ros/jazzy/env.sh: the process (and
-#                                   everything it starts) is on rmw_zenoh_cpp; it defines
-#                                   `tracer_zenoh_router [ARGS]`, which runs rmw_zenohd in
-#                                   the foreground listening on tcp/127.0.0.1:7447 only
-#                                   (rmw_zenohd's default is tcp/[::]:7447), and exports
-#                                   TRACER_ZENOHD (its path) for programs that start it.
+#                                   everything it starts) is on rmw_zenoh_cpp; it puts
+#                                   `tracer_zenoh_router [ARGS]` on PATH (below) and exports
+#                                   TRACER_ZENOHD (rmw_zenohd's path)
+#   target/ros/jazzy/zenoh_bin/tracer_zenoh_router
+#                                   execs rmw_zenohd listening on tcp/127.0.0.1:7447 only
+#                                   (its default is tcp/[::]:7447); a script, not a shell
+#                                   function, so that `tracer_zenoh_router & kill $!` stops
+#                                   the router itself
 #
 # Sessions (rmw_zenoh's default session config) connect to tcp/localhost:7447, listen on
 # tcp/localhost:0 and do no multicast scouting: nothing leaves the loopback. Run peers and
@@ -69,7 +72,7 @@ for a in "$@"; do
         --force) FORCE=1 ;;
         jazzy) DISTROS+=("$a") ;;
         kilted) echo "zenoh.sh: kilted: rmw_zenoh.tar.gz is Jazzy's release (0.2.10); only jazzy is built" >&2; exit 2 ;;
-        -h|--help) sed -n '2,53p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,56p' "$0"; exit 0 ;;
         *) echo "usage: $0 [--force] jazzy" >&2; exit 2 ;;
     esac
 done
@@ -197,10 +200,12 @@ for d in "${DISTROS[@]}"; do
 # Puts this shell's ROS 2 processes on Zenoh (rmw_zenoh_cpp 0.2.10, zenoh-c 1.8.0) instead of
 # Fast DDS: the RMW built from rmw_zenoh.tar.gz, zenoh-c.tar.gz, zenoh-cpp.tar.gz, preloaded
 # under rmw_fastrtps_cpp's SONAME, which the wheels link. Peers need a router:
-#   tracer_zenoh_router &        # rmw_zenohd on tcp/127.0.0.1:7447 (run inside netns.sh)
+#   tracer_zenoh_router &        # rmw_zenohd on tcp/127.0.0.1:7447 (run inside netns.sh;
+#                                # target/ros/$d/zenoh_bin/, put on PATH here)
 # or, from another program: ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]' \$TRACER_ZENOHD
 TRACER_ZENOH_DIR='$CACHE'
 export TRACER_ZENOH_DIR
+case ":\$PATH:" in *":$ROS_DIR/zenoh_bin:"*) ;; *) export PATH="$ROS_DIR/zenoh_bin:\$PATH" ;; esac
 export TRACER_ZENOHD="\$TRACER_ZENOH_DIR/install/lib/rmw_zenoh_cpp/rmw_zenohd"
 export LD_LIBRARY_PATH="\$TRACER_ZENOH_DIR/install/lib\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}"
 export LD_PRELOAD="\$TRACER_ZENOH_DIR/shim/librmw_fastrtps_cpp.so"
@@ -208,14 +213,24 @@ export RMW_IMPLEMENTATION=rmw_zenoh_cpp
 # rmw_zenoh finds its config/*.json5 through AMENT_PREFIX_PATH.
 export AMENT_PREFIX_PATH="\$TRACER_ZENOH_DIR/install\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}"
 unset FASTDDS_DEFAULT_PROFILES_FILE
-# The router in the foreground, on the loopback only (its default: tcp/[::]:7447). Extra
-# overrides: ZENOH_CONFIG_OVERRIDE='a=b' tracer_zenoh_router (joined with ';').
-tracer_zenoh_router() {
-    ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]'\${ZENOH_CONFIG_OVERRIDE:+";\$ZENOH_CONFIG_OVERRIDE"} \\
-        "\$TRACER_ZENOHD" "\$@"
-}
 EOF
     if [ -f "$env_sh" ] && cmp -s "$tmp" "$env_sh"; then rm -f "$tmp"; else mv -f "$tmp" "$env_sh"; fi
+    # The router command (rewritten only when its text changes).
+    mkdir -p "$ROS_DIR/zenoh_bin"
+    router_sh=$ROS_DIR/zenoh_bin/tracer_zenoh_router
+    tmp=$(mktemp "$router_sh.XXXXXX")
+    cat >"$tmp" <<EOF
+#!/bin/sh
+# Written by tests/interop/zenoh.sh -- do not edit. On PATH after target/ros/$d/zenoh_env.sh.
+# rmw_zenohd (the router of rmw_zenoh_cpp 0.2.10) in the foreground, listening on
+# tcp/127.0.0.1:7447 only (its default: tcp/[::]:7447); run it inside tests/interop/netns.sh.
+# More overrides: ZENOH_CONFIG_OVERRIDE='key=value;...' tracer_zenoh_router (appended).
+ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]'\${ZENOH_CONFIG_OVERRIDE:+";\$ZENOH_CONFIG_OVERRIDE"}
+export ZENOH_CONFIG_OVERRIDE
+exec '$CACHE/install/lib/rmw_zenoh_cpp/rmw_zenohd' "\$@"
+EOF
+    chmod 755 "$tmp"
+    if [ -f "$router_sh" ] && cmp -s "$tmp" "$router_sh"; then rm -f "$tmp"; else mv -f "$tmp" "$router_sh"; fi
 
     # Check (after a build only; a rerun trusts the key): an rclpy process on it says it is
     # on rmw_zenoh_cpp (no session is opened).
