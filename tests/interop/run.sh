@@ -86,15 +86,19 @@ now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
 # A test script with the distribution's peer environment: SCRIPT DISTRO [NAME...]
 # (node_suite.py, test_graph.py), through WRAPPER (netns.sh or two_hosts.sh).
+# peer_run WRAPPER SCRIPT DISTRO RMW_ENV [ARG...]: python SCRIPT under WRAPPER (netns.sh,
+# two_hosts.sh) in the peer's environment (target/ros/DISTRO/env.sh), and with RMW_ENV
+# (cyclone_env.sh, zenoh_env.sh; empty: Fast DDS) sourced after it.
 peer_run() {
-    local wrapper=$1 script=$2 d=$3
-    shift 3
+    local wrapper=$1 script=$2 d=$3 rmw_env=$4
+    shift 4
     # shellcheck disable=SC2016
     "$HERE/$wrapper" bash -c '
         . "$1/target/ros/$2/env.sh"
-        shift 2
+        [ -z "$3" ] || . "$1/target/ros/$2/$3"
+        shift 3
         exec timeout -s KILL 600 python "$0" "$@"
-    ' "$HERE/$script" "$ROOT" "$d" "$@"
+    ' "$HERE/$script" "$ROOT" "$d" "$rmw_env" "$@"
 }
 failed=()
 all=$(( $# == 0 ))
@@ -108,7 +112,7 @@ suite() {
     local t0
     t0=$(now_ms)
     echo "run.sh: $d: $script ($what)"
-    peer_run netns.sh "$script" "$d" "$@" || failed+=("$d:$failure")
+    peer_run netns.sh "$script" "$d" "" "$@" || failed+=("$d:$failure")
     echo "run.sh: $d: $script $(took "$t0")"
 }
 for d in $DISTROS; do
@@ -136,7 +140,7 @@ for d in $DISTROS; do
         else
             t0=$(now_ms)
             echo "run.sh: $d: test_two_hosts.py (ROS 2 $d rclpy, release binaries)"
-            peer_run two_hosts.sh test_two_hosts.py "$d" ${two_hosts[@]+"${two_hosts[@]}"} || failed+=("$d:two_hosts")
+            peer_run two_hosts.sh test_two_hosts.py "$d" "" ${two_hosts[@]+"${two_hosts[@]}"} || failed+=("$d:two_hosts")
             echo "run.sh: $d: test_two_hosts.py $(took "$t0")"
         fi
     fi
@@ -151,13 +155,8 @@ for d in $DISTROS; do
             echo "run.sh: $d: rmw_cyclonedds_cpp $(took "$t0")"
             t0=$(now_ms)
             echo "run.sh: $d: test_cyclone.py (ROS 2 $d rclpy on Cyclone DDS and Fast DDS, release binaries)"
-            # shellcheck disable=SC2016
-            "$HERE/netns.sh" bash -c '
-                . "$1/target/ros/$2/env.sh"
-                . "$1/target/ros/$2/cyclone_env.sh"
-                shift 2
-                exec timeout -s KILL 600 python "$0" "$@"
-            ' "$HERE/test_cyclone.py" "$ROOT" "$d" ${cyclone[@]+"${cyclone[@]}"} || failed+=("$d:test_cyclone")
+            peer_run netns.sh test_cyclone.py "$d" cyclone_env.sh ${cyclone[@]+"${cyclone[@]}"} \
+                || failed+=("$d:test_cyclone")
             echo "run.sh: $d: test_cyclone.py $(took "$t0")"
         else
             failed+=("$d:cyclone_setup")
@@ -175,13 +174,8 @@ for d in $DISTROS; do
             failed+=("$d:security_build")
         elif "$HERE/cyclone.sh" "$d" && "$HERE/sros2.sh" "$d"; then
             echo "run.sh: $d: test_security.py (secure node, ROS 2 $d rclpy on Cyclone DDS with security)"
-            # shellcheck disable=SC2016
-            TRACER_CALIB_NODE_SECURE="$secure_node" "$HERE/netns.sh" bash -c '
-                . "$1/target/ros/$2/env.sh"
-                . "$1/target/ros/$2/cyclone_env.sh"
-                shift 2
-                exec timeout -s KILL 600 python "$0" "$@"
-            ' "$HERE/test_security.py" "$ROOT" "$d" ${security[@]+"${security[@]}"} || failed+=("$d:test_security")
+            TRACER_CALIB_NODE_SECURE="$secure_node" peer_run netns.sh test_security.py "$d" cyclone_env.sh \
+                ${security[@]+"${security[@]}"} || failed+=("$d:test_security")
             echo "run.sh: $d: test_security.py $(took "$t0")"
         else
             failed+=("$d:security_setup")
@@ -199,13 +193,7 @@ for d in $DISTROS; do
             echo "run.sh: $d: rmw_zenoh_cpp $(took "$t0")"
             t0=$(now_ms)
             echo "run.sh: $d: test_zenoh.py (ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd)"
-            # shellcheck disable=SC2016
-            "$HERE/netns.sh" bash -c '
-                . "$1/target/ros/$2/env.sh"
-                . "$1/target/ros/$2/zenoh_env.sh"
-                shift 2
-                exec timeout -s KILL 600 python "$0" "$@"
-            ' "$HERE/test_zenoh.py" "$ROOT" "$d" "${zenoh[@]}" || failed+=("$d:test_zenoh")
+            peer_run netns.sh test_zenoh.py "$d" zenoh_env.sh "${zenoh[@]}" || failed+=("$d:test_zenoh")
             echo "run.sh: $d: test_zenoh.py $(took "$t0")"
         else
             failed+=("$d:zenoh_setup")
