@@ -38,6 +38,7 @@
 set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+. "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
 SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
 TARBALL=$SRC_DIR/rmw_cyclonedds.tar.gz
@@ -60,29 +61,11 @@ done
 [ -f "$TARBALL" ] || { echo "cyclone.sh: no $TARBALL (set TRACER_ROS2_SRC)" >&2; exit 1; }
 
 # Work in a clean environment even when a target/ros/*/env.sh is sourced in this shell.
-unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH LD_PRELOAD AMENT_PREFIX_PATH CMAKE_PREFIX_PATH \
-    VIRTUAL_ENV PYTHONHOME _ROS_WHEELS_BOOTSTRAP_COMPLETE RMW_IMPLEMENTATION
+clean_ros_env
 
-now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
-took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
 
 # Debian build dependencies, apt-get only for what is missing.
-APT_PKGS=()
-for p in cyclonedds-dev libiceoryx-binding-c-dev liblttng-ust-dev patchelf; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || APT_PKGS+=("$p")
-done
-if [ "${#APT_PKGS[@]}" -gt 0 ]; then
-    [ "$(id -u)" -eq 0 ] || { echo "cyclone.sh: missing ${APT_PKGS[*]} and not root: apt-get install -y ${APT_PKGS[*]}" >&2; exit 1; }
-    t0=$(now_ms)
-    mkdir -p "$CACHE_TOP"
-    if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${APT_PKGS[@]}"; } \
-        >"$CACHE_TOP/apt.log" 2>&1; then
-        tail -n 30 "$CACHE_TOP/apt.log" >&2
-        echo "cyclone.sh: apt-get install ${APT_PKGS[*]} failed" >&2
-        exit 1
-    fi
-    echo "cyclone.sh: apt-get install ${APT_PKGS[*]} $(took "$t0")"
-fi
+apt_install_missing cyclone.sh "$CACHE_TOP/apt.log" cyclonedds-dev libiceoryx-binding-c-dev liblttng-ust-dev patchelf
 CYCLONE_DEB=$(dpkg-query -W -f='${Version}' cyclonedds-dev)
 TAR_SHA=$(sha256sum "$TARBALL" | cut -c1-64)
 

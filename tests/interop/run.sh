@@ -54,6 +54,7 @@
 #   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+. "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
 DISTROS=${TRACER_ROS_DISTROS:-kilted jazzy}
 trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
@@ -82,8 +83,6 @@ if [ "$#" -eq 0 ] || [ "${#zenoh[@]}" -lt "$#" ]; then
         [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
     done
 fi
-now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
-took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
 # A test script with the distribution's peer environment: SCRIPT DISTRO [NAME...]
 # (node_suite.py, test_graph.py), through WRAPPER (netns.sh or two_hosts.sh).
 # peer_run WRAPPER SCRIPT DISTRO RMW_ENV [ARG...]: python SCRIPT under WRAPPER (netns.sh,

@@ -27,6 +27,7 @@
 set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+. "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
 ROS_TOP=$ROOT/target/ros
 JOBS=${ROS_SETUP_JOBS:-2}
@@ -61,7 +62,6 @@ if command -v flock >/dev/null 2>&1; then
     flock 9
 fi
 
-now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 T_ALL=$(now_ms)
 CHANGED=0
 DISTRO=""

@@ -15,6 +15,7 @@
 set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+. "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
 SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
 REQ=$HERE/requirements-sros2.txt
@@ -33,11 +34,8 @@ done
 [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
 [ -f "$TARBALL" ] || { echo "sros2.sh: no $TARBALL (set TRACER_ROS2_SRC)" >&2; exit 1; }
 
-unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH LD_PRELOAD AMENT_PREFIX_PATH CMAKE_PREFIX_PATH \
-    VIRTUAL_ENV PYTHONHOME _ROS_WHEELS_BOOTSTRAP_COMPLETE RMW_IMPLEMENTATION
+clean_ros_env
 
-now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
-took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
 
 failed=()
 for d in "${DISTROS[@]}"; do

@@ -31,6 +31,7 @@
 # Prints one line per step with its time; logs in target/colcon_ws/DISTRO/*.log.
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+. "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
 DISTRO=${1:?usage: $0 kilted|jazzy}
 case "$DISTRO" in kilted|jazzy) ;; *) echo "usage: $0 kilted|jazzy" >&2; exit 2 ;; esac
@@ -40,7 +41,6 @@ WS=$ROOT/target/colcon_ws/$DISTRO
 ROS_SETUP=$ROOT/target/ros/$DISTRO/ros_setup.sh
 . "$ROOT/scripts/target_dir.sh"
 
-now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 step_done() {
     local ms=$(( $(now_ms) - $3 ))
     printf 'workspace.sh: %-7s%-12s %-9s %4d.%01ds\n' "$DISTRO" "$1" "$2" $(( ms / 1000 )) $(( (ms % 1000) / 100 ))

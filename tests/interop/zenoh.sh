@@ -57,6 +57,7 @@
 set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+. "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
 SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
 TARBALLS=("$SRC_DIR/rmw_zenoh.tar.gz" "$SRC_DIR/zenoh-c.tar.gz" "$SRC_DIR/zenoh-cpp.tar.gz")
@@ -82,12 +83,9 @@ for t in "${TARBALLS[@]}"; do
 done
 
 # Work in a clean environment even when a target/ros/*/env.sh is sourced in this shell.
-unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH LD_PRELOAD AMENT_PREFIX_PATH CMAKE_PREFIX_PATH \
-    VIRTUAL_ENV PYTHONHOME _ROS_WHEELS_BOOTSTRAP_COMPLETE RMW_IMPLEMENTATION \
-    ZENOH_CONFIG_OVERRIDE ZENOH_SESSION_CONFIG_URI ZENOH_ROUTER_CONFIG_URI
+clean_ros_env
+unset ZENOH_CONFIG_OVERRIDE ZENOH_SESSION_CONFIG_URI ZENOH_ROUTER_CONFIG_URI
 
-now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
-took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
 
 T_START=$(now_ms)
 # The key is computed first: a cached build needs neither apt nor cargo to be looked at.
@@ -113,21 +111,7 @@ for d in "${DISTROS[@]}"; do
         status=cached
     else
         # Debian build dependencies, apt-get only for what is missing.
-        APT_PKGS=()
-        for p in g++ make patchelf liblttng-ust-dev; do
-            dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || APT_PKGS+=("$p")
-        done
-        if [ "${#APT_PKGS[@]}" -gt 0 ]; then
-            [ "$(id -u)" -eq 0 ] || { echo "zenoh.sh: missing ${APT_PKGS[*]} and not root: apt-get install -y ${APT_PKGS[*]}" >&2; exit 1; }
-            ta=$(now_ms)
-            if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${APT_PKGS[@]}"; } \
-                >"$CACHE_TOP/apt.log" 2>&1; then
-                tail -n 30 "$CACHE_TOP/apt.log" >&2
-                echo "zenoh.sh: apt-get install ${APT_PKGS[*]} failed" >&2
-                exit 1
-            fi
-            echo "zenoh.sh: apt-get install ${APT_PKGS[*]} $(took "$ta")"
-        fi
+        apt_install_missing zenoh.sh "$CACHE_TOP/apt.log" g++ make patchelf liblttng-ust-dev
         export RUSTUP_TOOLCHAIN=stable
         CARGO_V=$(cargo --version 2>/dev/null) || { echo "zenoh.sh: no cargo (rustup's stable, >= 1.88, builds zenoh-c)" >&2; exit 1; }
         KEY="$KEY_BASE cargo=$CARGO_V"

@@ -1,0 +1,35 @@
+# Sourced by the interop scripts (run.sh, setup.sh, workspace.sh, ros2cli.sh, cyclone.sh,
+# sros2.sh, zenoh.sh): what each of them does the same way.
+
+# Milliseconds since the epoch; `took T0`: the time since T0 as "12.3s".
+now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
+took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
+
+# A clean environment for a build or an install, even when a target/ros/*/env.sh (and a
+# cyclone_env.sh) is sourced in the calling shell.
+clean_ros_env() {
+    unset TRACER_ROS_ENV PYTHONPATH LD_LIBRARY_PATH LD_PRELOAD AMENT_PREFIX_PATH CMAKE_PREFIX_PATH \
+        VIRTUAL_ENV PYTHONHOME _ROS_WHEELS_BOOTSTRAP_COMPLETE RMW_IMPLEMENTATION
+}
+
+# apt_install_missing WHO LOG PKG...: apt-get install those of the Debian packages PKG that
+# are not installed (root only; else exit 1 saying what to install), apt's output to LOG.
+# WHO names the calling script in its messages. Prints the time it took, if anything.
+apt_install_missing() {
+    local who=$1 log=$2 missing=() p t0
+    shift 2
+    for p in "$@"; do
+        dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+    done
+    [ "${#missing[@]}" -gt 0 ] || return 0
+    [ "$(id -u)" -eq 0 ] || { echo "$who: missing ${missing[*]} and not root: apt-get install -y ${missing[*]}" >&2; exit 1; }
+    t0=$(now_ms)
+    mkdir -p "$(dirname "$log")"
+    if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}"; } \
+        >"$log" 2>&1; then
+        tail -n 30 "$log" >&2
+        echo "$who: apt-get install ${missing[*]} failed" >&2
+        exit 1
+    fi
+    echo "$who: apt-get install ${missing[*]} $(took "$t0")"
+}
