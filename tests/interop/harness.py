@@ -272,3 +272,9 @@ rclpy.shutdown()
 def run_tests(tests, only, label, summary, after_each=None):
     """runner.run_tests, with the tail of every node log in WORK after a failure."""
     return runner.run_tests(tests, only, label, summary, after_each, log_dir=WORK)
+
+
+def run_tests_and_exit(script, tests, argv, label, summary):
+    """runner.run_tests_and_exit with WORK as the scratch folder, and its node logs' tails
+    after a failure."""
+    runner.run_tests_and_exit(script, tests, argv, label, summary, WORK, log_dir=WORK)

@@ -268,17 +268,7 @@ def main():
         ("cyclone_cli", lambda: test_cyclone_cli(peer)),
         ("mixed_cell", lambda: test_mixed_cell(peer)),
     ]
-    only = [a.removeprefix("test_") for a in sys.argv[1:] if a != "cyclone"]
-    unknown = sorted(set(only) - {name for name, _ in tests})
-    if unknown:
-        print(f"test_cyclone.py: no such test: {', '.join(unknown)} (have: {', '.join(n for n, _ in tests)})", flush=True)
-        os._exit(2)
-    failed = tn.run_tests(tests, only, "interop::", "cyclone")
-    if failed == 0:
-        shutil.rmtree(tn.WORK, ignore_errors=True)
-    sys.stdout.flush()
-    os._exit(0 if failed == 0 else 1)  # rclpy's shutdown can hang (notes/ros2-peer.md)
-
+    tn.run_tests_and_exit("test_cyclone.py", tests, sys.argv[1:], "interop::", "cyclone")
 
 if __name__ == "__main__":
     main()

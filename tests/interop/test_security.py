@@ -31,7 +31,6 @@ Prints one line per test and a closing 'N passed, N failed'.
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -226,17 +225,7 @@ def main():
         ("enforce_missing_enclave", lambda: test_enforce_missing_enclave(peer)),
         ("permissive_missing_enclave", lambda: test_permissive_missing_enclave(peer)),
     ]
-    only = [a.removeprefix("test_") for a in sys.argv[1:] if a != "security"]
-    unknown = sorted(set(only) - {name for name, _ in tests})
-    if unknown:
-        print(f"test_security.py: no such test: {', '.join(unknown)} (have: {', '.join(n for n, _ in tests)})", flush=True)
-        os._exit(2)
-    failed = tn.run_tests(tests, only, "interop::", "security")
-    if failed == 0:
-        shutil.rmtree(tn.WORK, ignore_errors=True)
-    sys.stdout.flush()
-    os._exit(0 if failed == 0 else 1)  # rclpy's shutdown can hang (notes/ros2-peer.md)
-
+    tn.run_tests_and_exit("test_security.py", tests, sys.argv[1:], "interop::", "security")
 
 if __name__ == "__main__":
     main()

@@ -225,17 +225,7 @@ def main():
     tests = [
         ("zenoh_stock_pair", test_zenoh_stock_pair),
     ]
-    only = [a.removeprefix("test_") for a in sys.argv[1:] if a != "zenoh"]
-    unknown = sorted(set(only) - {name for name, _ in tests})
-    if unknown:
-        print(f"test_zenoh.py: no such test: {', '.join(unknown)} (have: {', '.join(n for n, _ in tests)})", flush=True)
-        os._exit(2)
-    failed = runner.run_tests(tests, only, "interop::", "zenoh", log_dir=WORK)
-    if failed == 0:
-        shutil.rmtree(WORK, ignore_errors=True)
-    sys.stdout.flush()
-    os._exit(0 if failed == 0 else 1)
-
+    runner.run_tests_and_exit("test_zenoh.py", tests, sys.argv[1:], "interop::", "zenoh", WORK, log_dir=WORK)
 
 if __name__ == "__main__":
     main()
