@@ -36,7 +36,8 @@ use futures::StreamExt;
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
-use ros2_client::{Context, Name, NodeName, NodeOptions, QosProfile, qos::*};
+use ros2_client::dds::Context;
+use ros2_client::{Name, NodeName, NodeOptions, QosProfile, qos::*};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
@@ -226,8 +227,9 @@ fn main() {
     let ctx = context();
     let mut n =
         ctx.new_node(NodeName::new("/", "latency_bench").unwrap(), NodeOptions::new().enable_rosout(false)).unwrap();
-    let topic =
-        |n: &mut ros2_client::Node, name: &str, ty| n.create_topic(&Name::new("/", name).unwrap(), ty, &qos()).unwrap();
+    let topic = |n: &mut ros2_client::dds::Node, name: &str, ty| {
+        n.create_topic(&Name::new("/", name).unwrap(), ty, &qos()).unwrap()
+    };
     let raw_t = topic(&mut n, "raw_scan", RawScan::NAME.message_type_name());
     let contour_t = topic(&mut n, "contour", Contour::NAME.message_type_name());
     let echo_in_t = topic(&mut n, "echo_in", RawScan::NAME.message_type_name());

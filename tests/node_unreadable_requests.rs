@@ -9,7 +9,8 @@ use std::process::{Child, Command};
 use std::time::{Duration, Instant};
 
 use futures::{FutureExt, StreamExt, future};
-use ros2_client::{Context, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, qos::*};
+use ros2_client::dds::{Context, ServiceMapping};
+use ros2_client::{Name, NodeName, NodeOptions, QosProfile, qos::*};
 use rustdds::no_key::SerializerAdapter;
 use rustdds::{DomainParticipantBuilder, QosPolicies, RepresentationIdentifier, TopicKind};
 use tracer_calib::interfaces::{Calibrate, CalibrateRequest, CalibrateResponse, DiagnosticArray, RosMsg, RosService};

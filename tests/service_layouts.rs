@@ -17,7 +17,8 @@ use std::net::{IpAddr, Ipv4Addr};
 use std::time::Duration;
 
 use futures::{FutureExt, StreamExt, future};
-use ros2_client::{Context, Message, Name, NodeName, NodeOptions, QosProfile, ServiceMapping, ServiceTypeName, qos::*};
+use ros2_client::dds::{Context, ServiceMapping};
+use ros2_client::{Message, Name, NodeName, NodeOptions, QosProfile, ServiceTypeName, qos::*};
 use rustdds::no_key::SerializerAdapter;
 use rustdds::{DomainParticipantBuilder, QosPolicies, RepresentationIdentifier, TopicKind};
 use serde::{Deserialize, Serialize};
@@ -88,7 +89,7 @@ async fn within<T>(secs: u64, what: &str, f: impl std::future::Future<Output = T
 }
 
 /// `CALLS` calls, one after the other, with scan ids `first`, `first + 2`, ...
-async fn calls(client: &ros2_client::Client<Request, Response>, first: u32) -> Vec<(Request, Response)> {
+async fn calls(client: &ros2_client::dds::Client<Request, Response>, first: u32) -> Vec<(Request, Response)> {
     let mut out = Vec::new();
     for i in 0..CALLS {
         let r = Request { scan_id: first + 2 * i, dry_run: i % 2 == 0 };

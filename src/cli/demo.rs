@@ -15,7 +15,8 @@ use futures::StreamExt;
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use ros2_client::{Name, NodeName, NodeOptions, QosProfile, ServiceMapping, qos::*};
+use ros2_client::dds::ServiceMapping;
+use ros2_client::{Name, NodeName, NodeOptions, QosProfile, qos::*};
 
 use super::exit;
 use crate::engine::calibrate::{Options, calibrate};

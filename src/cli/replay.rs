@@ -139,6 +139,10 @@ fn replay(args: &Args) -> Result<String, String> {
     timeline.sort_by_key(|(t, _, _)| *t);
 
     let env = RosEnv::from_env().map_err(|e| e.to_string())?;
+    if env.middleware == crate::rmw::Middleware::Zenoh {
+        // The node speaks Zenoh (src/ros/node/zenoh.rs); the replay publisher does not yet.
+        return Err("RMW_IMPLEMENTATION=rmw_zenoh_cpp: replay publishes on DDS only; replay into a Zenoh cell with `ros2 bag play` on rmw_zenoh_cpp".into());
+    }
     let security = crate::rmw::security::resolve(&env.security, None).map_err(|e| e.to_string())?;
     let participant = crate::rmw::dds::participant_from_env(&env, &security)?;
     let (ctx, _) = crate::rmw::dds::context(participant)?;

@@ -210,6 +210,9 @@ pub fn participant_from_env(env: &RosEnv, security: &Security) -> Result<DomainP
     plan.participant(env.domain_id, security)
 }
 
+/// A type hash resolver: ROS type name (`pkg/msg/Name`) -> RIHS01 hash, `None` if unknown.
+pub type TypeHashes = Arc<dyn Fn(&str) -> Option<String> + Send + Sync>;
+
 /// The ROS types of the endpoints made through a context (`pkg/msg/Type`, and for a
 /// service's two topics the service, `pkg/srv/Service`), as their hashes were asked for:
 /// the types `~/get_type_description` answers for (rcl's type cache).
@@ -228,6 +231,18 @@ impl TypesInUse {
         self.0.lock().expect("types in use").insert(name);
     }
 
+    /// A hash resolver (ROS type name -> RIHS01) over the interface layer's type hashes
+    /// ([`crate::interfaces::type_hash`]) that records each type it hashed. The Zenoh
+    /// session ([`super::zenoh`]) uses it too.
+    pub fn hashing_resolver(&self) -> TypeHashes {
+        let recorder = self.clone();
+        Arc::new(move |ros_type: &str| {
+            let hash = crate::interfaces::type_hash::type_hash(ros_type).ok()?;
+            recorder.record(ros_type);
+            Some(hash)
+        })
+    }
+
     /// The types, sorted.
     pub fn names(&self) -> Vec<String> {
         self.0.lock().expect("types in use").iter().cloned().collect()
@@ -240,15 +255,10 @@ impl TypesInUse {
 /// computed from the interface texts ([`crate::interfaces::type_hash`]); a type without a
 /// text here announces none (patched ros2-client, `vendor/ros2-client/PATCHES.md`). The
 /// types whose hashes were announced are recorded in the [`TypesInUse`].
-pub fn context(participant: DomainParticipant) -> Result<(ros2_client::Context, TypesInUse), String> {
+pub fn context(participant: DomainParticipant) -> Result<(ros2_client::dds::Context, TypesInUse), String> {
     let in_use = TypesInUse::default();
-    let recorder = in_use.clone();
-    let hashes: ros2_client::context::TypeHashResolver = Arc::new(move |ros_type: &str| {
-        let hash = crate::interfaces::type_hash::type_hash(ros_type).ok()?;
-        recorder.record(ros_type);
-        Some(hash)
-    });
-    let ctx = ros2_client::Context::from_domain_participant_with_type_hashes(participant, Some(hashes))
+    let hashes: ros2_client::context::TypeHashResolver = in_use.hashing_resolver();
+    let ctx = ros2_client::dds::Context::from_domain_participant_with_type_hashes(participant, Some(hashes))
         .map_err(|e| format!("cannot create the ROS context: {e:?}"))?;
     Ok((ctx, in_use))
 }
@@ -264,6 +274,7 @@ mod tests {
             static_peers: peers.iter().map(|s| s.to_string()).collect(),
             warnings: vec![],
             security: Default::default(),
+            middleware: crate::rmw::Middleware::Dds,
         }
     }
 

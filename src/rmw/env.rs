@@ -5,6 +5,7 @@
 //! `ROS_STATIC_PEERS`, and the SROS2 variables (`ROS_SECURITY_*`, resolved by
 //! [`super::security`]).
 
+use super::implementation::{Middleware, UnknownImplementation};
 use super::security::SecurityEnv;
 use crate::params::value::c_strtoll;
 
@@ -14,6 +15,9 @@ pub enum EnvError {
     /// `ROS_DOMAIN_ID` is not an integer in `0..=232`.
     #[error("ROS_DOMAIN_ID must be an integer in 0..={max}, got '{0}'", max = ROS_DOMAIN_ID_MAX)]
     DomainId(String),
+    /// `RMW_IMPLEMENTATION` names a middleware the node does not speak.
+    #[error(transparent)]
+    Implementation(#[from] UnknownImplementation),
 }
 
 /// The largest `ROS_DOMAIN_ID` the RTPS port mapping allows.
@@ -54,6 +58,8 @@ pub struct RosEnv {
     /// `ROS_SECURITY_ENABLE`, `ROS_SECURITY_STRATEGY`, `ROS_SECURITY_KEYSTORE`,
     /// `ROS_SECURITY_ENCLAVE_OVERRIDE`, as given.
     pub security: SecurityEnv,
+    /// `RMW_IMPLEMENTATION`: DDS or Zenoh ([`super::implementation`]).
+    pub middleware: Middleware,
 }
 
 /// `ROS_DOMAIN_ID`: unset or empty -> 0; else an integer (C `strtoul` base 0 forms: `7`,
@@ -109,7 +115,8 @@ impl RosEnv {
             static_peers.clear();
         }
         let security = SecurityEnv::from_lookup(&get);
-        Ok(RosEnv { domain_id, discovery_range, static_peers, warnings, security })
+        let middleware = Middleware::from_rmw_implementation(get("RMW_IMPLEMENTATION").as_deref())?;
+        Ok(RosEnv { domain_id, discovery_range, static_peers, warnings, security, middleware })
     }
 
     /// Reads the real process environment.
@@ -175,7 +182,8 @@ mod tests {
                 discovery_range: DiscoveryRange::Subnet,
                 static_peers: vec![],
                 warnings: vec![],
-                security: SecurityEnv::default()
+                security: SecurityEnv::default(),
+                middleware: Middleware::Dds,
             }
         );
         let e = env(&[
@@ -194,6 +202,8 @@ mod tests {
         let e = env(&[("ROS_LOCALHOST_ONLY", "0")]).unwrap();
         assert_eq!(e.discovery_range, DiscoveryRange::Subnet);
         assert!(env(&[("ROS_DOMAIN_ID", "500")]).is_err());
+        assert_eq!(env(&[("RMW_IMPLEMENTATION", "rmw_zenoh_cpp")]).unwrap().middleware, Middleware::Zenoh);
+        assert!(matches!(env(&[("RMW_IMPLEMENTATION", "rmw_opendds")]), Err(EnvError::Implementation(_))));
         // the real environment reads without panicking
         let _ = RosEnv::from_env();
     }

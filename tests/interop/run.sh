@@ -45,12 +45,11 @@
 # (tests/interop/sros2.sh installs `ros2 security`), against the node built with the
 # cargo feature `security` into cargo's target directory's security/ (built here when
 # selected by name; in a run without names it runs only if that build is there).
-# Only when named (not part of a run without names): zenoh or zenoh_NAME, Jazzy only
-# (2d): tests/interop/zenoh.sh builds rmw_zenoh_cpp and its router rmw_zenohd (cached
-# outside the clone; 8-14 min and ~0.26 GB of crates the first time, 0.1 s after), and
-# test_zenoh.py runs stock rclpy peers on rmw_zenoh_cpp through the router in a private
-# network namespace (~4 s), with the stock ros2 CLI on Zenoh. Issue 23's groundwork: the
-# node is not on Zenoh yet, so these check the peer only and need no release binaries.
+# (2d, Jazzy; zenoh or zenoh_NAME) tests/interop/zenoh.sh builds rmw_zenoh_cpp and its
+# router rmw_zenohd (cached outside the clone; 8-14 min and ~0.26 GB of crates the first
+# time, 0.1 s after), and test_zenoh.py runs the node on Zenoh (RMW_IMPLEMENTATION=
+# rmw_zenoh_cpp) with stock rclpy peers on rmw_zenoh_cpp and the stock ros2 CLI through the
+# router, in a private network namespace.
 #   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -77,12 +76,10 @@ for a in "$@"; do
         *) node_tests+=("$a") ;;
     esac
 done
-# The release binaries, unless only test_zenoh.py's tests are named (they start no node yet).
-if [ "$#" -eq 0 ] || [ "${#zenoh[@]}" -lt "$#" ]; then
-    for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
-        [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
-    done
-fi
+# The release binaries.
+for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
+    [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
+done
 # A test script with the distribution's peer environment: SCRIPT DISTRO [NAME...]
 # (node_suite.py, test_graph.py), through WRAPPER (netns.sh or two_hosts.sh).
 # peer_run WRAPPER SCRIPT DISTRO RMW_ENV [ARG...]: python SCRIPT under WRAPPER (netns.sh,
@@ -182,17 +179,17 @@ for d in $DISTROS; do
     elif [ "$#" -eq 0 ] && [ "$d" = jazzy ]; then
         echo "run.sh: $d: test_security.py skipped (no $secure_node: run.sh security builds it)"
     fi
-    # 2d. Stock rmw_zenoh peers (test_zenoh.py), only when named. Jazzy only: the rmw_zenoh
-    # tarball is Jazzy's release (0.2.10).
+    # 2d. The node in a Zenoh cell with stock rmw_zenoh peers (test_zenoh.py). Jazzy only:
+    # the rmw_zenoh tarball is Jazzy's release (0.2.10).
     if [ "${#zenoh[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
         echo "run.sh: $d: test_zenoh.py skipped (rmw_zenoh_cpp is built for jazzy only)"
-    elif [ "${#zenoh[@]}" -gt 0 ]; then
+    elif [ "${#zenoh[@]}" -gt 0 ] || { [ "$#" -eq 0 ] && [ "$d" = jazzy ]; }; then
         t0=$(now_ms)
         if "$HERE/zenoh.sh" "$d"; then
             echo "run.sh: $d: rmw_zenoh_cpp $(took "$t0")"
             t0=$(now_ms)
             echo "run.sh: $d: test_zenoh.py (ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd)"
-            peer_run netns.sh test_zenoh.py "$d" zenoh_env.sh "${zenoh[@]}" || failed+=("$d:test_zenoh")
+            peer_run netns.sh test_zenoh.py "$d" zenoh_env.sh ${zenoh[@]+"${zenoh[@]}"} || failed+=("$d:test_zenoh")
             echo "run.sh: $d: test_zenoh.py $(took "$t0")"
         else
             failed+=("$d:zenoh_setup")

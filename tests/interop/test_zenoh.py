@@ -1,8 +1,7 @@
 #!/usr/bin/env python3
-"""Stock ROS 2 peers on Zenoh: rclpy on rmw_zenoh_cpp 0.2.10 (built from source by
-tests/interop/zenoh.sh) through the router rmw_zenohd, the groundwork of issue 23. The node
-itself does not speak Zenoh yet: these tests check the stock peer the node will be tested
-against.
+"""tracer_calib_node in a Zenoh cell (RMW_IMPLEMENTATION=rmw_zenoh_cpp) with stock ROS 2
+peers: rclpy on rmw_zenoh_cpp 0.2.10 (built from source by tests/interop/zenoh.sh) through
+the router rmw_zenohd.
 
 Run by tests/interop/run.sh inside a private network namespace, with
 target/ros/jazzy/env.sh and then target/ros/jazzy/zenoh_env.sh sourced: this process's
@@ -16,11 +15,31 @@ shutdown on rmw_zenoh can hang for 10 s: ../shared/notes/ros2-peer.md).
   tests/interop/ros2cli.sh has installed the CLI, `ros2 node list` on Zenoh shows both
   nodes and `ros2 topic info -v /zenoh_chatter` shows both endpoints with rosidl's RIHS01
   type hash of std_msgs/msg/String. Both peers exit on request within their deadline.
+- zenoh_node_calibrate: the node on Zenoh and this process's rclpy (rmw_zenoh_cpp) through
+  the router: a lens scan in, its contour out; a plate scan, /calibrate answered with the
+  fit; the lens back corrected; a subscriber joining later gets the calibration in force
+  (transient local); /diagnostics and /rosout come; the parameter services list, get,
+  describe and set (a bad value refused with its reason), and the set is in the params file.
+- zenoh_node_cli: the real `ros2 node list`, `ros2 topic info -v`, `ros2 service call`
+  and `ros2 param get/set` on Zenoh: the node with rosidl's type hashes, a calibration.
+- zenoh_node_namespaces: ten nodes (namespaces /cell0../cell9, one remapped topic) on one
+  router, each one's scans and /calibrate its own.
+- zenoh_node_leave: SIGTERM: the node gone from a stock peer's graph within 1 s.
+- zenoh_node_bad_environment: no router (ZENOH_ROUTER_CHECK_ATTEMPTS=2): exit non-zero in
+  one line naming the endpoint, after the attempts; an unknown RMW_IMPLEMENTATION: one
+  line naming it and the two the node speaks.
+- zenoh_node_router_restart: the router stops and starts again: the node rejoins and
+  serves scans and /calibrate again.
+- zenoh_latency: a figure, not a check: round trips of a 400-sample lens scan from this
+  process through the router to the node and its contour back, and the same through a
+  stock rclpy relay node (RawScan in, an empty Contour with its scan id out), side by side
+  (median and 90th percentile; BENCHMARKS.md).
 
 Prints one line per test and a closing 'N passed, N failed'.
 """
 
 import json
+import math
 import os
 import shutil
 import socket
@@ -29,11 +48,24 @@ import sys
 import tempfile
 import time
 
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.utilities import get_rmw_implementation_identifier
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-# Only the runner: these tests start no tracer_calib_node (harness.py needs its binaries).
 import runner  # noqa: E402
+import harness as tn  # noqa: E402
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rcl_interfaces.msg import Log  # noqa: E402
+from tracer_calib_msgs.msg import Calibration, Contour, RawScan  # noqa: E402
+from tracer_calib_msgs.srv import Calibrate  # noqa: E402
+
+# This interpreter has loaded rmw_zenoh_cpp through the preloaded shim; the node and the
+# tool (`tracer_calib simulate`) must not get the preload (they speak Zenoh themselves).
+ZENOH_ENV = dict(os.environ)
+os.environ.pop("LD_PRELOAD", None)
 
 ROUTER_PORT = 7447
 WORK = tempfile.mkdtemp(prefix="tracer_calib_zenoh_")
@@ -153,14 +185,14 @@ class Router:
 
 def peer(name, script, *args):
     return subprocess.Popen(
-        ["timeout", "-s", "KILL", "120", sys.executable, "-c", script, *args],
+        ["timeout", "-s", "KILL", "120", sys.executable, "-c", script, *args], env=ZENOH_ENV,
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=open(os.path.join(WORK, name + ".log"), "w"),
         text=True,
     )
 
 
 def ros2(*args):
-    out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], capture_output=True, text=True)
+    out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=ZENOH_ENV, capture_output=True, text=True)
     assert out.returncode == 0, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
     return out.stdout
 
@@ -217,6 +249,307 @@ def test_zenoh_stock_pair():
         router.stop()
 
 
+# ------------------------------------------------------------------ the node on Zenoh
+
+ROUTER = [None]
+
+
+def router():
+    """The router the node tests share (started by the first one that needs it)."""
+    if ROUTER[0] is None or ROUTER[0].proc.poll() is not None:
+        ROUTER[0] = Router()
+    return ROUTER[0]
+
+
+def zenoh_node(label, ros_args=(), env=None):
+    """tracer_calib_node on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp), the router at
+    tcp/127.0.0.1:7447 (rmw_zenoh's default endpoint, tcp/localhost:7447, is tried first on
+    ::1, where nothing listens in the namespace)."""
+    extra = dict(RMW_IMPLEMENTATION="rmw_zenoh_cpp",
+                 ZENOH_CONFIG_OVERRIDE=f'connect/endpoints=["tcp/127.0.0.1:{ROUTER_PORT}"]')
+    extra.update(env or {})
+    saved = dict(os.environ)
+    os.environ.update(extra)
+    try:
+        return tn.NodeProcess(label, list(ros_args))
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+
+
+PEER = [None]
+
+
+def peer_node():
+    if PEER[0] is None:
+        rclpy.init()
+        PEER[0] = tn.Peer("zenoh_peer")
+    return PEER[0]
+
+
+def test_zenoh_node_calibrate():
+    router()
+    params = tn.params_file("zenoh_params.yaml", "tracer_calibrator:\n  ros__parameters:\n    model: full\n")
+    node = zenoh_node("zenoh_calibrate", ["--params-file", params])
+    peer = peer_node()
+    try:
+        t0 = time.monotonic()
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        diags = peer.subscribe(DiagnosticArray, "/diagnostics")
+        logs = peer.subscribe(Log, "/rosout")
+        lens = tn.simulate("z_lens", "ellipse", seed=3)
+        first = peer.send_scan(pub, tn.raw_scan(1, RawScan.TARGET_LENS, *lens), contours)
+        found = time.monotonic() - t0
+        assert first.calibrated is False and len(first.points) == 400
+
+        plate = tn.simulate("z_plate", "plate", seed=2)
+        peer.send_scan(pub, tn.raw_scan(10, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+        r = peer.call("/calibrate", Calibrate.Request())
+        assert r.success, r.message
+        assert r.message.startswith("scan 10:"), r.message
+        assert abs(math.degrees(r.alpha0) - tn.TRUTH["alpha0_deg"]) < 0.1, r
+        assert abs(r.offset - tn.TRUTH["offset"]) < 5e-5, r
+        assert abs(r.delta_l - tn.TRUTH["delta_l"]) < 1e-5, r
+
+        c = peer.send_scan(pub, tn.raw_scan(11, RawScan.TARGET_LENS, *lens), contours)
+        assert c.calibrated
+        worst = max(tn.ellipse_distance(p.x, p.y) for p in c.points)
+        assert worst < 40e-6, f"corrected points up to {worst * 1e3:.4f} mm off the ellipse"
+
+        # A late joiner gets the calibration in force (transient local).
+        latched = []
+        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        peer.node.create_subscription(Calibration, "/calibration", latched.append, qos)
+        peer.spin_until(lambda: any(m.valid for m in latched), 10, "the latched calibration")
+        cal = [m for m in latched if m.valid][-1]
+        assert abs(cal.offset - r.offset) < 1e-12, (cal, r)
+
+        peer.spin_until(lambda: diags, 5, "/diagnostics")
+        assert any("tracer_calibrator" in s.name for s in diags[-1].status), diags[-1]
+        peer.spin_until(lambda: any("calibrate:" in m.msg for m in logs), 5, "the calibration on /rosout")
+
+        pc = peer.param_client("/tracer_calibrator")
+        names = peer.param(lambda: pc.list_parameters()).result.names
+        for n in ["calibration.alpha0", "plate.side", "model", "resample_points"]:
+            assert n in names, (n, names)
+        got = peer.param(lambda: pc.get_parameters(["calibration.offset", "plate.side"])).values
+        assert abs(got[0].double_value - r.offset) < 1e-12 and got[1].double_value == 0.045, got
+        d = peer.param(lambda: pc.describe_parameters(["plate.side"])).descriptors
+        assert d[0].description.startswith("side of the square") and "positive" in d[0].additional_constraints, d
+        res = peer.param(lambda: pc.set_parameters([Parameter("plate.side", value=0.05)])).results
+        assert res[0].successful, res[0].reason
+        res = peer.param(lambda: pc.set_parameters([Parameter("plate.side", value=-1.0)])).results
+        assert not res[0].successful and "plate.side" in res[0].reason, res[0]
+        with open(params) as f:
+            text = f.read()
+        assert "side: 0.05" in text and "offset:" in text, text
+        return f"first contour {found:.2f} s after start; lens within {worst * 1e6:.1f} um after calibrating over Zenoh"
+    finally:
+        node.stop()
+
+
+def test_zenoh_node_cli():
+    if not shutil.which("ros2"):
+        return "skipped: no ros2 command (tests/interop/ros2cli.sh installs it)"
+    router()
+    node = zenoh_node("zenoh_cli")
+    env = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
+
+    def cli(*args):
+        out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=env, capture_output=True, text=True)
+        assert out.returncode == 0, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
+        return out.stdout
+
+    try:
+        deadline = time.monotonic() + 15
+        while "/tracer_calibrator" not in cli("node", "list", "--no-daemon").split():
+            node.check_alive()
+            assert time.monotonic() < deadline, "the node not in `ros2 node list` on Zenoh"
+            time.sleep(0.3)
+        for topic, ros_type in (("/raw_scan", "tracer_calib_msgs/msg/RawScan"),
+                                ("/contour", "tracer_calib_msgs/msg/Contour"),
+                                ("/calibration", "tracer_calib_msgs/msg/Calibration")):
+            info = cli("topic", "info", "--no-daemon", "-v", topic)
+            assert "Node name: tracer_calibrator" in info, info
+            hashes = [ln.split(":", 1)[1].strip() for ln in info.splitlines() if "Topic type hash" in ln]
+            assert hashes and set(hashes) == {tn.rosidl_hash(ros_type)}, info
+        services = cli("service", "list", "-t", "--no-daemon")
+        assert "/calibrate [tracer_calib_msgs/srv/Calibrate]" in services, services
+        assert "/tracer_calibrator/get_parameters [rcl_interfaces/srv/GetParameters]" in services, services
+        peer = peer_node()
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        plate = tn.simulate("zc_plate", "plate", seed=4)
+        peer.send_scan(pub, tn.raw_scan(5, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+        out = cli("service", "call", "/calibrate", "tracer_calib_msgs/srv/Calibrate", "{dry_run: true}")
+        assert "success=True" in out and "scan 5:" in out, out
+        assert "Double value is: 0.045" in cli("param", "get", "--no-daemon", "/tracer_calibrator", "plate.side")
+        assert "Set parameter successful" in cli("param", "set", "--no-daemon", "/tracer_calibrator", "model", "paper")
+        assert "String value is: paper" in cli("param", "get", "--no-daemon", "/tracer_calibrator", "model")
+    finally:
+        node.stop()
+
+
+def test_zenoh_node_namespaces():
+    router()
+    cells = 10
+    nodes = [zenoh_node(f"zenoh_cell{i}", ["-r", f"__ns:=/cell{i}"] + (["-r", "raw_scan:=scans_in"] if i == 0 else []))
+             for i in range(cells)]
+    peer = peer_node()
+    try:
+        t0 = time.monotonic()
+        for i in range(cells):
+            pub = peer.publisher(f"/cell{i}/" + ("scans_in" if i == 0 else "raw_scan"))
+            contours = peer.subscribe(Contour, f"/cell{i}/contour")
+            plate = tn.simulate(f"zn_plate{i}", "plate", seed=20 + i)
+            peer.send_scan(pub, tn.raw_scan(100 + i, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+            r = peer.call(f"/cell{i}/calibrate", Calibrate.Request(dry_run=True))
+            assert r.success and f"scan {100 + i}:" in r.message, (i, r.message)
+        return f"{cells} nodes on one router, each calibrated in turn, {time.monotonic() - t0:.1f} s"
+    finally:
+        for n in nodes:
+            n.stop()
+
+
+def test_zenoh_node_leave():
+    router()
+    node = zenoh_node("zenoh_leave")
+    peer = peer_node()
+
+    def present():
+        return "tracer_calibrator" in [n for n, _ns in peer.node.get_node_names_and_namespaces()]
+
+    peer.spin_until(present, 15, "the node in the Zenoh graph")
+    t0 = time.monotonic()
+    node.stop()
+    peer.spin_until(lambda: not present(), 1.0, "the node gone from the graph within 1 s")
+    return f"gone from the graph {time.monotonic() - t0:.2f} s after SIGTERM"
+
+
+def test_zenoh_node_bad_environment():
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_zenoh_cpp", ZENOH_ROUTER_CHECK_ATTEMPTS="2",
+               ZENOH_CONFIG_OVERRIDE='connect/endpoints=["tcp/127.0.0.1:7999"]')
+    t0 = time.monotonic()
+    out = subprocess.run([tn.NODE_BIN], env=env, capture_output=True, text=True, timeout=30)
+    took = time.monotonic() - t0
+    lines = [ln for ln in out.stderr.splitlines() if "ERROR" in ln or ln.startswith("tracer_calib_node:")]
+    assert out.returncode != 0, out
+    assert len(lines) == 1 and "tcp/127.0.0.1:7999" in lines[0] and "2 attempt" in lines[0], out.stderr
+    assert took >= 1.0, f"gave up after {took:.2f} s: no retry"
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_opensplice_cpp")
+    out = subprocess.run([tn.NODE_BIN], env=env, capture_output=True, text=True, timeout=30)
+    assert out.returncode != 0 and len(out.stderr.strip().splitlines()) == 1, out
+    assert "rmw_opensplice_cpp" in out.stderr and "rmw_zenoh_cpp" in out.stderr, out.stderr
+    return f"no router: stopped after {took:.2f} s: {lines[0]}"
+
+
+def test_zenoh_node_router_restart():
+    """The node and this process's peer also talk directly once gossip has told them of
+    each other, so what shows the node back on the router is a session that starts after
+    the restart and reaches it through the router alone: the `ros2` command line."""
+    if not shutil.which("ros2"):
+        return "skipped: no ros2 command (tests/interop/ros2cli.sh installs it)"
+    r = router()
+    node = zenoh_node("zenoh_restart")
+    peer = peer_node()
+    env = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
+    try:
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        plate = tn.simulate("zr_plate", "plate", seed=6)
+        peer.send_scan(pub, tn.raw_scan(30, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+        r.stop()
+        time.sleep(1.0)
+        node.check_alive()
+        t0 = time.monotonic()
+        router()
+        deadline = time.monotonic() + 30
+        while True:
+            out = subprocess.run(["timeout", "-s", "KILL", "30", "ros2", "service", "call", "/calibrate",
+                                  "tracer_calib_msgs/srv/Calibrate", "{scan_id: 30, dry_run: true}"],
+                                 env=env, capture_output=True, text=True)
+            if "success=True" in out.stdout and "scan 30:" in out.stdout:
+                break
+            node.check_alive()
+            assert time.monotonic() < deadline, f"no answer through the restarted router:\n{out.stdout}\n{out.stderr}"
+            time.sleep(0.5)
+        back = time.monotonic() - t0
+        peer.send_scan(pub, tn.raw_scan(31, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+        return f"a new session's /calibrate answered {back:.1f} s after the router restarted"
+    finally:
+        node.stop()
+
+
+# A stock rclpy node on rmw_zenoh_cpp: each RawScan on /relay_in out again on /relay_out
+# as a Contour with its scan id (no points), until stdin closes.
+RELAY = r"""
+import sys, threading
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from tracer_calib_msgs.msg import Contour, RawScan
+rclpy.init()
+n = Node("stock_relay")
+pub = n.create_publisher(Contour, "/relay_out", QoSProfile(depth=10))
+def on_scan(m):
+    c = Contour()
+    c.header = m.header
+    c.scan_id = m.scan_id
+    pub.publish(c)
+n.create_subscription(RawScan, "/relay_in", on_scan, QoSProfile(depth=100))
+stop = threading.Event()
+threading.Thread(target=lambda: (sys.stdin.readline(), stop.set()), daemon=True).start()
+print("ready", flush=True)
+while not stop.is_set():
+    rclpy.spin_once(n, timeout_sec=0.05)
+"""
+
+LATENCY_ROUNDS = 300
+
+
+def round_trips(peer, in_topic, out_topic, msg_of, rounds):
+    """Seconds from publishing each scan to its reply, one at a time."""
+    pub = peer.publisher(in_topic)
+    replies = peer.subscribe(Contour, out_topic)
+    peer.send_scan(pub, msg_of(0), replies)  # matched both ways, warm
+    times = []
+    for i in range(1, rounds + 1):
+        msg = msg_of(i)
+        t0 = time.perf_counter()
+        pub.publish(msg)
+        peer.spin_until(lambda: any(c.scan_id == msg.scan_id for c in replies), 5, f"reply {i}")
+        times.append(time.perf_counter() - t0)
+        replies.clear()
+    times.sort()
+    return times
+
+
+def test_zenoh_latency():
+    router()
+    node = zenoh_node("zenoh_latency")
+    relay = peer("relay", RELAY)
+    peer_ = peer_node()
+    try:
+        assert relay.stdout.readline().strip() == "ready", "the stock relay did not start"
+        lens = tn.simulate("zl_lens", "ellipse", seed=8)
+        node_t = round_trips(peer_, "/raw_scan", "/contour",
+                             lambda i: tn.raw_scan(1000 + i, RawScan.TARGET_LENS, *lens), LATENCY_ROUNDS)
+        relay_t = round_trips(peer_, "/relay_in", "/relay_out",
+                              lambda i: tn.raw_scan(5000 + i, RawScan.TARGET_LENS, *lens), LATENCY_ROUNDS)
+
+        def fig(t):
+            return f"median {t[len(t) // 2] * 1e3:.2f} ms, p90 {t[int(len(t) * 0.9)] * 1e3:.2f} ms"
+
+        return (f"{LATENCY_ROUNDS} round trips of a 400-sample scan through rmw_zenohd: "
+                f"tracer_calib_node {fig(node_t)}; stock rclpy relay {fig(relay_t)}")
+    finally:
+        relay.stdin.close()
+        relay.kill()
+        relay.wait()
+        node.stop()
+
+
 def main():
     rmw = get_rmw_implementation_identifier()
     if rmw != "rmw_zenoh_cpp":
@@ -224,6 +557,13 @@ def main():
         os._exit(2)
     tests = [
         ("zenoh_stock_pair", test_zenoh_stock_pair),
+        ("zenoh_node_calibrate", test_zenoh_node_calibrate),
+        ("zenoh_node_cli", test_zenoh_node_cli),
+        ("zenoh_node_namespaces", test_zenoh_node_namespaces),
+        ("zenoh_node_leave", test_zenoh_node_leave),
+        ("zenoh_node_bad_environment", test_zenoh_node_bad_environment),
+        ("zenoh_node_router_restart", test_zenoh_node_router_restart),
+        ("zenoh_latency", test_zenoh_latency),
     ]
     runner.run_tests_and_exit("test_zenoh.py", tests, sys.argv[1:], "interop::", "zenoh", WORK, log_dir=WORK)
 

@@ -3,28 +3,27 @@
 
 use futures::StreamExt;
 use log::{debug, warn};
-use ros2_client::rosout;
+use ros2_client::ros2::LogLevel;
 
-use super::{Entities, Shared, parameters};
+use super::{Shared, Wire, parameters};
 
 /// Each request through the cell ([`crate::cell::NodeState::on_calibrate`]), to the end
 /// before the next. Ends when the server's request stream does.
-pub(super) async fn run(e: &Entities, shared: &Shared) {
-    let node = &e.node;
-    let mut requests = std::pin::pin!(e.calibrate.receive_request_stream());
+pub(super) async fn run(e: &impl Wire, shared: &Shared) {
+    let mut requests = std::pin::pin!(e.calibrate_requests());
     while let Some(item) = requests.next().await {
         let (id, req) = match item {
             Ok(r) => r,
             Err(err) => {
                 // A request in no client layout: the server counted it and warned (once a
                 // minute per client at most); the count goes on /diagnostics.
-                let unreadable = e.calibrate.bad_request_count();
+                let unreadable = e.calibrate_unreadable();
                 let mut st = shared.state.lock().expect("state lock");
                 if unreadable > st.stats.requests_unreadable {
                     st.stats.requests_unreadable = unreadable;
-                    debug!("unreadable calibrate request: {err:?}");
+                    debug!("unreadable calibrate request: {err}");
                 } else {
-                    warn!("cannot read a calibrate request: {err:?}");
+                    warn!("cannot read a calibrate request: {err}");
                 }
                 continue;
             }
@@ -39,19 +38,19 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
             }
         };
         if let Some(m) = &outcome.applied {
-            parameters::mirror_calibration(node, m);
+            parameters::mirror_calibration(e, m);
             let _ = shared.calibration_changed.try_send(());
         }
         let r = &outcome.response;
         if r.success {
-            rosout!(e.node, ros2_client::ros2::LogLevel::Info, "calibrate: {}", r.message);
+            e.rosout(LogLevel::Info, &format!("calibrate: {}", r.message));
         } else {
-            rosout!(e.node, ros2_client::ros2::LogLevel::Warn, "calibrate: {}", r.message);
+            e.rosout(LogLevel::Warn, &format!("calibrate: {}", r.message));
             warn!("calibrate: {}", r.message);
         }
-        match e.calibrate.async_send_response(id, outcome.response).await {
+        match e.answer_calibrate(id, outcome.response).await {
             Ok(()) => debug!("calibrate response {id:?} sent"),
-            Err(err) => warn!("cannot send a calibrate response: {err:?}"),
+            Err(err) => warn!("cannot send a calibrate response: {err}"),
         }
     }
 }

@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 
 use log::debug;
 
-use super::{Entities, Shared};
+use super::{Shared, Wire};
 
 /// Free heap below which the node gives nothing back to the OS (bytes). Memory given
 /// back costs a page fault per 4 kB page when it is used again. Before rustdds was
@@ -39,14 +39,14 @@ const CLOCK_PATIENCE: Duration = Duration::from_secs(3);
 
 /// Every second: the QoS reports that are due, the cell's diagnostics published; every
 /// 5 s the freed memory released. Never ends.
-pub(super) async fn run(e: &Entities, shared: &Shared) {
+pub(super) async fn run(e: &impl Wire, shared: &Shared) {
     let mut tick = 0u64;
     // Since when the node has been on simulated time with no /clock.
     let mut clock_silent_since: Option<Instant> = None;
     loop {
-        shared.qos_reports.lock().expect("qos reports lock").flush(&e.node, Instant::now(), false);
+        e.tick(shared);
         let now = shared.now();
-        let waiting = e.node.clock().use_sim_time() && now.ros.to_nanos() == 0;
+        let waiting = e.use_sim_time() && now.ros.to_nanos() == 0;
         let silent_since = if waiting { *clock_silent_since.get_or_insert_with(Instant::now) } else { Instant::now() };
         clock_silent_since = waiting.then_some(silent_since);
         let clock_problem = match silent_since.elapsed() {
@@ -61,8 +61,8 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
             st.clock_problem = clock_problem;
             st.diagnostics(now)
         };
-        if let Err(err) = e.diagnostics.async_publish(msg).await {
-            debug!("cannot publish diagnostics: {err:?}");
+        if let Err(err) = e.publish_diagnostics(msg).await {
+            debug!("cannot publish diagnostics: {err}");
         }
         tick += 1;
         if tick.is_multiple_of(5) {

@@ -30,13 +30,19 @@
 
 use std::time::Duration;
 
+use futures::{Stream, StreamExt};
 use log::{info, warn};
+use ros2_client::dds::{Context, Publisher, Server, ServiceMapping, Subscription};
+use ros2_client::ros2::LogLevel;
+use ros2_client::rosout::RosoutRaw;
+use ros2_client::service::RmwRequestId;
 use ros2_client::{
-    Context, Name, NodeOptions, Publisher, QosProfile, Server, ServiceMapping, Subscription,
+    Name, NodeOptions, ParameterValue, QosProfile,
     qos::{Durability, History, WhenFull},
 };
 
 use super::lifecycle::LifecycleEntities;
+use super::{Shared, Wire};
 use crate::interfaces::{
     Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
@@ -68,6 +74,11 @@ fn latched() -> QosProfile {
         .reliability_reliable(WhenFull::DEFAULT)
         .durability(Durability::TransientLocal)
         .history(History::KeepLast { depth: 1 })
+}
+
+/// The `latched` QoS (for the Zenoh shell, which maps it as rmw_zenoh does).
+pub(super) fn latched_qos() -> QosProfile {
+    latched()
 }
 
 /// The node's endpoints, resolved: names and QoS.
@@ -124,7 +135,7 @@ impl Endpoints {
 /// The node's DDS entities: what the loops read from and write to.
 pub(super) struct Entities {
     pub ctx: Context,
-    pub node: ros2_client::Node,
+    pub node: ros2_client::dds::Node,
     pub raw_scans: Subscription<RawScan>,
     pub contours: Publisher<Contour>,
     pub polygons: Publisher<PolygonStamped>,
@@ -235,5 +246,76 @@ impl Entities {
         std::thread::sleep(Duration::from_millis(150));
         smol::block_on(spinner.cancel());
         drop(ctx);
+    }
+}
+
+impl Wire for Entities {
+    type RequestId = RmwRequestId;
+
+    fn raw_scans(&self) -> impl Stream<Item = Result<RawScan, String>> + '_ {
+        self.raw_scans.async_stream().map(|r| r.map(|(msg, _info)| msg).map_err(|e| format!("{e:?}")))
+    }
+
+    async fn publish_contour(&self, msg: Contour) -> Result<(), String> {
+        self.contours.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+    }
+
+    async fn publish_polygon(&self, msg: PolygonStamped) -> Result<(), String> {
+        self.polygons.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+    }
+
+    async fn publish_diagnostics(&self, msg: DiagnosticArray) -> Result<(), String> {
+        self.diagnostics.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+    }
+
+    async fn publish_calibration(&self, msg: msgs::Calibration) -> Result<(), String> {
+        self.calibration.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+    }
+
+    fn calibrate_requests(&self) -> impl Stream<Item = Result<(RmwRequestId, CalibrateRequest), String>> + '_ {
+        self.calibrate.receive_request_stream().map(|r| r.map_err(|e| format!("{e:?}")))
+    }
+
+    fn calibrate_unreadable(&self) -> u64 {
+        self.calibrate.bad_request_count()
+    }
+
+    async fn answer_calibrate(&self, id: RmwRequestId, response: CalibrateResponse) -> Result<(), String> {
+        self.calibrate.async_send_response(id, response).await.map_err(|e| format!("{e:?}"))
+    }
+
+    fn type_description_requests(
+        &self,
+    ) -> impl Stream<Item = Result<(RmwRequestId, GetTypeDescriptionRequest), String>> + '_ {
+        self.type_description.receive_request_stream().map(|r| r.map_err(|e| format!("{e:?}")))
+    }
+
+    async fn answer_type_description(
+        &self,
+        id: RmwRequestId,
+        response: GetTypeDescriptionResponse,
+    ) -> Result<(), String> {
+        self.type_description.async_send_response(id, response).await.map_err(|e| format!("{e:?}"))
+    }
+
+    fn types_in_use(&self) -> Vec<String> {
+        self.types_in_use.names()
+    }
+
+    fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String> {
+        self.node.set_parameter(name, value).map_err(|e| e.to_string())
+    }
+
+    fn rosout(&self, level: LogLevel, msg: &str) {
+        let node = &self.node;
+        node.rosout_raw(node.rosout_stamp(), level, node.base_name(), msg, file!(), "<unknown_func>", line!());
+    }
+
+    fn use_sim_time(&self) -> bool {
+        self.node.clock().use_sim_time()
+    }
+
+    fn tick(&self, shared: &Shared) {
+        shared.qos_reports.lock().expect("qos reports lock").flush(&self.node, std::time::Instant::now(), false);
     }
 }

@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use log::{error, warn};
-use ros2_client::{Context, NodeEvent};
+use ros2_client::dds::{Context, NodeEvent};
 
 use super::{Entities, RateLimit, Shared};
 use crate::cell::NodeState;
@@ -114,7 +114,7 @@ impl QosReports {
     }
 
     /// Report what is pending whose node is known, or has waited long enough.
-    pub(super) fn flush(&mut self, node: &ros2_client::Node, now: Instant, force: bool) {
+    pub(super) fn flush(&mut self, node: &ros2_client::dds::Node, now: Instant, force: bool) {
         let (state, limit) = (&self.state, &mut self.limit);
         self.pending.retain(|p| {
             let name = node.remote_node_of_endpoint(p.remote);

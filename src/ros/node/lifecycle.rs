@@ -19,7 +19,8 @@
 
 use futures::{StreamExt, stream};
 use log::{debug, error, info, warn};
-use ros2_client::{Name, Node, Publisher, Server, ServiceMapping, service::RmwRequestId};
+use ros2_client::dds::{Node, Publisher, Server, ServiceMapping};
+use ros2_client::{Name, service::RmwRequestId};
 
 use super::{Shared, entities::reliable, log_history_read};
 use crate::cell::lifecycle::{self, STATES, TRANSITIONS, Transition};

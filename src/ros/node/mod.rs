@@ -1,6 +1,7 @@
 //! `tracer_calib_node`: the node's wiring. The cell's state ([`crate::cell::NodeState`]) and
-//! the DDS entities ([`entities`]) are made first; then one async loop per concern moves
-//! messages between them:
+//! the middleware's entities (DDS: [`entities`]; Zenoh, under
+//! `RMW_IMPLEMENTATION=rmw_zenoh_cpp`: [`zenoh`]) are made first; then one async loop per
+//! concern moves messages between them, written once against [`Wire`]:
 //!
 //! | loop | what |
 //! |---|---|
@@ -8,13 +9,14 @@
 //! | [`calibrate`] | the `calibrate` service |
 //! | [`calibration`] | the calibration in force, latched, at start-up and on each change |
 //! | [`diagnostics`] | `/diagnostics` at 1 Hz |
-//! | [`graph`] | matches (polygons only when someone listens) and incompatible QoS |
 //! | [`type_description`] | `~/get_type_description` (REP-2016) |
-//! | [`lifecycle`] | a managed node's lifecycle services and transition events |
+//! | [`graph`] | DDS: matches (polygons only when someone listens) and incompatible QoS |
+//! | [`lifecycle`] | DDS: a managed node's lifecycle services and transition events |
+//! | [`zenoh`] | Zenoh: the graph (polygons only when someone listens), the parameter services |
 //!
 //! The parameters ([`parameters`]) are served by ros2-client's parameter services, with
-//! the cell's validation. Each loop reads the [`Entities`] and the [`Shared`] state and
-//! nothing else, so a lifecycle state or a second middleware is added here, in one place.
+//! the cell's validation. Each loop reads the [`Wire`] and the [`Shared`] state and
+//! nothing else: the middleware is chosen here, in one place.
 
 mod calibrate;
 mod calibration;
@@ -27,6 +29,9 @@ mod parameters;
 mod rate_limit;
 mod scans;
 mod type_description;
+mod wire;
+#[cfg(feature = "zenoh")]
+mod zenoh;
 
 use std::pin::Pin;
 use std::sync::atomic::AtomicBool;
@@ -36,14 +41,16 @@ use std::time::Instant;
 use futures::{StreamExt, stream::FuturesUnordered};
 use log::{error, info, warn};
 
-use ros2_client::NodeClock;
+use ros2_client::dds::NodeClock;
 
 use crate::cell::{NodeState, Now};
 use crate::params::file as params_file;
+use crate::rmw::Middleware;
 pub use config::Config;
 use entities::{Endpoints, Entities};
 use graph::QosReports;
 pub use rate_limit::RateLimit;
+use wire::Wire;
 
 /// The node's default name (CONTRACT.md).
 pub const DEFAULT_NODE_NAME: &str = "tracer_calibrator";
@@ -55,6 +62,8 @@ struct Shared {
     /// The calibration in force changed (a parameter set, a `/calibrate` that applied):
     /// the [`calibration`] loop publishes it.
     calibration_changed: smol::channel::Sender<()>,
+    /// Its receiving end, the [`calibration`] loop's.
+    calibration_changes: smol::channel::Receiver<()>,
     /// Whether anyone subscribes to the polygons (kept by [`graph`], read by [`scans`]).
     polygon_wanted: AtomicBool,
     /// Remote endpoints with an incompatible QoS, reported once each.
@@ -106,6 +115,7 @@ fn log_history_read(read: &crate::cell::HistoryRead) {
 /// Run the node until `shutdown` resolves (SIGINT/SIGTERM in the binary).
 pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> Result<(), String> {
     let Config { identity, args, env, params, mut qos, security } = config;
+    let middleware = env.middleware;
     for w in &env.warnings {
         warn!("{w}");
     }
@@ -125,25 +135,84 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         qos_reports: Mutex::new(QosReports::new(state.clone())),
         state,
         calibration_changed,
+        calibration_changes,
         polygon_wanted: AtomicBool::new(false),
         clock: Arc::new(OnceLock::new()),
     };
     let options = parameters::options(&params, &qos, &shared);
-    let entities = Entities::create(&env, &security, &identity, options, &endpoints, params.managed)?;
-    let _ = shared.clock.set(entities.node.clock());
-    info!(
-        "{fqn}: listening on {} (raw scans), serving {}; domain {}, discovery {:?}",
-        endpoints.raw_scan.0, endpoints.calibrate, env.domain_id, env.discovery_range
-    );
+    match middleware {
+        Middleware::Dds => {
+            let entities = Entities::create(&env, &security, &identity, options, &endpoints, params.managed)?;
+            let _ = shared.clock.set(entities.node.clock());
+            info!(
+                "{fqn}: listening on {} (raw scans), serving {}; DDS, domain {}, discovery {:?}",
+                endpoints.raw_scan.0, endpoints.calibrate, env.domain_id, env.discovery_range
+            );
+            let e = &entities;
+            let mut extra: Vec<Loop<'_>> = vec![Box::pin(graph::run(e, &shared))];
+            if let Some(l) = &e.lifecycle {
+                let shared = &shared;
+                extra.push(Box::pin(async move {
+                    lifecycle::run(l, shared).await;
+                    error!("the lifecycle request streams ended")
+                }));
+            }
+            serve(e, &shared, extra, shutdown, &fqn);
+            shared.qos_reports.lock().expect("qos reports lock").flush(&entities.node, Instant::now(), true);
+            entities.close();
+        }
+        #[cfg(feature = "zenoh")]
+        Middleware::Zenoh => {
+            if params.managed {
+                return Err("managed:=true: the lifecycle is served on DDS only; on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) run the node unmanaged".into());
+            }
+            if let crate::rmw::Security::Enclave { name, .. } = &security {
+                return Err(format!(
+                    "ROS_SECURITY_ENABLE=true (enclave {name}): SROS2 is served on DDS only; on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) secure the router's links with Zenoh's TLS and access control"
+                ));
+            }
+            if params.use_sim_time {
+                return Err("use_sim_time:=true: simulated time is followed on DDS only; on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) the node runs on the system clock".into());
+            }
+            let zenv = crate::rmw::zenoh::ZenohEnv::from_env();
+            let entities = zenoh::ZenohEntities::create(&env, &zenv, &identity, options, &endpoints)?;
+            info!(
+                "{fqn}: listening on {} (raw scans), serving {}; Zenoh (rmw_zenoh_cpp), domain {}",
+                endpoints.raw_scan.0, endpoints.calibrate, env.domain_id
+            );
+            let e = &entities;
+            serve(e, &shared, vec![Box::pin(e.run_graph_and_parameters(&shared))], shutdown, &fqn);
+            entities.close();
+        }
+        #[cfg(not(feature = "zenoh"))]
+        Middleware::Zenoh => {
+            return Err(
+                "RMW_IMPLEMENTATION=rmw_zenoh_cpp: this build has no Zenoh (built without the cargo feature `zenoh`)"
+                    .into(),
+            );
+        }
+    }
+    Ok(())
+}
 
+/// One of the node's loops.
+type Loop<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
+
+/// Run the loops every middleware has, and its `extra` ones, until one ends or `shutdown`
+/// resolves.
+fn serve<'a>(
+    e: &'a impl Wire,
+    shared: &'a Shared,
+    extra: Vec<Loop<'a>>,
+    shutdown: impl std::future::Future<Output = ()> + 'a,
+    fqn: &'a str,
+) {
     // Each loop is a future of its own, with its own waker: a scan arriving wakes the
     // scan loop alone. (Under one `select!`, every wake-up polled every loop, the
     // calibrate request stream and the diagnostics timer included: the latency bench
     // had the node ~15 µs slower, +62..+68 µs over the relay against +46..+55 µs.)
     // The first loop to end ends the node.
-    let (e, shared) = (&entities, &shared);
-    let mut loops: FuturesUnordered<Pin<Box<dyn Future<Output = ()> + '_>>> = FuturesUnordered::new();
-    loops.push(Box::pin(graph::run(e, shared)));
+    let mut loops: FuturesUnordered<Loop<'a>> = extra.into_iter().collect();
     loops.push(Box::pin(async {
         scans::run(e, shared).await;
         error!("the raw scan stream ended")
@@ -158,22 +227,12 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         error!("the type description request stream ended")
     }));
     loops.push(Box::pin(async {
-        calibration::run(e, shared, calibration_changes).await;
+        calibration::run(e, shared, shared.calibration_changes.clone()).await;
         error!("the calibration change stream ended")
     }));
-    if let Some(l) = &e.lifecycle {
-        loops.push(Box::pin(async move {
-            lifecycle::run(l, shared).await;
-            error!("the lifecycle request streams ended")
-        }));
-    }
-    loops.push(Box::pin(async {
+    loops.push(Box::pin(async move {
         shutdown.await;
         info!("{fqn}: shutting down")
     }));
     smol::block_on(loops.next());
-    drop(loops);
-    shared.qos_reports.lock().expect("qos reports lock").flush(&entities.node, Instant::now(), true);
-    entities.close();
-    Ok(())
 }

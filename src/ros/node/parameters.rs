@@ -119,7 +119,7 @@ pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) 
 
 /// Mirror a calibration `/calibrate` applied into the ROS parameters (already persisted:
 /// the set action sees equal values and writes nothing).
-pub(super) fn mirror_calibration(node: &ros2_client::Node, m: &Mounting) {
+pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting) {
     for (name, value) in [
         (names::ALPHA0, RosValue::Double(m.alpha0)),
         (names::OFFSET, RosValue::Double(m.offset)),
@@ -127,8 +127,8 @@ pub(super) fn mirror_calibration(node: &ros2_client::Node, m: &Mounting) {
         (names::SCALE, RosValue::Double(m.scale)),
         (names::VALID, RosValue::Boolean(true)),
     ] {
-        if let Err(e) = node.set_parameter(name, value) {
-            error!("cannot mirror {name} into the ROS parameters: {e}");
+        if let Err(err) = e.set_parameter(name, value) {
+            error!("cannot mirror {name} into the ROS parameters: {err}");
         }
     }
 }

@@ -6,23 +6,23 @@ use std::time::{Duration, Instant};
 use futures::StreamExt;
 use log::warn;
 
-use super::{Entities, RateLimit, Shared};
+use super::{RateLimit, Shared, Wire};
 
 /// Each raw scan through the cell ([`crate::cell::NodeState::on_raw_scan`]): the contour
 /// published, or the rejection counted and warned about (rate-limited). A message that does
 /// not even decode is counted like a malformed scan. A managed node that is not active takes
 /// each scan and only counts it ([`crate::cell::NodeState::hold_raw_scan`]). Ends when the
 /// subscription's stream does.
-pub(super) async fn run(e: &Entities, shared: &Shared) {
-    let mut stream = std::pin::pin!(e.raw_scans.async_stream());
+pub(super) async fn run(e: &impl Wire, shared: &Shared) {
+    let mut stream = std::pin::pin!(e.raw_scans());
     let mut limit = RateLimit::new(Duration::from_secs(1));
     while let Some(item) = stream.next().await {
         let msg = match item {
-            Ok((msg, _info)) => msg,
+            Ok(msg) => msg,
             Err(err) => {
-                shared.state.lock().expect("state lock").reject_undecodable(&format!("{err:?}"));
+                shared.state.lock().expect("state lock").reject_undecodable(&err);
                 if let Some(held) = limit.allow(Instant::now()) {
-                    warn!("rejected an undecodable raw scan: {err:?} ({held} more rejections not shown)");
+                    warn!("rejected an undecodable raw scan: {err} ({held} more rejections not shown)");
                 }
                 continue;
             }
@@ -40,13 +40,13 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
         };
         match outcome {
             Ok(out) => {
-                if let Err(err) = e.contours.async_publish(out.contour).await {
-                    warn!("cannot publish a contour: {err:?}");
+                if let Err(err) = e.publish_contour(out.contour).await {
+                    warn!("cannot publish a contour: {err}");
                 }
                 if let Some(polygon) = out.polygon
-                    && let Err(err) = e.polygons.async_publish(polygon).await
+                    && let Err(err) = e.publish_polygon(polygon).await
                 {
-                    warn!("cannot publish a polygon: {err:?}");
+                    warn!("cannot publish a polygon: {err}");
                 }
             }
             Err(err) => {

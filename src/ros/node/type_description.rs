@@ -5,21 +5,21 @@
 use futures::StreamExt;
 use log::{debug, warn};
 
-use super::Entities;
+use super::Wire;
 use crate::interfaces::type_description::answer;
 
 /// Each request answered in turn. Ends when the server's request stream does.
-pub(super) async fn run(e: &Entities) {
-    let mut requests = std::pin::pin!(e.type_description.receive_request_stream());
+pub(super) async fn run(e: &impl Wire) {
+    let mut requests = std::pin::pin!(e.type_description_requests());
     while let Some(item) = requests.next().await {
         let (id, req) = match item {
             Ok(r) => r,
             Err(err) => {
-                warn!("cannot read a type description request: {err:?}");
+                warn!("cannot read a type description request: {err}");
                 continue;
             }
         };
-        let types = e.types_in_use.names();
+        let types = e.types_in_use();
         let response = answer(&req, types.iter().map(String::as_str));
         debug!(
             "type description of {} ({}): {}",
@@ -27,8 +27,8 @@ pub(super) async fn run(e: &Entities) {
             req.type_hash,
             if response.successful { "sent" } else { &response.failure_reason }
         );
-        if let Err(err) = e.type_description.async_send_response(id, response).await {
-            warn!("cannot send a type description response: {err:?}");
+        if let Err(err) = e.answer_type_description(id, response).await {
+            warn!("cannot send a type description response: {err}");
         }
     }
 }

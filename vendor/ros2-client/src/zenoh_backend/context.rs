@@ -24,7 +24,14 @@ use crate::{NodeOptions, error::CreateResult, graph::GraphEvent, names::NodeName
 pub struct ContextOptions {
   domain_id: u16,
   config: Option<Config>,
+  type_hashes: Option<TypeHashResolver>, // PATCH (tracer_calib)
 }
+
+/// PATCH (tracer_calib): the REP-2016 hash (`RIHS01_...`) of a ROS type name
+/// (`pkg/msg/Name`, `pkg/srv/Name`), as the DDS backend's
+/// `crate::context::TypeHashResolver`; `None` when the application does not
+/// know the type.
+pub type TypeHashResolver = Arc<dyn Fn(&str) -> Option<String> + Send + Sync>;
 
 impl ContextOptions {
   /// New options with defaults (domain id 0, default Zenoh peer config).
@@ -32,6 +39,7 @@ impl ContextOptions {
     Self {
       domain_id: 0,
       config: None,
+      type_hashes: None, // PATCH (tracer_calib)
     }
   }
 
@@ -48,6 +56,16 @@ impl ContextOptions {
   /// If unset, a default peer configuration is used.
   pub fn zenoh_config(mut self, config: Config) -> Self {
     self.config = Some(config);
+    self
+  }
+
+  /// PATCH (tracer_calib): where the hashes of the application's own types come
+  /// from. Every key expression and liveliness token of an entity whose type
+  /// it knows carries that hash (rmw_zenoh matches endpoints by it); the
+  /// built-in table ([`super::type_hash::known_type_hash`]) and then the
+  /// placeholder serve the others.
+  pub fn type_hashes(mut self, resolver: TypeHashResolver) -> Self {
+    self.type_hashes = Some(resolver);
     self
   }
 }
@@ -71,6 +89,7 @@ struct ContextInner {
   domain_id: u16,
   next_node_id: AtomicU64,
   graph_cache: Arc<GraphCache>,
+  type_hashes: Option<TypeHashResolver>, // PATCH (tracer_calib)
   // Kept alive to keep the graph cache updating; dropped => subscriber
   // undeclared.
   _liveliness_subscriber: Subscriber<()>,
@@ -121,6 +140,7 @@ impl Context {
         domain_id: opt.domain_id,
         next_node_id: AtomicU64::new(0),
         graph_cache,
+        type_hashes: opt.type_hashes, // PATCH (tracer_calib)
         _liveliness_subscriber: liveliness_subscriber,
       }),
     })
@@ -188,6 +208,20 @@ impl Context {
     Node::new(self.clone(), name, node_id, options)
   }
 
+  /// PATCH (tracer_calib): the hash a sender's key expression and every
+  /// entity's liveliness token carry for `dds_type_name`
+  /// (`pkg::msg::dds_::Name_`): the application's
+  /// ([`ContextOptions::type_hashes`]) if it knows the type, else
+  /// [`super::type_hash::sender_hash`] (built-in table, or the placeholder).
+  pub(crate) fn sender_hash(&self, dds_type_name: &str) -> String {
+    self
+      .inner
+      .type_hashes
+      .as_ref()
+      .and_then(|resolve| ros_type_name(dds_type_name).and_then(|ros| resolve(&ros)))
+      .unwrap_or_else(|| super::type_hash::sender_hash(dds_type_name).to_string())
+  }
+
   /// The ROS domain id (key-expression prefix) for this context.
   pub fn domain_id(&self) -> u16 {
     self.inner.domain_id
@@ -201,6 +235,18 @@ impl Context {
   pub fn session(&self) -> &Session {
     &self.inner.session
   }
+}
+
+/// PATCH (tracer_calib): `pkg::msg::dds_::Name_` -> `pkg/msg/Name` (also
+/// `srv`, `action`); `None` for a name not in that form.
+fn ros_type_name(dds_type_name: &str) -> Option<String> {
+  let mut parts = dds_type_name.split("::");
+  let (package, kind, dds, name) = (parts.next()?, parts.next()?, parts.next()?, parts.next()?);
+  if parts.next().is_some() || dds != "dds_" || package.is_empty() {
+    return None;
+  }
+  let name = name.strip_suffix('_').filter(|n| !n.is_empty())?;
+  Some(format!("{package}/{kind}/{name}"))
 }
 
 /// Build a Zenoh [`Config`] from the environment, mirroring `rmw_zenoh`:
@@ -289,6 +335,15 @@ mod tests {
       pubsub::{Publisher, Subscription},
     },
   };
+
+  // PATCH (tracer_calib)
+  #[test]
+  fn dds_type_names_to_ros() {
+    assert_eq!(ros_type_name("std_msgs::msg::dds_::String_").as_deref(), Some("std_msgs/msg/String"));
+    assert_eq!(ros_type_name("pkg::srv::dds_::Do_It_").as_deref(), Some("pkg/srv/Do_It"));
+    assert_eq!(ros_type_name("pkg::msg::String_"), None);
+    assert_eq!(ros_type_name("pkg::msg::dds_::_"), None);
+  }
 
   #[test]
   fn config_overrides_apply_and_validate() {

@@ -139,7 +139,9 @@ impl Node {
         options.parameter_validator.take(),
         options.parameter_set_action.take(),
       )
-      .map_err(bad_parameter)?;
+      .map_err(bad_parameter)?
+      // PATCH (tracer_calib): the declared descriptors, as the DDS node has them.
+      .with_descriptors(std::mem::take(&mut options.parameter_descriptors));
       node.parameter_server = Some(node.parameter_server_with_store(store)?);
     }
 
@@ -196,23 +198,24 @@ impl Node {
   ) -> CreateResult<Publisher<M>> {
     let qos = qos.unwrap_or_else(|| topic.qos.clone());
     let domain = self.context.domain_id();
-    let sender_hash = type_hash::sender_hash(&topic.dds_type_name);
+    let sender_hash = self.context.sender_hash(&topic.dds_type_name); // PATCH (tracer_calib)
     // A publisher `put`s on a concrete key (real hash if known, else
     // placeholder).
     let key = keyexpr::topic_keyexpr(
       domain,
       &topic.fully_qualified_name,
       &topic.dds_type_name,
-      sender_hash,
+      &sender_hash,
     );
-    let zenoh_publisher = self.context.session().declare_publisher(key).wait()?;
+    // PATCH (tracer_calib): an AdvancedPublisher, with rmw_zenoh's options.
+    let zenoh_publisher = advanced_publisher(self.context.session(), key, &qos)?;
 
     let entity_id = self.next_entity_id.fetch_add(1, Ordering::Relaxed);
     let liveliness_key = self.entity_liveliness_key(
       entity_id,
       keyexpr::EntityKind::Publisher,
       topic,
-      sender_hash,
+      &sender_hash,
       &qos,
     );
     let source_gid = gid::gid_from_liveliness_key(&liveliness_key);
@@ -247,12 +250,12 @@ impl Node {
     // The liveliness token, unlike the data key, is concrete
     // (real-or-placeholder hash) — it describes this entity for discovery.
     let entity_id = self.next_entity_id.fetch_add(1, Ordering::Relaxed);
-    let sub_hash = type_hash::sender_hash(&topic.dds_type_name);
+    let sub_hash = self.context.sender_hash(&topic.dds_type_name); // PATCH (tracer_calib)
     let liveliness_key = self.entity_liveliness_key(
       entity_id,
       keyexpr::EntityKind::Subscription,
       topic,
-      sub_hash,
+      &sub_hash,
       &qos,
     );
     let token = declare_liveliness(&self.context, liveliness_key);
@@ -335,7 +338,8 @@ impl Node {
     // placeholder) so it matches the server's concrete queryable. A `get`
     // selector must match the queryable's key; for known interop types this is
     // the real RIHS01 hash and so also matches C++ servers.
-    let hash = type_hash::sender_hash(&dds_type);
+    let hash = self.context.sender_hash(&dds_type); // PATCH (tracer_calib)
+    let hash = hash.as_str();
     let selector = keyexpr::topic_keyexpr(domain, &fqn, &dds_type, hash);
 
     let entity_id = self.next_entity_id.fetch_add(1, Ordering::Relaxed);
@@ -368,7 +372,8 @@ impl Node {
     let fqn = resolve_fqn(service, &self.node_name);
     let dds_type = service_type.dds_service_type();
     let domain = self.context.domain_id();
-    let hash = type_hash::sender_hash(&dds_type);
+    let hash = self.context.sender_hash(&dds_type); // PATCH (tracer_calib)
+    let hash = hash.as_str();
     // The server's queryable is concrete (real-or-placeholder hash).
     let key = keyexpr::topic_keyexpr(domain, &fqn, &dds_type, hash);
     let queryable = self
@@ -794,4 +799,54 @@ mod tests {
       "did not discover the /chatter publisher token"
     );
   }
+}
+
+/// PATCH (tracer_calib): the publisher rmw_zenoh (0.2.10, `rmw_publisher_data.cpp`)
+/// declares for `qos`: always a zenoh-ext AdvancedPublisher; reliable QoS as Zenoh's
+/// reliable reliability (congestion control `Block` for KEEP_ALL, else `Drop`),
+/// best effort as best effort; for TRANSIENT_LOCAL, a cache of the history's depth
+/// and publisher detection, so an AdvancedSubscriber with history (rmw_zenoh's
+/// transient local subscription) that joins later queries the cache and gets the
+/// last samples; reliable and transient local also with sample miss detection
+/// (sporadic heartbeat, 500 ms), so such a subscriber recovers a lost sample.
+pub(crate) fn advanced_publisher(
+  session: &zenoh::Session,
+  key: String,
+  qos: &QosProfile,
+) -> CreateResult<zenoh_ext::AdvancedPublisher<'static>> {
+  use zenoh::qos::{CongestionControl, Reliability as ZReliability};
+  use zenoh_ext::{AdvancedPublisherBuilderExt, CacheConfig, MissDetectionConfig};
+
+  use crate::qos::{Durability, History, Reliability};
+
+  let reliable = matches!(qos.reliability, Reliability::Reliable { .. });
+  let keep_all = matches!(qos.history, History::KeepAll);
+  let depth = match qos.history {
+    History::KeepLast { depth } => depth.max(1),
+    History::KeepAll => usize::MAX,
+  };
+  let builder = session
+    .declare_publisher(key)
+    .reliability(if reliable {
+      ZReliability::Reliable
+    } else {
+      ZReliability::BestEffort
+    })
+    .congestion_control(if reliable && keep_all {
+      CongestionControl::Block
+    } else {
+      CongestionControl::Drop
+    });
+  let mut builder = builder.advanced();
+  if qos.durability == Durability::TransientLocal {
+    builder = builder
+      .publisher_detection()
+      .cache(CacheConfig::default().max_samples(depth));
+    if reliable {
+      builder = builder.sample_miss_detection(
+        MissDetectionConfig::default().sporadic_heartbeat(Duration::from_millis(500)),
+      );
+    }
+  }
+  Ok(builder.wait()?)
 }

@@ -157,6 +157,25 @@ impl ParameterServer {
     self.handle_describe_parameters();
   }
 
+  /// PATCH (tracer_calib): answer parameter requests as they arrive, without
+  /// polling: wait until any of the six services has a request, then answer
+  /// everything pending. Never returns; drop the future to stop.
+  pub async fn serve(&self) {
+    use std::{future::Future, pin::Pin};
+    loop {
+      let waits: Vec<Pin<Box<dyn Future<Output = ()> + Send + '_>>> = vec![
+        Box::pin(self.get_parameters.wait_for_request()),
+        Box::pin(self.get_parameter_types.wait_for_request()),
+        Box::pin(self.set_parameters.wait_for_request()),
+        Box::pin(self.set_parameters_atomically.wait_for_request()),
+        Box::pin(self.list_parameters.wait_for_request()),
+        Box::pin(self.describe_parameters.wait_for_request()),
+      ];
+      futures::future::select_all(waits).await;
+      self.spin_once();
+    }
+  }
+
   /// Await and answer parameter requests until `stop()` returns `true`,
   /// polling roughly every `poll` duration.
   ///

@@ -19,7 +19,7 @@ use zenoh::{
   Wait,
   handlers::FifoChannelHandler,
   liveliness::LivelinessToken,
-  pubsub::{Publisher as ZenohPublisher, Subscriber},
+  pubsub::Subscriber,
   sample::Sample,
 };
 
@@ -40,7 +40,7 @@ fn now_nanos() -> i64 {
 
 /// A ROS 2 publisher over Zenoh.
 pub struct Publisher<M> {
-  zenoh_publisher: ZenohPublisher<'static>,
+  zenoh_publisher: zenoh_ext::AdvancedPublisher<'static>, // PATCH (tracer_calib)
   seq: AtomicI64,
   source_gid: [u8; 16],
   // Kept alive so the entity stays discoverable; dropped => token undeclared.
@@ -54,7 +54,7 @@ pub struct Publisher<M> {
 
 impl<M: Serialize> Publisher<M> {
   pub(crate) fn new(
-    zenoh_publisher: ZenohPublisher<'static>,
+    zenoh_publisher: zenoh_ext::AdvancedPublisher<'static>, // PATCH (tracer_calib)
     source_gid: [u8; 16],
     liveliness_token: Option<LivelinessToken>,
     topic_fqn: String,

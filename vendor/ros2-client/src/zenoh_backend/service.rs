@@ -147,6 +147,8 @@ impl<Req: Serialize, Resp: DeserializeOwned> Client<Req, Resp> {
 pub struct Server<Req, Resp> {
   queryable: Queryable<FifoChannelHandler<Query>>,
   pending: Mutex<HashMap<(u128, i64), Query>>,
+  // PATCH (tracer_calib): a query `wait_for_request` took, for the next receive.
+  arrived: Mutex<std::collections::VecDeque<Query>>,
   _liveliness_token: Option<LivelinessToken>,
   phantom: PhantomData<fn(Req) -> Resp>,
 }
@@ -159,6 +161,7 @@ impl<Req: DeserializeOwned, Resp: Serialize> Server<Req, Resp> {
     Self {
       queryable,
       pending: Mutex::new(HashMap::new()),
+      arrived: Mutex::new(std::collections::VecDeque::new()), // PATCH (tracer_calib)
       _liveliness_token: liveliness_token,
       phantom: PhantomData,
     }
@@ -183,6 +186,11 @@ impl<Req: DeserializeOwned, Resp: Serialize> Server<Req, Resp> {
 
   /// Take the next pending request if one is immediately available.
   pub fn try_receive_request(&self) -> ServiceResult<Option<(RmwRequestId, Req)>> {
+    // PATCH (tracer_calib): first what `wait_for_request` took.
+    let arrived = self.arrived.lock().unwrap().pop_front();
+    if let Some(query) = arrived {
+      return self.accept(query).map(Some);
+    }
     match self.queryable.try_recv() {
       Ok(Some(query)) => self.accept(query).map(Some),
       Ok(None) => Ok(None),
@@ -190,8 +198,26 @@ impl<Req: DeserializeOwned, Resp: Serialize> Server<Req, Resp> {
     }
   }
 
+  /// PATCH (tracer_calib): resolve once a request is there to receive (it stays
+  /// for the next [`Self::try_receive_request`]), so that a server need not be
+  /// polled. Never resolves once the queryable is gone.
+  pub async fn wait_for_request(&self) {
+    if !self.arrived.lock().unwrap().is_empty() {
+      return;
+    }
+    match self.queryable.recv_async().await {
+      Ok(query) => self.arrived.lock().unwrap().push_back(query),
+      Err(_) => futures::future::pending().await,
+    }
+  }
+
   /// Await the next request.
   pub async fn async_receive_request(&self) -> ServiceResult<(RmwRequestId, Req)> {
+    // PATCH (tracer_calib): first what `wait_for_request` took.
+    let arrived = self.arrived.lock().unwrap().pop_front();
+    if let Some(query) = arrived {
+      return self.accept(query);
+    }
     let query = self
       .queryable
       .recv_async()

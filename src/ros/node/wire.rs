@@ -1,0 +1,69 @@
+//! The seam between the node's loops and a middleware: what the loops read from and
+//! write to, and nothing of how it travels. [`super::entities`] implements it on DDS,
+//! [`super::zenoh`] on Zenoh; the loops ([`super::scans`], [`super::calibrate`],
+//! [`super::calibration`], [`super::diagnostics`], [`super::type_description`]) are written
+//! once, against this trait.
+//!
+//! Errors are the middleware's, as text: the loops only count and log them.
+
+use futures::Stream;
+use ros2_client::ParameterValue;
+use ros2_client::ros2::LogLevel;
+
+use super::Shared;
+use crate::interfaces::{
+    CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescriptionRequest,
+    GetTypeDescriptionResponse, PolygonStamped, RawScan, tracer_calib_msgs as msgs,
+};
+
+/// A middleware's endpoints of the node.
+pub(super) trait Wire {
+    /// A service request's identity, to answer it with.
+    type RequestId: std::fmt::Debug + Copy;
+
+    /// The raw scans, as they arrive; an `Err` is a message that did not decode.
+    fn raw_scans(&self) -> impl Stream<Item = Result<RawScan, String>> + '_;
+    /// Publish a contour.
+    fn publish_contour(&self, msg: Contour) -> impl Future<Output = Result<(), String>> + '_;
+    /// Publish a contour's polygon.
+    fn publish_polygon(&self, msg: PolygonStamped) -> impl Future<Output = Result<(), String>> + '_;
+    /// Publish the node's diagnostics.
+    fn publish_diagnostics(&self, msg: DiagnosticArray) -> impl Future<Output = Result<(), String>> + '_;
+    /// Publish (latched) the calibration in force.
+    fn publish_calibration(&self, msg: msgs::Calibration) -> impl Future<Output = Result<(), String>> + '_;
+
+    /// The `calibrate` requests; an `Err` is one that could not be read.
+    fn calibrate_requests(&self) -> impl Stream<Item = Result<(Self::RequestId, CalibrateRequest), String>> + '_;
+    /// How many `calibrate` requests the middleware could not read, if it counts them.
+    fn calibrate_unreadable(&self) -> u64;
+    /// Answer a `calibrate` request.
+    fn answer_calibrate(
+        &self,
+        id: Self::RequestId,
+        response: CalibrateResponse,
+    ) -> impl Future<Output = Result<(), String>> + '_;
+
+    /// The `~/get_type_description` requests.
+    fn type_description_requests(
+        &self,
+    ) -> impl Stream<Item = Result<(Self::RequestId, GetTypeDescriptionRequest), String>> + '_;
+    /// Answer a `~/get_type_description` request.
+    fn answer_type_description(
+        &self,
+        id: Self::RequestId,
+        response: GetTypeDescriptionResponse,
+    ) -> impl Future<Output = Result<(), String>> + '_;
+    /// The ROS types of the node's endpoints (`pkg/msg/Name`), which it describes.
+    fn types_in_use(&self) -> Vec<String>;
+
+    /// Set one of the node's ROS parameters from within (its validator and set action
+    /// run as for a remote set).
+    fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String>;
+    /// A record on `/rosout`.
+    fn rosout(&self, level: LogLevel, msg: &str);
+    /// Whether the node's clock is simulated (`use_sim_time`).
+    fn use_sim_time(&self) -> bool;
+    /// Once a second, from the diagnostics loop: what the middleware reports late
+    /// (DDS: incompatible QoS whose peer node is known by now).
+    fn tick(&self, shared: &Shared);
+}

@@ -1,0 +1,218 @@
+//! The node's endpoints on Zenoh (`RMW_IMPLEMENTATION=rmw_zenoh_cpp`): the same names and
+//! QoS as on DDS ([`super::entities::Endpoints`]), through ros2-client's Zenoh backend,
+//! which speaks rmw_zenoh_cpp's protocol:
+//!
+//! - a liveliness token under `@ros2_lv/<domain>/...` for the node and each endpoint
+//!   (what `ros2 node list`, `ros2 topic list -t` and `ros2 service list` read on Zenoh),
+//!   with the endpoint's kind, name, type, RIHS01 type hash and QoS;
+//! - each topic on the key `<domain>/<name>/<type>/<hash>`, every sample with the
+//!   attachment (sequence number, source timestamp, publisher GID);
+//! - each service a queryable on its key; the reply echoes the request's sequence number
+//!   and client GID;
+//! - `calibration` (transient local, depth 1) from a publisher with a cache of one sample
+//!   and publisher detection, so a late rmw_zenoh subscriber gets the calibration in force
+//!   (`vendor/ros2-client/PATCHES.md`);
+//! - the parameter services and `/parameter_events`, rosout.
+//!
+//! The session, its router and the environment: [`crate::rmw::zenoh`].
+
+use std::sync::atomic::Ordering;
+
+use futures::{Stream, StreamExt};
+use ros2_client::ros2::LogLevel;
+use ros2_client::zenoh::{Context, Node, Publisher, Server, Subscription};
+use ros2_client::{MessageTypeName, NodeOptions, ParameterValue, RmwRequestId, ServiceTypeName};
+
+use super::entities::{Endpoints, latched_qos, reliable};
+use super::{Shared, Wire};
+use crate::interfaces::{
+    Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
+    GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
+    tracer_calib_msgs as msgs,
+};
+use crate::rmw::RosEnv;
+use crate::rmw::dds::TypesInUse;
+use crate::rmw::zenoh::ZenohEnv;
+use crate::ros::names::{NodeIdentity, ros2_name};
+
+/// The node's Zenoh entities.
+pub(super) struct ZenohEntities {
+    ctx: Context,
+    node: Node,
+    raw_scans: Subscription<RawScan>,
+    contours: Publisher<Contour>,
+    polygons: Publisher<PolygonStamped>,
+    diagnostics: Publisher<DiagnosticArray>,
+    calibration: Publisher<msgs::Calibration>,
+    calibrate: Server<CalibrateRequest, CalibrateResponse>,
+    type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
+    types_in_use: TypesInUse,
+}
+
+fn type_name<M: RosMsg>() -> MessageTypeName {
+    M::NAME.message_type_name()
+}
+
+fn service_type<S: RosService>() -> ServiceTypeName {
+    S::type_name()
+}
+
+impl ZenohEntities {
+    /// The session (and its router: [`crate::rmw::zenoh::context`]), the node with its
+    /// parameters (`options`) and its endpoints.
+    pub fn create(
+        env: &RosEnv,
+        zenoh: &ZenohEnv,
+        identity: &NodeIdentity,
+        options: NodeOptions,
+        endpoints: &Endpoints,
+    ) -> Result<Self, String> {
+        let types_in_use = TypesInUse::default();
+        let ctx = crate::rmw::zenoh::context(zenoh, env.domain_id, types_in_use.hashing_resolver())?;
+        let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
+        let node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node on Zenoh: {e}"))?;
+        let mk = |e: ros2_client::CreateError| format!("cannot create a Zenoh entity: {e}");
+        let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate } = endpoints;
+        let raw_topic = node.create_topic(&raw_scan.0, type_name::<RawScan>(), &raw_scan.1);
+        let contour_topic = node.create_topic(&contour.0, type_name::<Contour>(), &contour.1);
+        let polygon_topic = node.create_topic(&polygon.0, type_name::<PolygonStamped>(), &polygon.1);
+        let diag_topic = node.create_topic(diagnostics, type_name::<DiagnosticArray>(), &reliable(10));
+        let calibration_topic = node.create_topic(calibration, type_name::<msgs::Calibration>(), &latched_qos());
+        let raw_scans = node.create_subscription::<RawScan>(&raw_topic, None).map_err(mk)?;
+        let contours = node.create_publisher::<Contour>(&contour_topic, None).map_err(mk)?;
+        let polygons = node.create_publisher::<PolygonStamped>(&polygon_topic, None).map_err(mk)?;
+        let diagnostics = node.create_publisher::<DiagnosticArray>(&diag_topic, None).map_err(mk)?;
+        let calibration = node.create_publisher::<msgs::Calibration>(&calibration_topic, None).map_err(mk)?;
+        let calibrate = node.create_server(calibrate, &service_type::<Calibrate>()).map_err(mk)?;
+        let type_description_name = ros2_name(&format!("{}/get_type_description", identity.fully_qualified_name()))
+            .map_err(|e| e.to_string())?;
+        let type_description =
+            node.create_server(&type_description_name, &service_type::<GetTypeDescription>()).map_err(mk)?;
+        Ok(ZenohEntities {
+            ctx,
+            node,
+            raw_scans,
+            contours,
+            polygons,
+            diagnostics,
+            calibration,
+            calibrate,
+            type_description,
+            types_in_use,
+        })
+    }
+
+    /// Keeps [`Shared::polygon_wanted`] from the graph (a subscription on the polygons'
+    /// topic, anywhere on the router), and serves the parameter services. Never ends.
+    pub async fn run_graph_and_parameters(&self, shared: &Shared) {
+        let events = self.node.graph_event_stream();
+        let wanted = || self.polygons.get_subscription_count(&self.node) > 0;
+        shared.polygon_wanted.store(wanted(), Ordering::Relaxed);
+        let graph = async {
+            while events.recv().await.is_ok() {
+                shared.polygon_wanted.store(wanted(), Ordering::Relaxed);
+            }
+            futures::future::pending::<()>().await
+        };
+        let parameters = async {
+            match self.node.parameter_server() {
+                Some(server) => server.serve().await,
+                None => futures::future::pending().await,
+            }
+        };
+        futures::future::join(graph, parameters).await;
+    }
+
+    /// Leave: every entity's liveliness token undeclared (peers see the node gone at
+    /// once), then the session closed.
+    pub fn close(self) {
+        let ZenohEntities { ctx, node, .. } = self;
+        drop(node);
+        if let Err(e) = zenoh::Wait::wait(ctx.session().close()) {
+            log::debug!("closing the Zenoh session: {e}");
+        }
+    }
+}
+
+/// A server's requests as a stream (ros2-client's Zenoh server has an async receive).
+fn requests<'a, Req: serde::de::DeserializeOwned + 'a, Resp: serde::Serialize + 'a>(
+    server: &'a Server<Req, Resp>,
+) -> impl Stream<Item = Result<(RmwRequestId, Req), String>> + 'a {
+    futures::stream::unfold(server, |s| async move {
+        let item = s.async_receive_request().await.map_err(|e| e.to_string());
+        Some((item, s))
+    })
+}
+
+impl Wire for ZenohEntities {
+    type RequestId = RmwRequestId;
+
+    fn raw_scans(&self) -> impl Stream<Item = Result<RawScan, String>> + '_ {
+        self.raw_scans.async_stream().map(|r| r.map(|(msg, _info)| msg).map_err(|e| e.to_string()))
+    }
+
+    async fn publish_contour(&self, msg: Contour) -> Result<(), String> {
+        self.contours.async_publish(msg).await.map_err(|e| e.to_string())
+    }
+
+    async fn publish_polygon(&self, msg: PolygonStamped) -> Result<(), String> {
+        self.polygons.async_publish(msg).await.map_err(|e| e.to_string())
+    }
+
+    async fn publish_diagnostics(&self, msg: DiagnosticArray) -> Result<(), String> {
+        self.diagnostics.async_publish(msg).await.map_err(|e| e.to_string())
+    }
+
+    async fn publish_calibration(&self, msg: msgs::Calibration) -> Result<(), String> {
+        self.calibration.async_publish(msg).await.map_err(|e| e.to_string())
+    }
+
+    fn calibrate_requests(&self) -> impl Stream<Item = Result<(RmwRequestId, CalibrateRequest), String>> + '_ {
+        requests(&self.calibrate)
+    }
+
+    fn calibrate_unreadable(&self) -> u64 {
+        0
+    }
+
+    async fn answer_calibrate(&self, id: RmwRequestId, response: CalibrateResponse) -> Result<(), String> {
+        self.calibrate.send_response(id, response).map_err(|e| e.to_string())
+    }
+
+    fn type_description_requests(
+        &self,
+    ) -> impl Stream<Item = Result<(RmwRequestId, GetTypeDescriptionRequest), String>> + '_ {
+        requests(&self.type_description)
+    }
+
+    async fn answer_type_description(
+        &self,
+        id: RmwRequestId,
+        response: GetTypeDescriptionResponse,
+    ) -> Result<(), String> {
+        self.type_description.send_response(id, response).map_err(|e| e.to_string())
+    }
+
+    fn types_in_use(&self) -> Vec<String> {
+        self.types_in_use.names()
+    }
+
+    fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String> {
+        match self.node.parameter_server() {
+            Some(server) => server.set_parameter(name, value),
+            None => Err("the node has no parameter server".to_string()),
+        }
+    }
+
+    fn rosout(&self, level: LogLevel, msg: &str) {
+        if let Some(logger) = self.node.logger() {
+            logger.log_at(level, msg, file!(), "<unknown_func>", line!());
+        }
+    }
+
+    fn use_sim_time(&self) -> bool {
+        false
+    }
+
+    fn tick(&self, _shared: &Shared) {}
+}
