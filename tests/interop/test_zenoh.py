@@ -32,8 +32,8 @@ shutdown on rmw_zenoh can hang for 10 s: ../shared/notes/ros2-peer.md).
   serves scans and /calibrate again.
 - zenoh_latency: a figure, not a check: round trips of a 400-sample lens scan from this
   process through the router to the node and its contour back, and the same through a
-  stock rclpy relay node (RawScan in, an empty Contour with its scan id out), side by side
-  (median and 90th percentile; BENCHMARKS.md).
+  stock rclpy relay node (RawScan in, a Contour of the same size out, nothing computed),
+  side by side (median and 90th percentile; BENCHMARKS.md).
 
 Prints one line per test and a closing 'N passed, N failed'.
 """
@@ -482,20 +482,25 @@ def test_zenoh_node_router_restart():
 
 
 # A stock rclpy node on rmw_zenoh_cpp: each RawScan on /relay_in out again on /relay_out
-# as a Contour with its scan id (no points), until stdin closes.
+# as a Contour of the size the node sends (its scan id, as many points as samples, no
+# correction computed), until stdin closes.
 RELAY = r"""
 import sys, threading
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from geometry_msgs.msg import Point
 from tracer_calib_msgs.msg import Contour, RawScan
 rclpy.init()
 n = Node("stock_relay")
 pub = n.create_publisher(Contour, "/relay_out", QoSProfile(depth=10))
+c = Contour()
+c.points = [Point(x=0.001 * i, y=0.0, z=0.0) for i in range(400)]
+c.radii = [0.02] * 400
 def on_scan(m):
-    c = Contour()
     c.header = m.header
     c.scan_id = m.scan_id
+    c.target = m.target
     pub.publish(c)
 n.create_subscription(RawScan, "/relay_in", on_scan, QoSProfile(depth=100))
 stop = threading.Event()
