@@ -58,6 +58,7 @@ import runner  # noqa: E402
 import harness as tn  # noqa: E402
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import PolygonStamped  # noqa: E402
 from rcl_interfaces.msg import Log  # noqa: E402
 from tracer_calib_msgs.msg import Calibration, Contour, RawScan  # noqa: E402
 from tracer_calib_msgs.srv import Calibrate  # noqa: E402
@@ -312,10 +313,24 @@ def test_zenoh_node_calibrate():
         assert abs(r.offset - tn.TRUTH["offset"]) < 5e-5, r
         assert abs(r.delta_l - tn.TRUTH["delta_l"]) < 1e-5, r
 
-        c = peer.send_scan(pub, tn.raw_scan(11, RawScan.TARGET_LENS, *lens), contours)
-        assert c.calibrated
+        # The polygons too, now that someone listens to them (the node follows the graph).
+        polygons = peer.subscribe(PolygonStamped, "/contour_polygon")
+        peer.spin_until(lambda: peer.node.count_publishers("/contour_polygon") > 0, 5, "the polygon publisher")
+        deadline = time.monotonic() + 10
+        while not polygons:
+            c = peer.send_scan(pub, tn.raw_scan(11, RawScan.TARGET_LENS, *lens), contours)
+            contours.clear()
+            try:
+                peer.spin_until(lambda: polygons, 1.0, "a polygon")
+            except AssertionError:
+                assert time.monotonic() < deadline, "no polygon on /contour_polygon"
+        assert c.calibrated and len(polygons[-1].polygon.points) == 400, polygons[-1]
         worst = max(tn.ellipse_distance(p.x, p.y) for p in c.points)
         assert worst < 40e-6, f"corrected points up to {worst * 1e3:.4f} mm off the ellipse"
+        # The calibration's record, beside the params file.
+        with open(params.replace(".yaml", ".history.jsonl")) as f:
+            records = [json.loads(line) for line in f if line.strip()]
+        assert records and records[-1]["scan_id"] == 10, records
 
         # A late joiner gets the calibration in force (transient local).
         latched = []

@@ -1,0 +1,162 @@
+//! `tracer_calib_node` (the binary, on Zenoh: `RMW_IMPLEMENTATION=rmw_zenoh_cpp`) given raw
+//! scan samples that are malformed as rmw_zenoh samples: a payload that is no `RawScan`, and
+//! a good payload with an attachment that is no (sequence, timestamp, GID). Each is dropped
+//! and counted on `/diagnostics` (`scans_rejected`), and the node goes on serving: the next
+//! good scan's contour comes back.
+//!
+//! The test's own Zenoh session listens on loopback and the node connects to it directly
+//! (`ZENOH_ROUTER_CHECK_ATTEMPTS=-1`: no router). Run inside a private network namespace,
+//! as `scripts/test.sh` runs `cargo test`.
+#![cfg(feature = "zenoh")]
+
+use std::process::{Child, Command};
+use std::time::{Duration, Instant};
+
+use futures::{FutureExt, StreamExt, future};
+use ros2_client::zenoh::{Context, ContextOptions};
+use ros2_client::{Name, NodeName, NodeOptions, QosProfile, qos::*};
+use tracer_calib::interfaces::cdr::to_cdr;
+use tracer_calib::interfaces::{Contour, DiagnosticArray, RawScan, RosMsg};
+use tracer_calib::rmw::dds::TypesInUse;
+use zenoh::Wait;
+
+const PORT: u16 = 7461;
+const DOMAIN: u16 = 0;
+
+fn reliable(depth: usize) -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+/// The node, killed when dropped.
+struct NodeProcess(Child);
+impl Drop for NodeProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+async fn within<T>(secs: u64, what: &str, f: impl std::future::Future<Output = T>) -> T {
+    let timeout = FutureExt::map(smol::Timer::after(Duration::from_secs(secs)), |_| None);
+    match future::select(Box::pin(f.map(Some)), Box::pin(timeout)).await.factor_first().0 {
+        Some(v) => v,
+        None => panic!("timed out after {secs} s: {what}"),
+    }
+}
+
+fn value(d: &DiagnosticArray, key: &str) -> Option<String> {
+    d.status.first()?.values.iter().find(|kv| kv.key == key).map(|kv| kv.value.clone())
+}
+
+/// A lens-like scan: 400 samples, a circle of 20 000 counts.
+fn scan(scan_id: u32) -> RawScan {
+    RawScan {
+        scan_id,
+        target: 3,
+        steps_per_revolution: 400,
+        step: (0..400).collect(),
+        counts: vec![20_000; 400],
+        ..RawScan::default()
+    }
+}
+
+/// An rmw_zenoh attachment: sequence number and timestamp (i64 LE), then the GID with its
+/// length as a one-byte varint.
+fn attachment(seq: i64) -> Vec<u8> {
+    let mut a = Vec::with_capacity(33);
+    a.extend_from_slice(&seq.to_le_bytes());
+    a.extend_from_slice(&0i64.to_le_bytes());
+    a.push(16);
+    a.extend_from_slice(&[7u8; 16]);
+    a
+}
+
+#[test]
+fn malformed_samples_are_counted_and_dropped_and_the_node_keeps_serving() {
+    let mut config = zenoh::Config::default();
+    config.insert_json5("mode", "\"peer\"").unwrap();
+    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{PORT}\"]")).unwrap();
+    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+    let types = TypesInUse::default();
+    let ctx = Context::with_options(
+        ContextOptions::new().domain_id(DOMAIN).zenoh_config(config).type_hashes(types.hashing_resolver()),
+    )
+    .expect("the test's Zenoh session");
+    let _node = NodeProcess(
+        Command::new(env!("CARGO_BIN_EXE_tracer_calib_node"))
+            .env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp")
+            .env("ZENOH_ROUTER_CHECK_ATTEMPTS", "-1")
+            .env("ZENOH_CONFIG_OVERRIDE", format!("connect/endpoints=[\"tcp/127.0.0.1:{PORT}\"]"))
+            .spawn()
+            .expect("the node starts"),
+    );
+    let peer = ctx
+        .new_node(NodeName::new("/", "malformed_samples_test").unwrap(), NodeOptions::new().enable_rosout(false))
+        .unwrap();
+    let topic = |name: &str, ty| peer.create_topic(&Name::new("/", name).unwrap(), ty, &reliable(10));
+    let scans = peer.create_publisher::<RawScan>(&topic("raw_scan", RawScan::NAME.message_type_name()), None).unwrap();
+    let contours =
+        peer.create_subscription::<Contour>(&topic("contour", Contour::NAME.message_type_name()), None).unwrap();
+    let diagnostics = peer
+        .create_subscription::<DiagnosticArray>(&topic("diagnostics", DiagnosticArray::NAME.message_type_name()), None)
+        .unwrap();
+    let hash = tracer_calib::interfaces::type_hash::type_hash("tracer_calib_msgs/msg/RawScan").unwrap();
+    let key = format!("{DOMAIN}/raw_scan/{}/{hash}", RawScan::NAME.dds_type_name());
+    let raw = ctx.session().declare_publisher(key).wait().unwrap();
+
+    smol::block_on(async {
+        within(30, "the node's raw_scan subscription", peer.wait_for_subscription("/raw_scan")).await;
+        within(10, "the node's contour publisher", peer.wait_for_publisher("/contour")).await;
+        let mut contours = std::pin::pin!(contours.async_stream());
+        // A good scan first (until one comes back: the node may need a moment for its
+        // subscriber to reach this session).
+        let first = within(20, "a first contour", async {
+            loop {
+                scans.publish(scan(1)).unwrap();
+                let next = FutureExt::map(smol::Timer::after(Duration::from_millis(300)), |_| None);
+                let got = future::select(Box::pin(contours.next().map(Some)), Box::pin(next)).await.factor_first().0;
+                if let Some(Some(Ok((c, _)))) = got {
+                    return c;
+                }
+            }
+        })
+        .await;
+        assert_eq!(first.scan_id, 1);
+
+        // A payload that is no RawScan, with a good attachment; a good payload with a
+        // 5-byte attachment.
+        raw.put(vec![0u8, 1, 0, 0, 9, 9, 9]).attachment(attachment(1)).wait().unwrap();
+        let good = to_cdr(&scan(2)).unwrap();
+        raw.put(good).attachment(vec![1u8, 2, 3, 4, 5]).wait().unwrap();
+
+        let mut stream = std::pin::pin!(diagnostics.async_stream());
+        let deadline = Instant::now() + Duration::from_secs(15);
+        let counted = within(20, "scans_rejected 2 on /diagnostics", async {
+            while let Some(Ok((d, _))) = stream.next().await {
+                if value(&d, "scans_rejected").as_deref() == Some("2") || Instant::now() > deadline {
+                    return (value(&d, "scans_rejected"), value(&d, "last_rejection"));
+                }
+            }
+            (None, None)
+        })
+        .await;
+        assert_eq!(counted.0.as_deref(), Some("2"), "last rejection: {:?}", counted.1);
+
+        // And the node serves the next good scan.
+        scans.publish(scan(3)).unwrap();
+        let next = within(10, "a contour after the bad samples", async {
+            loop {
+                if let Some(Ok((c, _))) = contours.next().await
+                    && c.scan_id == 3
+                {
+                    return c;
+                }
+            }
+        })
+        .await;
+        assert_eq!(next.points.len(), 400);
+    });
+}
