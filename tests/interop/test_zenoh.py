@@ -389,6 +389,10 @@ def test_zenoh_node_cli():
             assert "Node name: tracer_calibrator" in info, info
             hashes = [ln.split(":", 1)[1].strip() for ln in info.splitlines() if "Topic type hash" in ln]
             assert hashes and set(hashes) == {tn.rosidl_hash(ros_type)}, info
+            # The QoS the liveliness token carries, as rmw_zenoh encodes it.
+            assert "Reliability: RELIABLE" in info, info
+            durability = "TRANSIENT_LOCAL" if topic == "/calibration" else "VOLATILE"
+            assert f"Durability: {durability}" in info, info
         services = cli("service", "list", "-t", "--no-daemon")
         assert "/calibrate [tracer_calib_msgs/srv/Calibrate]" in services, services
         assert "/tracer_calibrator/get_parameters [rcl_interfaces/srv/GetParameters]" in services, services
