@@ -126,7 +126,19 @@ impl ZenohEntities {
     /// Leave: every entity's liveliness token undeclared (peers see the node gone at
     /// once), then the session closed.
     pub fn close(self) {
-        let ZenohEntities { ctx, node, .. } = self;
+        let ZenohEntities {
+            ctx,
+            node,
+            raw_scans,
+            contours,
+            polygons,
+            diagnostics,
+            calibration,
+            calibrate,
+            type_description,
+            types_in_use: _,
+        } = self;
+        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description));
         drop(node);
         if let Err(e) = zenoh::Wait::wait(ctx.session().close()) {
             log::debug!("closing the Zenoh session: {e}");
