@@ -68,6 +68,10 @@ fn init_logging(args: &RosArgs) {
     // Its only error: leaving the discovery multicast group as the participant closes,
     // which fails (harmlessly) on loopback-only set-ups, two ERROR lines a shutdown.
     builder.filter_module("rustdds::network::udp_listener", log::LevelFilter::Off);
+    // ros2-client's rosout_raw is a tracing span; with tracing's `log` feature on (zenoh
+    // turns it on) every span would come out as an ERROR "rosout_raw;" line. Zenoh's own
+    // tracing events still come through, as log records of their modules.
+    builder.filter_module("tracing::span", log::LevelFilter::Off);
     if let Some(level) = args.log_level.and_then(|l| l.level_filter()) {
         builder.filter_module("tracer_calib", level);
         builder.filter_module("tracer_calib_node", level);
