@@ -5,59 +5,19 @@
 //! Run inside a private network namespace, as `scripts/test.sh` runs `cargo test`.
 
 use std::net::{IpAddr, Ipv4Addr};
-use std::process::{Child, Command};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
-use futures::{FutureExt, StreamExt, future};
+use futures::StreamExt;
 use ros2_client::dds::{Context, ServiceMapping};
-use ros2_client::{Name, NodeName, NodeOptions, QosProfile, qos::*};
-use rustdds::no_key::SerializerAdapter;
-use rustdds::{DomainParticipantBuilder, QosPolicies, RepresentationIdentifier, TopicKind};
+use ros2_client::{Name, NodeName, NodeOptions};
+use rustdds::{DomainParticipantBuilder, QosPolicies, TopicKind};
 use tracer_calib::interfaces::{Calibrate, CalibrateRequest, CalibrateResponse, DiagnosticArray, RosMsg, RosService};
 
+mod common;
+use common::{NodeProcess, Raw, RawAdapter, reliable, value, within};
+
 const DOMAIN: u16 = 96;
-
-fn reliable(depth: usize) -> QosProfile {
-    QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth })
-}
-
-/// Raw bytes as a sample's CDR payload.
-#[derive(Debug)]
-struct Raw(Vec<u8>);
-struct RawAdapter;
-impl SerializerAdapter<Raw> for RawAdapter {
-    type Error = std::io::Error;
-    fn output_encoding() -> RepresentationIdentifier {
-        RepresentationIdentifier::CDR_LE
-    }
-    fn to_bytes(value: &Raw) -> Result<rustdds::bytes::Bytes, Self::Error> {
-        Ok(rustdds::bytes::Bytes::from(value.0.clone()))
-    }
-}
-
-/// The node, killed when dropped.
-struct NodeProcess(Child);
-impl Drop for NodeProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-async fn within<T>(secs: u64, what: &str, f: impl std::future::Future<Output = T>) -> T {
-    let timeout = FutureExt::map(smol::Timer::after(Duration::from_secs(secs)), |_| None);
-    match future::select(Box::pin(f.map(Some)), Box::pin(timeout)).await.factor_first().0 {
-        Some(v) => v,
-        None => panic!("timed out after {secs} s: {what}"),
-    }
-}
-
-fn value(d: &DiagnosticArray, key: &str) -> Option<String> {
-    d.status.first()?.values.iter().find(|kv| kv.key == key).map(|kv| kv.value.clone())
-}
 
 #[test]
 fn unreadable_requests_are_counted_on_diagnostics_and_the_node_keeps_serving() {

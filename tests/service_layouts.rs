@@ -19,9 +19,11 @@ use std::time::Duration;
 use futures::{FutureExt, StreamExt, future};
 use ros2_client::dds::{Context, ServiceMapping};
 use ros2_client::{Message, Name, NodeName, NodeOptions, QosProfile, ServiceTypeName, qos::*};
-use rustdds::no_key::SerializerAdapter;
-use rustdds::{DomainParticipantBuilder, QosPolicies, RepresentationIdentifier, TopicKind};
+use rustdds::{DomainParticipantBuilder, QosPolicies, TopicKind};
 use serde::{Deserialize, Serialize};
+
+mod common;
+use common::{Raw, RawAdapter, within};
 
 const DOMAIN: u16 = 94;
 const CALLS: u32 = 25;
@@ -63,29 +65,6 @@ fn service_name() -> Name {
 
 fn type_name() -> ServiceTypeName {
     ServiceTypeName::new("tracer_calib_test", "Layouts")
-}
-
-/// Raw bytes as a DDS sample's payload, CDR little-endian: what a client of no known
-/// layout sends.
-#[derive(Debug)]
-struct Raw(Vec<u8>);
-struct RawAdapter;
-impl SerializerAdapter<Raw> for RawAdapter {
-    type Error = std::io::Error;
-    fn output_encoding() -> RepresentationIdentifier {
-        RepresentationIdentifier::CDR_LE
-    }
-    fn to_bytes(value: &Raw) -> Result<rustdds::bytes::Bytes, Self::Error> {
-        Ok(rustdds::bytes::Bytes::from(value.0.clone()))
-    }
-}
-
-async fn within<T>(secs: u64, what: &str, f: impl std::future::Future<Output = T>) -> T {
-    let timeout = FutureExt::map(smol::Timer::after(Duration::from_secs(secs)), |_| None);
-    match future::select(Box::pin(f.map(Some)), Box::pin(timeout)).await.factor_first().0 {
-        Some(v) => v,
-        None => panic!("timed out after {secs} s: {what}"),
-    }
 }
 
 /// `CALLS` calls, one after the other, with scan ids `first`, `first + 2`, ...

@@ -9,47 +9,22 @@
 //! as `scripts/test.sh` runs `cargo test`.
 #![cfg(feature = "zenoh")]
 
-use std::process::{Child, Command};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use futures::{FutureExt, StreamExt, future};
 use ros2_client::zenoh::{Context, ContextOptions};
-use ros2_client::{Name, NodeName, NodeOptions, QosProfile, qos::*};
+use ros2_client::{Name, NodeName, NodeOptions};
 use tracer_calib::interfaces::cdr::to_cdr;
 use tracer_calib::interfaces::{Contour, DiagnosticArray, RawScan, RosMsg};
 use tracer_calib::rmw::dds::TypesInUse;
 use zenoh::Wait;
 
+mod common;
+use common::{NodeProcess, reliable, value, within};
+
 const PORT: u16 = 7461;
 const DOMAIN: u16 = 0;
-
-fn reliable(depth: usize) -> QosProfile {
-    QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth })
-}
-
-/// The node, killed when dropped.
-struct NodeProcess(Child);
-impl Drop for NodeProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-async fn within<T>(secs: u64, what: &str, f: impl std::future::Future<Output = T>) -> T {
-    let timeout = FutureExt::map(smol::Timer::after(Duration::from_secs(secs)), |_| None);
-    match future::select(Box::pin(f.map(Some)), Box::pin(timeout)).await.factor_first().0 {
-        Some(v) => v,
-        None => panic!("timed out after {secs} s: {what}"),
-    }
-}
-
-fn value(d: &DiagnosticArray, key: &str) -> Option<String> {
-    d.status.first()?.values.iter().find(|kv| kv.key == key).map(|kv| kv.value.clone())
-}
 
 /// A lens-like scan: 400 samples, a circle of 20 000 counts.
 fn scan(scan_id: u32) -> RawScan {

@@ -211,6 +211,17 @@ class Peer:
         self.node.destroy_node()
 
 
+def assert_fit(r, scan_id=None):
+    """A /calibrate response that applied a fit of a simulated plate scan (`scan_id`, if
+    given): success, and alpha0, d, dL within 0.1 deg, 50 um, 10 um of TRUTH."""
+    assert r.success, r.message
+    if scan_id is not None:
+        assert r.message.startswith(f"scan {scan_id}:"), r.message
+    assert abs(math.degrees(r.alpha0) - TRUTH["alpha0_deg"]) < 0.1, r
+    assert abs(r.offset - TRUTH["offset"]) < 5e-5, r
+    assert abs(r.delta_l - TRUTH["delta_l"]) < 1e-5, r
+
+
 def calibrate_then_lens(peer, scan_id, name, seed, calibrate):
     """A plate scan `scan_id` to /raw_scan, `calibrate(scan_id)`, then a lens scan
     `scan_id + 1` (simulated with seeds `seed` and `seed + 1`): the calibrate response and
