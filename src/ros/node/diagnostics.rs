@@ -59,6 +59,7 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
         let msg = {
             let mut st = shared.state.lock().expect("state lock");
             st.clock_problem = clock_problem;
+            st.stats.peers_refused_authentication = crate::rmw::security::peers_refused_authentication();
             st.diagnostics(now)
         };
         if let Err(err) = e.diagnostics.async_publish(msg).await {
