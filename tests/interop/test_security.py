@@ -37,6 +37,10 @@ then joins as `/planner`, Enforce.
   peers_refused_authentication goes from 0 to at least 1.
 - enforce_missing_enclave: `--enclave /nowhere` under Enforce: the node exits non-zero at
   once with one line naming the enclave and the reason.
+- enforce_bad_credentials: copies of the node's enclave spoiled one way each (cert.pem
+  expired, re-signed by the keystore's CA; cert.pem and key.pem of another keystore's CA;
+  permissions.p7s signed by another CA; governance.p7s changed after signing): the node,
+  Enforce, exits non-zero at once with one line naming the enclave, the file and the reason.
 - permissive_missing_enclave: the same under Permissive: one warning, and the node runs
   (unsecured).
 
@@ -452,20 +456,30 @@ def make_foreign_keystore():
     return ks
 
 
-def refused_count(peer, diags, timeout=15):
-    """The node's latest peers_refused_authentication on /diagnostics."""
+def refused_count(peer, diags, at_least=0, timeout=15):
+    """The node's peers_refused_authentication on /diagnostics: the first value reaching
+    `at_least`, or the last one seen within `timeout` s."""
+
+    def value(msg):
+        for kv in msg.status[0].values:
+            if kv.key == "peers_refused_authentication":
+                return int(kv.value)
+        raise AssertionError(f"no peers_refused_authentication in {[kv.key for kv in msg.status[0].values]}")
+
+    deadline = time.monotonic() + timeout
     start = len(diags)
-    peer.spin_until(lambda: len(diags) > start, timeout, "a /diagnostics message")
-    for kv in diags[-1].status[0].values:
-        if kv.key == "peers_refused_authentication":
-            return int(kv.value)
-    raise AssertionError(f"no peers_refused_authentication in {[kv.key for kv in diags[-1].status[0].values]}")
+    while True:
+        peer.spin_until(lambda: len(diags) > start, timeout, "a /diagnostics message")
+        start = len(diags)
+        got = value(diags[-1])
+        if got >= at_least or time.monotonic() >= deadline:
+            return got
 
 
 def test_foreign_ca_peer_refused(peer):
     from diagnostic_msgs.msg import DiagnosticArray
 
-    foreign = make_foreign_keystore()
+    foreign = foreign_keystore()
     node = SecureNode("foreign_ca_peer", ["--enclave", "/tracer_calibrator"])
     intruder = None
     try:
@@ -473,10 +487,12 @@ def test_foreign_ca_peer_refused(peer):
         before = refused_count(peer, diags, timeout=30)
         env = dict(CYCLONE_ENV, ROS_SECURITY_KEYSTORE=foreign)
         intruder = subprocess.Popen(
-            [sys.executable, "-c", FOREIGN_PEER, "8"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+            [sys.executable, "-c", FOREIGN_PEER, "15"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
         )
+        # A refusal is counted when the handshake fails, or when ours went unanswered
+        # for its 10 resends (a Cyclone peer refusing our certificate is silent).
+        after = refused_count(peer, diags, at_least=1, timeout=25)
         out, err = intruder.communicate(timeout=60)
-        after = refused_count(peer, diags)
         node.check_alive()
     finally:
         if intruder is not None and intruder.poll() is None:
@@ -489,6 +505,106 @@ def test_foreign_ca_peer_refused(peer):
     assert after >= 1, f"peers_refused_authentication stayed {after} with a foreign-CA peer"
     assert "tracer_calibrator" not in seen["nodes"], f"the foreign-CA peer saw {seen['nodes']}"
     return f"peers_refused_authentication {before} -> {after}; the foreign-CA peer saw nodes {seen['nodes']}"
+
+
+_FOREIGN = []
+
+
+def foreign_keystore():
+    if not _FOREIGN:
+        _FOREIGN.append(make_foreign_keystore())
+    return _FOREIGN[0]
+
+
+def expired_cert(ks, enclave_dir):
+    """cert.pem of the enclave made again, expired since yesterday, signed by the keystore's
+    own identity CA (as sros2 signs: the `cryptography` package it uses)."""
+    import datetime
+
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+
+    with open(os.path.join(ks, "private", "identity_ca.key.pem"), "rb") as f:
+        ca_key = serialization.load_pem_private_key(f.read(), password=None)
+    with open(os.path.join(ks, "public", "identity_ca.cert.pem"), "rb") as f:
+        ca = x509.load_pem_x509_certificate(f.read())
+    with open(os.path.join(enclave_dir, "cert.pem"), "rb") as f:
+        old = x509.load_pem_x509_certificate(f.read())
+    now = datetime.datetime.now(datetime.timezone.utc)
+    cert = (
+        x509.CertificateBuilder()
+        .subject_name(old.subject)
+        .issuer_name(ca.subject)
+        .public_key(old.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - datetime.timedelta(days=30))
+        .not_valid_after(now - datetime.timedelta(days=1))
+        .sign(ca_key, hashes.SHA256())
+    )
+    return cert.public_bytes(serialization.Encoding.PEM)
+
+
+def test_enforce_bad_credentials(peer):
+    """Credentials made by `ros2 security` (and one by its `cryptography`), spoiled one way
+    each: the node, Enforce, exits non-zero at once with one line naming the file and why."""
+    import shutil
+
+    foreign = os.path.join(foreign_keystore(), "enclaves", "planner")
+    cases = []
+
+    def spoil(name, change, file, reason):
+        ks = os.path.join(tn.WORK, f"bad_{name}")
+        shutil.copytree(KEYSTORE, ks)
+        change(os.path.join(ks, "enclaves", "tracer_calibrator"), ks)
+        cases.append((name, ks, file, reason))
+
+    def write(path, data):
+        with open(path, "wb") as f:
+            f.write(data)
+
+    def read(path):
+        with open(path, "rb") as f:
+            return f.read()
+
+    spoil("expired", lambda d, ks: write(os.path.join(d, "cert.pem"), expired_cert(ks, d)), "cert.pem",
+          "certificate expired on")
+
+    def foreign_identity(d, ks):
+        for f in ("cert.pem", "key.pem"):
+            shutil.copy(os.path.join(foreign, f), os.path.join(d, f))
+
+    spoil("foreign_ca", foreign_identity, "cert.pem", "not signed by the identity CA")
+    spoil("permissions", lambda d, ks: shutil.copy(os.path.join(foreign, "permissions.p7s"), d), "permissions.p7s",
+          "signature does not verify")
+
+    def tamper(d, ks):
+        path = os.path.join(d, "governance.p7s")
+        doc = read(path)
+        assert b"ENCRYPT" in doc
+        write(path, doc.replace(b"ENCRYPT", b"NONE", 1))
+
+    spoil("governance", tamper, "governance.p7s", "signature does not verify")
+    report = []
+    for name, ks, file, reason in cases:
+        env = dict(NODE_ENV, ROS_SECURITY_KEYSTORE=ks)
+        node = SecureNode(f"bad_{name}", ["--enclave", "/tracer_calibrator"], env=env)
+        t0 = time.monotonic()
+        try:
+            rc = node.proc.wait(timeout=10)
+        finally:
+            if node in tn.RUNNING:
+                tn.RUNNING.remove(node)
+        took = time.monotonic() - t0
+        out = node.output().strip()
+        lines = out.splitlines()
+        assert rc != 0, f"{name}: exit code {rc}:\n{out}"
+        assert len(lines) == 1, f"{name}: expected one line, got:\n{out}"
+        want = os.path.join(ks, "enclaves", "tracer_calibrator", file)
+        assert f"'{want}'" in lines[0] and reason in lines[0], f"{name}: {lines[0]}"
+        assert "enclave '/tracer_calibrator'" in lines[0], lines[0]
+        why = lines[0].split(want + "': ", 1)[-1][:60]
+        report.append(f"{name}: exit {rc} in {took * 1e3:.0f} ms ({file}: {why})")
+    return "; ".join(report)
 
 
 def run_missing(strategy):
@@ -542,6 +658,7 @@ def main():
         ("capture_secure_vs_clear", lambda: test_capture_secure_vs_clear(peer)),
         ("foreign_ca_peer_refused", lambda: test_foreign_ca_peer_refused(peer)),
         ("enforce_missing_enclave", lambda: test_enforce_missing_enclave(peer)),
+        ("enforce_bad_credentials", lambda: test_enforce_bad_credentials(peer)),
         ("permissive_missing_enclave", lambda: test_permissive_missing_enclave(peer)),
     ]
     tn.run_tests_and_exit("test_security.py", tests, sys.argv[1:], "interop::", "security")
