@@ -486,12 +486,14 @@ def test_foreign_ca_peer_refused(peer):
         diags = peer.subscribe(DiagnosticArray, "/diagnostics")
         before = refused_count(peer, diags, timeout=30)
         env = dict(CYCLONE_ENV, ROS_SECURITY_KEYSTORE=foreign)
+        t0 = time.monotonic()
         intruder = subprocess.Popen(
             [sys.executable, "-c", FOREIGN_PEER, "15"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
         )
         # A refusal is counted when the handshake fails, or when ours went unanswered
         # for its 10 resends (a Cyclone peer refusing our certificate is silent).
         after = refused_count(peer, diags, at_least=1, timeout=25)
+        counted_after = time.monotonic() - t0
         out, err = intruder.communicate(timeout=60)
         node.check_alive()
     finally:
@@ -504,7 +506,10 @@ def test_foreign_ca_peer_refused(peer):
     assert before == 0, f"peers_refused_authentication was {before} before the foreign peer"
     assert after >= 1, f"peers_refused_authentication stayed {after} with a foreign-CA peer"
     assert "tracer_calibrator" not in seen["nodes"], f"the foreign-CA peer saw {seen['nodes']}"
-    return f"peers_refused_authentication {before} -> {after}; the foreign-CA peer saw nodes {seen['nodes']}"
+    return (
+        f"peers_refused_authentication {before} -> {after} ({counted_after:.1f} s after the peer started); "
+        f"the foreign-CA peer saw nodes {seen['nodes']}"
+    )
 
 
 _FOREIGN = []
