@@ -145,9 +145,11 @@ def test_secure_calibrate(peer, label="secure_calibrate"):
         assert res.results[0].successful, res
     finally:
         node.stop()
+    errors = [line for line in node.output().splitlines() if " ERROR " in line]
     return (
         f"matched after {discovered:.2f} s, first contour {first_contour * 1e3:.0f} ms, "
-        f"scan->contour median {times[len(times) // 2] * 1e3:.1f} ms (20), calibrated, parameters answered"
+        f"scan->contour median {times[len(times) // 2] * 1e3:.1f} ms (20), calibrated, parameters answered; "
+        f"{len(errors)} ERROR lines in the node's log"
     )
 
 
