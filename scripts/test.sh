@@ -6,9 +6,15 @@
 #      (tests/interop/setup.sh installs both), against the node; then this repository
 #      built as a colcon workspace over those wheels (the README's `colcon build` line,
 #      reusing the release build), and the installed package through the stock `ros2`
-#      command line and `ros2 launch` (tests/interop/run.sh).
-# Nothing sends a packet off this machine: every DDS participant runs in a network
-# namespace whose only interface is loopback (tests/interop/netns.sh).
+#      command line and `ros2 launch` (tests/interop/run.sh); for Jazzy also with peers on
+#      Cyclone DDS (secure and not) and, on Zenoh, the node under
+#      RMW_IMPLEMENTATION=rmw_zenoh_cpp with rmw_zenoh_cpp peers through rmw_zenohd
+#      (the stock peers built from ../shared/ros2-src/ into ~/.cache/tracer_calib/).
+# The release build has the cargo feature `security` (SROS2; needs libssl-dev and
+# pkg-config, installed first if missing): with security off it behaves as the default
+# build, and test_security.py tests it secure.
+# Nothing sends a packet off this machine: every DDS participant and Zenoh session runs in
+# a network namespace whose only interface is loopback (tests/interop/netns.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TERM_COLOR=never
@@ -18,10 +24,13 @@ part() {
     "${@:2}"
     echo "test.sh: $1 took $((SECONDS - t0)) s"
 }
-part "cargo build" cargo build --release --locked --bins
-part "cargo test build" cargo test --release --locked --no-run
+# shellcheck source=tests/interop/lib.sh
+. tests/interop/lib.sh
+part "build dependencies" apt_install_missing test.sh target/build_deps.log libssl-dev pkg-config
+part "cargo build" cargo build --release --locked --features security --bins
+part "cargo test build" cargo test --release --locked --features security --no-run
 # The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags
 # to read the bags we write. Needs the package registries, so outside the namespace.
 part "ROS setup (kilted, jazzy)" tests/interop/setup.sh
-part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline
+part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline --features security
 part "interop (kilted, jazzy)" bash tests/interop/run.sh

@@ -64,6 +64,9 @@ impl NodeState {
                 self.stats.qos_incompatible, self.stats.last_qos_incompatible
             ));
         }
+        if let Some(n @ 1..) = self.stats.peers_refused_authentication {
+            warnings.push(format!("{n} peer(s) refused authentication (DDS Security)"));
+        }
         let level = if warnings.is_empty() { level } else { level.max(DiagnosticStatus::WARN) };
         let message = std::iter::once(message).chain(notes).chain(warnings).collect::<Vec<_>>().join("; ");
         let kv = |k: &str, v: String| KeyValue { key: k.to_string(), value: v };
@@ -119,7 +122,10 @@ impl NodeState {
                     kv("use_sim_time", p.use_sim_time.to_string()),
                     kv("lifecycle_state", self.lifecycle_label().to_string()),
                     kv("ros_time", format!("{:.3}", now.ros.to_nanos() as f64 * 1e-9)),
-                ],
+                ]
+                .into_iter()
+                .chain(s.peers_refused_authentication.map(|n| kv("peers_refused_authentication", n.to_string())))
+                .collect(),
             }],
         }
     }

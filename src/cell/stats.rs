@@ -23,6 +23,10 @@ pub struct Stats {
     pub last_qos_incompatible: String,
     /// `calibrate` requests in no client layout (not answered; the server logs them).
     pub requests_unreadable: u64,
+    /// With a secure participant: remote participants refused authentication (another
+    /// CA's or an expired certificate, a bad handshake signature), each once. `None`
+    /// (security off): not reported.
+    pub peers_refused_authentication: Option<u64>,
 }
 
 impl NodeState {

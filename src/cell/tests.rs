@@ -414,3 +414,20 @@ fn a_managed_node_holds_scans_until_active_and_reads_its_history_when_configured
     assert!(first.change_lifecycle(&label("configure"), Now::system(), &mut None).is_err());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn peers_refused_authentication_are_reported_only_when_secure() {
+    let mut st = NodeState::new("/t".into(), Parameters::default());
+    let now = Now::at(UNIX_EPOCH);
+    let d = st.diagnostics(now);
+    assert!(d.status[0].values.iter().all(|kv| kv.key != "peers_refused_authentication"), "security off: no key");
+    st.stats.peers_refused_authentication = Some(0);
+    let d = st.diagnostics(now);
+    assert_eq!(diag_value(&d, "peers_refused_authentication"), "0");
+    assert!(!d.status[0].message.contains("refused"), "{}", d.status[0].message);
+    st.stats.peers_refused_authentication = Some(2);
+    let d = st.diagnostics(now);
+    assert_eq!(diag_value(&d, "peers_refused_authentication"), "2");
+    assert_eq!(d.status[0].level, DiagnosticStatus::WARN);
+    assert!(d.status[0].message.contains("2 peer(s) refused authentication"), "{}", d.status[0].message);
+}

@@ -167,6 +167,8 @@ fn secure(
     _strategy: Strategy,
 ) -> Result<DomainParticipantBuilder, String> {
     log::info!("security: enclave '{name}' in {}", dir.display());
+    crate::rmw::security::credentials::check(dir).map_err(|e| format!("SECURITY ERROR: enclave '{name}': {e}"))?;
+    crate::rmw::security::mark_secure();
     Ok(builder
         .builtin_security(rustdds::DomainParticipantSecurityConfigFiles::with_ros_default_names(dir, String::new())))
 }

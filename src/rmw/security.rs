@@ -19,10 +19,42 @@
 //! No enclave (no keystore, no folder, a file missing or unreadable): under `Enforce` the
 //! process must not start ([`SecurityError`], one line naming the enclave and the reason);
 //! otherwise it runs unsecured, with a warning.
+//!
+//! Found, the enclave's credentials are checked before the participant is made (with the
+//! `security` feature: [`credentials`]): an expired certificate or one of another CA, a
+//! key that is not the certificate's, a permissions or governance document whose signature
+//! does not verify with the permissions CA stop the process with one line naming the file
+//! and the reason, whatever the strategy (as rmw fails to make such a participant).
 
 use std::path::{Path, PathBuf};
 
 use crate::ros::names::validate_namespace;
+
+#[cfg(feature = "security")]
+pub mod credentials;
+
+/// A secure participant was made in this process ([`mark_secure`]).
+static SECURE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Records that this process has a secure participant (so [`peers_refused_authentication`]
+/// reports).
+pub fn mark_secure() {
+    SECURE.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// With a secure participant in this process: how many remote participants failed
+/// authentication (a certificate of another CA or expired, a handshake whose signature
+/// does not verify), each counted once (rustdds' count, a tracer_calib patch). `None`
+/// without one (security off: nothing to report, `/diagnostics` as before).
+pub fn peers_refused_authentication() -> Option<u64> {
+    if !SECURE.load(std::sync::atomic::Ordering::Relaxed) {
+        return None;
+    }
+    #[cfg(feature = "security")]
+    return Some(rustdds::remote_participants_refused_authentication());
+    #[cfg(not(feature = "security"))]
+    None
+}
 
 /// The files an enclave folder must hold (rmw_dds_common's names).
 pub const ENCLAVE_FILES: [&str; 6] =

@@ -35,16 +35,17 @@
 # (first_scan: all; first_scan_fastdds, first_scan_cyclone, first_scan_call_fastdds,
 # first_scan_call_cyclone), two_hosts test_two_hosts.py's scenarios (two_hosts:
 # all), cyclone or mixed test_cyclone.py's (cyclone: all), security or secure_* or
-# insecure_* or *_missing_enclave test_security.py's (security: all), launch test_launch.py's
+# insecure_* or hmi_* or capture_* or foreign_* or *_missing_enclave or
+# *_bad_credentials test_security.py's (security: all), launch test_launch.py's
 # (launch_NAME: its test NAME; launch: all, with 3 before it); the others, node_suite.py's
 # tests. With names, 3 and 4 run only for launch names. No names: everything.
 # Also: after 1, tests/interop/ros2cli.sh installs the stock ros2 CLI and launch into the
 # venv; (2b, after 2, Jazzy) tests/interop/cyclone.sh builds rmw_cyclonedds_cpp (cached
 # outside the clone), and test_cyclone.py runs with the node's peers on Cyclone DDS, and
 # on both DDS at once; (2c, Jazzy) test_security.py, SROS2 with a secure Cyclone DDS peer
-# (tests/interop/sros2.sh installs `ros2 security`), against the node built with the
-# cargo feature `security` into cargo's target directory's security/ (built here when
-# selected by name; in a run without names it runs only if that build is there).
+# (tests/interop/sros2.sh installs `ros2 security`), against the release node, which
+# scripts/test.sh builds with the cargo feature `security` (a node built without it
+# fails these tests: it cannot be secure).
 # (2d, Jazzy; zenoh or zenoh_NAME) tests/interop/zenoh.sh builds rmw_zenoh_cpp and its
 # router rmw_zenohd (cached outside the clone; 8-14 min and ~0.26 GB of crates the first
 # time, 0.1 s after), and test_zenoh.py runs the node on Zenoh (RMW_IMPLEMENTATION=
@@ -71,7 +72,7 @@ for a in "$@"; do
         first_scan*) first_scan+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
         cyclone*|mixed*) cyclone+=("$a") ;;
-        security|secure_*|insecure_*|*_missing_enclave) security+=("$a") ;;
+        security|secure_*|insecure_*|hmi_*|capture_*|foreign_*|*_missing_enclave|*_bad_credentials) security+=("$a") ;;
         zenoh*) zenoh+=("$a") ;;
         *) node_tests+=("$a") ;;
     esac
@@ -158,26 +159,21 @@ for d in $DISTROS; do
             failed+=("$d:cyclone_setup")
         fi
     fi
-    # 2c. SROS2 (test_security.py): the secure build of the node, `ros2 security`, and a
-    # secure Cyclone DDS peer (Debian's Cyclone security plugins). Jazzy only, as 2b.
-    secure_node="$TRACER_TARGET_DIR/security/release/tracer_calib_node"
-    if [ "${#security[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
+    # 2c. SROS2 (test_security.py): the release node (built with `security`), `ros2
+    # security`, and a secure Cyclone DDS peer (Debian's Cyclone security plugins). Jazzy
+    # only, as 2b.
+    if [ "$d" != jazzy ] && { [ "$#" -eq 0 ] || [ "${#security[@]}" -gt 0 ]; }; then
         echo "run.sh: $d: test_security.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
-    elif [ "${#security[@]}" -gt 0 ] || { [ "$#" -eq 0 ] && [ "$d" = jazzy ] && [ -x "$secure_node" ]; }; then
+    elif [ "$#" -eq 0 ] || [ "${#security[@]}" -gt 0 ]; then
         t0=$(now_ms)
-        if [ "${#security[@]}" -gt 0 ] && ! (cd "$ROOT" && cargo build --release --locked --features security \
-                --bins --target-dir "$TRACER_TARGET_DIR/security"); then
-            failed+=("$d:security_build")
-        elif "$HERE/cyclone.sh" "$d" && "$HERE/sros2.sh" "$d"; then
+        if "$HERE/cyclone.sh" "$d" && "$HERE/sros2.sh" "$d"; then
             echo "run.sh: $d: test_security.py (secure node, ROS 2 $d rclpy on Cyclone DDS with security)"
-            TRACER_CALIB_NODE_SECURE="$secure_node" peer_run netns.sh test_security.py "$d" cyclone_env.sh \
+            TRACER_CALIB_NODE_SECURE="$TRACER_CALIB_NODE" peer_run netns.sh test_security.py "$d" cyclone_env.sh \
                 ${security[@]+"${security[@]}"} || failed+=("$d:test_security")
             echo "run.sh: $d: test_security.py $(took "$t0")"
         else
             failed+=("$d:security_setup")
         fi
-    elif [ "$#" -eq 0 ] && [ "$d" = jazzy ]; then
-        echo "run.sh: $d: test_security.py skipped (no $secure_node: run.sh security builds it)"
     fi
     # 2d. The node in a Zenoh cell with stock rmw_zenoh peers (test_zenoh.py). Jazzy only:
     # the rmw_zenoh tarball is Jazzy's release (0.2.10).

@@ -8,9 +8,10 @@ is on Cyclone DDS, checked first), `ros2 security` installed (tests/interop/sros
 $TRACER_CALIB_NODE_SECURE the secure build of the node.
 
 At start: a keystore made by the real `ros2 security create_keystore`, and enclaves
-`/tracer_calibrator` (the node) and `/planner` (this process) by `create_enclave`: the
-default governance (discovery and liveliness ENCRYPT, RTPS SIGN, every topic ENCRYPT,
-join and topic access control on) and permissions that allow everything. This process
+`/tracer_calibrator` (the node), `/planner` (this process) and `/hmi` by `create_enclave`,
+then `create_permission` of each from the cell's policy, config/sros2_cell_policy.xml:
+the default governance (discovery and liveliness ENCRYPT, RTPS SIGN, every topic ENCRYPT,
+join and topic access control on) and per-enclave permissions, default DENY. This process
 then joins as `/planner`, Enforce.
 
 - secure_calibrate: the node (enclave /tracer_calibrator, Enforce) and the secure peer
@@ -20,8 +21,26 @@ then joins as `/planner`, Enforce.
   enclave) after the first one stopped, the peer still running.
 - insecure_peer_sees_nothing: an rclpy process on Cyclone without security, beside a
   secure exchange: it sees no tracer_calibrator in its graph and gets no contour.
+- hmi_read_only: an HMI process (rclpy on secure Cyclone, enclave /hmi, node hmi) beside
+  the planner: it receives contours, the calibration and /diagnostics, but cannot call
+  /calibrate nor set a parameter of the node (its own Cyclone refuses to make the
+  request writers, or, if made, the service is never available and the call never
+  answered); the node's params and history files keep their contents and mtimes, and the
+  node's parameter is unchanged.
+- capture_secure_vs_clear: the loopback of the namespace captured (AF_PACKET raw socket)
+  during a secure exchange holds neither the scan's frame_id nor a run of its counts as
+  CDR bytes; an unsecured control run of the same exchange (node with security off, an
+  rclpy peer without security) shows both.
+- foreign_ca_peer_refused: a secure rclpy/Cyclone peer whose identity comes from another
+  keystore (another CA, made by `ros2 security create_keystore`) tries to join: the node
+  does not match it (it sees no tracer_calibrator) and /diagnostics' key
+  peers_refused_authentication goes from 0 to at least 1.
 - enforce_missing_enclave: `--enclave /nowhere` under Enforce: the node exits non-zero at
   once with one line naming the enclave and the reason.
+- enforce_bad_credentials: copies of the node's enclave spoiled one way each (cert.pem
+  expired, re-signed by the keystore's CA; cert.pem and key.pem of another keystore's CA;
+  permissions.p7s signed by another CA; governance.p7s changed after signing): the node,
+  Enforce, exits non-zero at once with one line naming the enclave, the file and the reason.
 - permissive_missing_enclave: the same under Permissive: one warning, and the node runs
   (unsecured).
 
@@ -35,14 +54,18 @@ import subprocess
 import sys
 import time
 
+POLICY = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "config", "sros2_cell_policy.xml")
+ENCLAVES = ("/tracer_calibrator", "/planner", "/hmi")
+
+
 def make_keystore(work):
     ks = os.path.join(work, "keystore")
     env = {k: v for k, v in os.environ.items() if not k.startswith("ROS_SECURITY_")}
-    for argv in (
-        ["ros2", "security", "create_keystore", ks],
-        ["ros2", "security", "create_enclave", ks, "/tracer_calibrator"],
-        ["ros2", "security", "create_enclave", ks, "/planner"],
-    ):
+    argvs = [["ros2", "security", "create_keystore", ks]]
+    for e in ENCLAVES:
+        argvs.append(["ros2", "security", "create_enclave", ks, e])
+        argvs.append(["ros2", "security", "create_permission", ks, e, POLICY])
+    for argv in argvs:
         out = subprocess.run(argv, capture_output=True, text=True, timeout=120, env=env)
         if out.returncode != 0:
             raise SystemExit(f"test_security.py: {' '.join(argv)} failed:\n{out.stdout}{out.stderr}")
@@ -122,9 +145,11 @@ def test_secure_calibrate(peer, label="secure_calibrate"):
         assert res.results[0].successful, res
     finally:
         node.stop()
+    errors = [line for line in node.output().splitlines() if " ERROR " in line]
     return (
         f"matched after {discovered:.2f} s, first contour {first_contour * 1e3:.0f} ms, "
-        f"scan->contour median {times[len(times) // 2] * 1e3:.1f} ms (20), calibrated, parameters answered"
+        f"scan->contour median {times[len(times) // 2] * 1e3:.1f} ms (20), calibrated, parameters answered; "
+        f"{len(errors)} ERROR lines in the node's log"
     )
 
 
@@ -175,6 +200,420 @@ def test_insecure_peer_sees_nothing(peer):
     return f"{sent} secure scans and contours; the insecure peer saw nodes {seen['nodes']} and 0 contours"
 
 
+HMI = r"""
+import json, sys, time, rclpy
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from diagnostic_msgs.msg import DiagnosticArray
+from tracer_calib_msgs.msg import Calibration, Contour
+from tracer_calib_msgs.srv import Calibrate
+rclpy.init(args=['--ros-args', '--enclave', '/hmi'])
+n = rclpy.create_node('hmi')
+got = dict(contours=0, calibration=[], diagnostics=0)
+n.create_subscription(Contour, '/contour', lambda m: got.update(contours=got['contours'] + 1), 10)
+latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+n.create_subscription(Calibration, '/calibration', lambda m: got['calibration'].append(m.scan_id), latched)
+n.create_subscription(DiagnosticArray, '/diagnostics', lambda m: got.update(diagnostics=got['diagnostics'] + 1), 10)
+
+def spin(seconds, until=lambda: False):
+    t0 = time.time()
+    while time.time() - t0 < seconds and not until():
+        rclpy.spin_once(n, timeout_sec=0.1)
+
+def attempt(make, call, wait):
+    # What became of a call: 'refused: ...' (the HMI's own middleware would not make the
+    # endpoint), 'not available', 'no answer', or 'ANSWERED ...'.
+    try:
+        client = make()
+    except Exception as e:
+        return 'refused: ' + str(e).splitlines()[0][:160]
+    if not client.wait_for_service(timeout_sec=wait):
+        fut = call(client)
+        spin(2.0, fut.done)
+        return 'ANSWERED ' + str(fut.result()) if fut.done() else 'not available'
+    fut = call(client)
+    spin(wait, fut.done)
+    return 'ANSWERED ' + str(fut.result()) if fut.done() else 'no answer'
+
+spin(float(sys.argv[1]), lambda: got['contours'] > 0 and got['calibration'] and got['diagnostics'] > 0)
+calibrate = attempt(lambda: n.create_client(Calibrate, '/calibrate'),
+                    lambda c: c.call_async(Calibrate.Request()), float(sys.argv[2]))
+from rcl_interfaces.srv import SetParameters
+def set_req():
+    r = SetParameters.Request()
+    r.parameters = [Parameter('resample_points', value=123).to_parameter_msg()]
+    return r
+set_param = attempt(lambda: n.create_client(SetParameters, '/tracer_calibrator/set_parameters'),
+                    lambda c: c.call_async(set_req()), float(sys.argv[2]))
+print(json.dumps(dict(got, calibrate=calibrate, set_param=set_param)), flush=True)
+import os; os._exit(0)
+"""
+
+
+def file_state(path):
+    with open(path, "rb") as f:
+        return os.stat(path).st_mtime_ns, f.read()
+
+
+def test_hmi_read_only(peer):
+    params = os.path.join(tn.WORK, "hmi_params.yaml")
+    history = os.path.join(tn.WORK, "hmi_params.history.jsonl")
+    node = SecureNode("hmi_read_only", ["--enclave", "/tracer_calibrator", "-p", f"params_file:={params}"])
+    hmi = None
+    try:
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        peer.wait_matched(pub, timeout=30)
+        plate = tn.simulate("hmi_plate", "plate", seed=7)
+        peer.send_scan(pub, tn.raw_scan(30, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+        r = peer.call("/calibrate", Calibrate.Request(), timeout=30)
+        assert r.success, r.message
+        client = peer.param_client("/tracer_calibrator", timeout=30)
+        before = {p: file_state(p) for p in (params, history)}
+        resample = peer.param(lambda: client.get_parameters(["resample_points"])).values[0].integer_value
+        hmi = subprocess.Popen(
+            [sys.executable, "-c", HMI, "30", "8"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=dict(CYCLONE_ENV),
+        )
+        lens = tn.simulate("hmi_lens", "ellipse", seed=8)
+        sent = 0
+        t0 = time.monotonic()
+        while hmi.poll() is None and time.monotonic() - t0 < 90:
+            peer.send_scan(pub, tn.raw_scan(300 + sent, RawScan.TARGET_LENS, *lens), contours, timeout=30)
+            sent += 1
+            pause = time.monotonic() + 0.5
+            peer.spin_until(lambda: time.monotonic() >= pause, 5, "a pause")
+        out, err = hmi.communicate(timeout=30)
+        after = {p: file_state(p) for p in (params, history)}
+        resample_after = peer.param(lambda: client.get_parameters(["resample_points"])).values[0].integer_value
+    finally:
+        if hmi is not None and hmi.poll() is None:
+            hmi.kill()
+        node.stop()
+    lines = [line for line in out.splitlines() if line.startswith("{")]
+    assert lines, f"the HMI printed nothing:\n{out}\n{err}"
+    seen = json.loads(lines[-1])
+    assert seen["contours"] > 0, f"the HMI got no contour: {seen}"
+    assert seen["calibration"] == [30], f"the HMI got calibrations {seen['calibration']}"
+    assert seen["diagnostics"] > 0, f"the HMI got no /diagnostics: {seen}"
+    for what in ("calibrate", "set_param"):
+        assert not seen[what].startswith("ANSWERED"), f"the HMI's {what} was answered: {seen[what]}"
+    assert resample_after == resample, f"resample_points {resample} -> {resample_after}"
+    for p in (params, history):
+        assert after[p] == before[p], f"{os.path.basename(p)} changed while the HMI tried"
+    return (
+        f"HMI got {seen['contours']} contours, calibration of scan {seen['calibration'][0]}, "
+        f"{seen['diagnostics']} diagnostics; /calibrate: {seen['calibrate']}; set_parameters: {seen['set_param']}; "
+        "params and history files untouched"
+    )
+
+
+CLEAR_PEER = r"""
+import json, sys, time, rclpy
+from rclpy.qos import QoSProfile
+from tracer_calib_msgs.msg import Contour, RawScan
+rclpy.init()
+n = rclpy.create_node('clear_peer')
+got = []
+n.create_subscription(Contour, '/contour', got.append, QoSProfile(depth=50))
+pub = n.create_publisher(RawScan, '/raw_scan', QoSProfile(depth=50))
+scan = json.loads(sys.stdin.read())
+m = RawScan()
+m.header.frame_id = scan['frame_id']
+m.scan_id = scan['scan_id']
+m.target = RawScan.TARGET_LENS
+m.steps_per_revolution = 400
+m.step = scan['step']
+m.counts = scan['counts']
+t0 = time.time()
+while time.time() - t0 < 30 and not got:
+    if pub.get_subscription_count() > 0:
+        pub.publish(m)
+    t1 = time.time()
+    while time.time() - t1 < 0.5 and not got:
+        rclpy.spin_once(n, timeout_sec=0.05)
+print(json.dumps(dict(contours=len(got))), flush=True)
+import os; os._exit(0)
+"""
+
+
+class Capture:
+    """Every frame on the namespace's loopback while it runs (a raw AF_PACKET socket: the
+    namespace's root may open one; no tool needed)."""
+
+    def __init__(self):
+        import socket
+        import threading
+
+        self.sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(0x0003))
+        self.sock.bind(("lo", 0))
+        self.sock.settimeout(0.2)
+        self.frames = []
+        self.running = True
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        while self.running:
+            try:
+                self.frames.append(self.sock.recv(65535))
+            except OSError:
+                pass
+
+    def stop(self):
+        self.running = False
+        self.thread.join()
+        self.sock.close()
+        return self.frames
+
+
+def capture_patterns(frame_id, counts):
+    """The scan's frame_id and a run of 8 of its counts as little-endian CDR int32s."""
+    import struct
+
+    return {"frame_id": frame_id.encode(), "counts": struct.pack("<8i", *counts[100:108])}
+
+
+def found(frames, patterns):
+    return {name: sum(1 for f in frames if pat in f) for name, pat in patterns.items()}
+
+
+def test_capture_secure_vs_clear(peer):
+    steps, counts = tn.simulate("cap_lens", "ellipse", seed=11)
+    frame_id = "edging-secret-frame-4f9c1d"
+    patterns = capture_patterns(frame_id, counts)
+    # Secure: the node and this process (planner, Enforce).
+    node = SecureNode("capture_secure", ["--enclave", "/tracer_calibrator"])
+    try:
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        peer.wait_matched(pub, timeout=30)
+        cap = Capture()
+        msg = tn.raw_scan(400, RawScan.TARGET_LENS, steps, counts)
+        msg.header.frame_id = frame_id
+        for i in range(3):
+            msg.scan_id = 400 + i
+            peer.send_scan(pub, msg, contours)
+        secure_frames = cap.stop()
+    finally:
+        node.stop()
+    secure = found(secure_frames, patterns)
+    # Control: the same scan, node with security off, an rclpy peer without security.
+    env = {k: v for k, v in NODE_ENV.items() if not k.startswith("ROS_SECURITY_")}
+    clear_node = SecureNode("capture_clear", [], env=env)
+    cap = Capture()
+    try:
+        peer_env = {k: v for k, v in CYCLONE_ENV.items() if not k.startswith("ROS_SECURITY_")}
+        out = subprocess.run(
+            [sys.executable, "-c", CLEAR_PEER],
+            input=json.dumps(dict(frame_id=frame_id, scan_id=500, step=steps, counts=counts)),
+            capture_output=True,
+            text=True,
+            timeout=60,
+            env=peer_env,
+        )
+    finally:
+        clear_frames = cap.stop()
+        clear_node.stop()
+    lines = [line for line in out.stdout.splitlines() if line.startswith("{")]
+    assert lines and json.loads(lines[-1])["contours"] > 0, f"the clear control run got no contour:\n{out.stdout}{out.stderr}"
+    clear = found(clear_frames, patterns)
+    assert len(secure_frames) > 0, "nothing captured during the secure exchange"
+    assert secure == {"frame_id": 0, "counts": 0}, f"secure capture holds the scan: {secure} frames"
+    assert clear["frame_id"] > 0 and clear["counts"] > 0, f"clear capture does not show the scan: {clear}"
+    return (
+        f"secure: {len(secure_frames)} frames, pattern hits {secure}; "
+        f"clear control: {len(clear_frames)} frames, pattern hits {clear}"
+    )
+
+
+FOREIGN_PEER = r"""
+import json, sys, time, rclpy
+from tracer_calib_msgs.msg import Contour
+rclpy.init(args=['--ros-args', '--enclave', '/planner'])
+n = rclpy.create_node('planner')
+got = []
+n.create_subscription(Contour, '/contour', got.append, 10)
+seen = set()
+t0 = time.time()
+while time.time() - t0 < float(sys.argv[1]):
+    rclpy.spin_once(n, timeout_sec=0.1)
+    seen.update(name for name, _ in n.get_node_names_and_namespaces())
+print(json.dumps(dict(contours=len(got), nodes=sorted(seen))), flush=True)
+import os; os._exit(0)
+"""
+
+
+def make_foreign_keystore():
+    """A keystore of another CA (its own `ros2 security create_keystore`), with an enclave
+    /planner: a valid identity there, a foreign one for the node."""
+    ks = os.path.join(tn.WORK, "foreign_keystore")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("ROS_SECURITY_")}
+    for argv in (["ros2", "security", "create_keystore", ks], ["ros2", "security", "create_enclave", ks, "/planner"]):
+        out = subprocess.run(argv, capture_output=True, text=True, timeout=120, env=env)
+        assert out.returncode == 0, f"{' '.join(argv)} failed:\n{out.stdout}{out.stderr}"
+    return ks
+
+
+def refused_count(peer, diags, at_least=0, timeout=15):
+    """The node's peers_refused_authentication on /diagnostics: the first value reaching
+    `at_least`, or the last one seen within `timeout` s."""
+
+    def value(msg):
+        for kv in msg.status[0].values:
+            if kv.key == "peers_refused_authentication":
+                return int(kv.value)
+        raise AssertionError(f"no peers_refused_authentication in {[kv.key for kv in msg.status[0].values]}")
+
+    deadline = time.monotonic() + timeout
+    start = len(diags)
+    while True:
+        peer.spin_until(lambda: len(diags) > start, timeout, "a /diagnostics message")
+        start = len(diags)
+        got = value(diags[-1])
+        if got >= at_least or time.monotonic() >= deadline:
+            return got
+
+
+def test_foreign_ca_peer_refused(peer):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    foreign = foreign_keystore()
+    node = SecureNode("foreign_ca_peer", ["--enclave", "/tracer_calibrator"])
+    intruder = None
+    try:
+        diags = peer.subscribe(DiagnosticArray, "/diagnostics")
+        before = refused_count(peer, diags, timeout=30)
+        env = dict(CYCLONE_ENV, ROS_SECURITY_KEYSTORE=foreign)
+        t0 = time.monotonic()
+        intruder = subprocess.Popen(
+            [sys.executable, "-c", FOREIGN_PEER, "15"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+        )
+        # A refusal is counted when the handshake fails, or when ours went unanswered
+        # for its 10 resends (a Cyclone peer refusing our certificate is silent).
+        after = refused_count(peer, diags, at_least=1, timeout=25)
+        counted_after = time.monotonic() - t0
+        out, err = intruder.communicate(timeout=60)
+        node.check_alive()
+    finally:
+        if intruder is not None and intruder.poll() is None:
+            intruder.kill()
+        node.stop()
+    lines = [line for line in out.splitlines() if line.startswith("{")]
+    assert lines, f"the foreign-CA peer printed nothing:\n{out}\n{err}"
+    seen = json.loads(lines[-1])
+    assert before == 0, f"peers_refused_authentication was {before} before the foreign peer"
+    assert after >= 1, f"peers_refused_authentication stayed {after} with a foreign-CA peer"
+    assert "tracer_calibrator" not in seen["nodes"], f"the foreign-CA peer saw {seen['nodes']}"
+    return (
+        f"peers_refused_authentication {before} -> {after} ({counted_after:.1f} s after the peer started); "
+        f"the foreign-CA peer saw nodes {seen['nodes']}"
+    )
+
+
+_FOREIGN = []
+
+
+def foreign_keystore():
+    if not _FOREIGN:
+        _FOREIGN.append(make_foreign_keystore())
+    return _FOREIGN[0]
+
+
+def expired_cert(ks, enclave_dir):
+    """cert.pem of the enclave made again, expired since yesterday, signed by the keystore's
+    own identity CA (as sros2 signs: the `cryptography` package it uses)."""
+    import datetime
+
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+
+    with open(os.path.join(ks, "private", "identity_ca.key.pem"), "rb") as f:
+        ca_key = serialization.load_pem_private_key(f.read(), password=None)
+    with open(os.path.join(ks, "public", "identity_ca.cert.pem"), "rb") as f:
+        ca = x509.load_pem_x509_certificate(f.read())
+    with open(os.path.join(enclave_dir, "cert.pem"), "rb") as f:
+        old = x509.load_pem_x509_certificate(f.read())
+    now = datetime.datetime.now(datetime.timezone.utc)
+    cert = (
+        x509.CertificateBuilder()
+        .subject_name(old.subject)
+        .issuer_name(ca.subject)
+        .public_key(old.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - datetime.timedelta(days=30))
+        .not_valid_after(now - datetime.timedelta(days=1))
+        .sign(ca_key, hashes.SHA256())
+    )
+    return cert.public_bytes(serialization.Encoding.PEM)
+
+
+def test_enforce_bad_credentials(peer):
+    """Credentials made by `ros2 security` (and one by its `cryptography`), spoiled one way
+    each: the node, Enforce, exits non-zero at once with one line naming the file and why."""
+    import shutil
+
+    foreign = os.path.join(foreign_keystore(), "enclaves", "planner")
+    cases = []
+
+    def spoil(name, change, file, reason):
+        ks = os.path.join(tn.WORK, f"bad_{name}")
+        shutil.copytree(KEYSTORE, ks)
+        change(os.path.join(ks, "enclaves", "tracer_calibrator"), ks)
+        cases.append((name, ks, file, reason))
+
+    def write(path, data):
+        with open(path, "wb") as f:
+            f.write(data)
+
+    def read(path):
+        with open(path, "rb") as f:
+            return f.read()
+
+    spoil("expired", lambda d, ks: write(os.path.join(d, "cert.pem"), expired_cert(ks, d)), "cert.pem",
+          "certificate expired on")
+
+    def foreign_identity(d, ks):
+        for f in ("cert.pem", "key.pem"):
+            shutil.copy(os.path.join(foreign, f), os.path.join(d, f))
+
+    spoil("foreign_ca", foreign_identity, "cert.pem", "not signed by the identity CA")
+    spoil("permissions", lambda d, ks: shutil.copy(os.path.join(foreign, "permissions.p7s"), d), "permissions.p7s",
+          "signature does not verify")
+
+    def tamper(d, ks):
+        path = os.path.join(d, "governance.p7s")
+        doc = read(path)
+        assert b"ENCRYPT" in doc
+        write(path, doc.replace(b"ENCRYPT", b"NONE", 1))
+
+    spoil("governance", tamper, "governance.p7s", "signature does not verify")
+    report = []
+    for name, ks, file, reason in cases:
+        env = dict(NODE_ENV, ROS_SECURITY_KEYSTORE=ks)
+        node = SecureNode(f"bad_{name}", ["--enclave", "/tracer_calibrator"], env=env)
+        t0 = time.monotonic()
+        try:
+            rc = node.proc.wait(timeout=10)
+        finally:
+            if node in tn.RUNNING:
+                tn.RUNNING.remove(node)
+        took = time.monotonic() - t0
+        out = node.output().strip()
+        lines = out.splitlines()
+        assert rc != 0, f"{name}: exit code {rc}:\n{out}"
+        assert len(lines) == 1, f"{name}: expected one line, got:\n{out}"
+        want = os.path.join(ks, "enclaves", "tracer_calibrator", file)
+        assert f"'{want}'" in lines[0] and reason in lines[0], f"{name}: {lines[0]}"
+        assert "enclave '/tracer_calibrator'" in lines[0], lines[0]
+        why = lines[0].split(want + "': ", 1)[-1][:60]
+        report.append(f"{name}: exit {rc} in {took * 1e3:.0f} ms ({file}: {why})")
+    return "; ".join(report)
+
+
 def run_missing(strategy):
     env = dict(NODE_ENV, ROS_SECURITY_STRATEGY=strategy)
     return SecureNode(f"missing_{strategy}", ["--enclave", "/nowhere"], env=env)
@@ -222,7 +661,11 @@ def main():
         # The node restarted (a new participant, the same enclave): the peer meets it again.
         ("secure_restart", lambda: test_secure_calibrate(peer, "secure_restart")),
         ("insecure_peer_sees_nothing", lambda: test_insecure_peer_sees_nothing(peer)),
+        ("hmi_read_only", lambda: test_hmi_read_only(peer)),
+        ("capture_secure_vs_clear", lambda: test_capture_secure_vs_clear(peer)),
+        ("foreign_ca_peer_refused", lambda: test_foreign_ca_peer_refused(peer)),
         ("enforce_missing_enclave", lambda: test_enforce_missing_enclave(peer)),
+        ("enforce_bad_credentials", lambda: test_enforce_bad_credentials(peer)),
         ("permissive_missing_enclave", lambda: test_permissive_missing_enclave(peer)),
     ]
     tn.run_tests_and_exit("test_security.py", tests, sys.argv[1:], "interop::", "security")

@@ -59,6 +59,7 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
         let msg = {
             let mut st = shared.state.lock().expect("state lock");
             st.clock_problem = clock_problem;
+            st.stats.peers_refused_authentication = crate::rmw::security::peers_refused_authentication();
             st.diagnostics(now)
         };
         if let Err(err) = e.publish_diagnostics(msg).await {

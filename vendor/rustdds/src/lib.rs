@@ -187,6 +187,9 @@ mod rtps;
 mod security;
 #[cfg(feature = "security")]
 pub use security::config::DomainParticipantSecurityConfigFiles;
+// tracer_calib patch (security): the count of remote participants refused authentication.
+#[cfg(feature = "security")]
+pub use security::remote_participants_refused_authentication;
 
 #[cfg(not(feature = "security"))]
 mod no_security;

@@ -120,6 +120,11 @@ pub(crate) struct SecureDiscovery {
 
   // A set for keeping track which remote readers are relay-only
   relay_only_remote_readers: HashSet<GUID>,
+
+  // tracer_calib patch (security): the remote participants whose authentication failed
+  // here (identity, handshake request, reply or final message refused), each counted
+  // once in `security::refused_authentication_count`.
+  refused_authentication: HashSet<GuidPrefix>,
 }
 
 impl SecureDiscovery {
@@ -267,6 +272,7 @@ impl SecureDiscovery {
       cached_received_key_exchange_messages: HashMap::new(),
       user_data_endpoints_with_keys_already_sent_to: HashSet::new(),
       relay_only_remote_readers: HashSet::new(),
+      refused_authentication: HashSet::new(), // tracer_calib patch (security)
     })
   }
 
@@ -1322,7 +1328,9 @@ impl SecureDiscovery {
     };
 
     // First validate the remote identity
-    let outcome: ValidationOutcome = match self
+    // tracer_calib patch (security): the result taken first, so that the plugins' lock is
+    // released before a refusal is counted.
+    let validation = self
       .security_plugins
       .get_plugins()
       .validate_remote_identity(
@@ -1330,7 +1338,8 @@ impl SecureDiscovery {
         remote_identity_token,
         remote_guid.prefix,
         None,
-      ) {
+      );
+    let outcome: ValidationOutcome = match validation {
       Ok(res) => {
         // Validation passed. Getting only the validation outcome, ignoring
         // authentication request token which is not used
@@ -1356,6 +1365,7 @@ impl SecureDiscovery {
           return AuthenticationStatus::Unauthenticated;
         } else {
           // Reject the damn thing
+          self.count_refused_authentication(remote_guid.prefix, &e.msg); // tracer_calib patch (security)
           return AuthenticationStatus::Rejected;
         }
       }
@@ -1414,6 +1424,15 @@ impl SecureDiscovery {
         );
         AuthenticationStatus::Rejected // return value
       }
+    }
+  }
+
+  // tracer_calib patch (security): a remote participant failed authentication; counted
+  // once per participant.
+  fn count_refused_authentication(&mut self, remote: GuidPrefix, why: &str) {
+    if self.refused_authentication.insert(remote) {
+      crate::security::count_refused_authentication();
+      warn!("Remote participant {remote:?} refused: authentication failed: {why}");
     }
   }
 
@@ -1541,6 +1560,28 @@ impl SecureDiscovery {
           }
         }
       }
+    }
+    // tracer_calib patch (security): a handshake request or reply of ours that the remote
+    // never answered, all resends spent: the remote refused our credentials (Cyclone DDS
+    // answers a handshake it refuses with silence) or left mid-handshake. Counted as
+    // refused authentication.
+    let unanswered: Vec<GuidPrefix> = self
+      .stored_authentication_messages
+      .iter()
+      .filter(|(guid_prefix, message)| {
+        message.remaining_resend_counter == 0
+          && matches!(
+            self.handshake_states.get(guid_prefix),
+            Some(DiscHandshakeState::PendingReplyMessage | DiscHandshakeState::PendingFinalMessage)
+          )
+      })
+      .map(|(guid_prefix, _)| *guid_prefix)
+      .collect();
+    for guid_prefix in unanswered {
+      self.count_refused_authentication(
+        guid_prefix,
+        &format!("no answer to our handshake message after {STORED_AUTH_MESSAGE_MAX_RESEND_COUNT} sends"),
+      );
     }
     // Remove authentication messages with no more resends
     self
@@ -1749,6 +1790,7 @@ impl SecureDiscovery {
         error!(
           "Replying to a handshake request failed: {e}. Remote guid prefix: {remote_guid_prefix:?}"
         );
+        self.count_refused_authentication(remote_guid_prefix, &e.to_string()); // tracer_calib patch (security)
       }
     }
   }
@@ -1847,6 +1889,7 @@ impl SecureDiscovery {
           "Validating handshake reply message failed. Error: {e}. Remote guid prefix: \
            {remote_guid_prefix:?}"
         );
+        self.count_refused_authentication(remote_guid_prefix, &e.to_string()); // tracer_calib patch (security)
         // Reset stored message resend counter, so our resends can't be depleted by
         // sending us incorrect messages
         self.reset_stored_message_resend_counter(&remote_guid_prefix);
@@ -1926,6 +1969,7 @@ impl SecureDiscovery {
           "Validating final handshake message failed. Error: {e}. Remote guid prefix: \
            {remote_guid_prefix:?}"
         );
+        self.count_refused_authentication(remote_guid_prefix, &e.to_string()); // tracer_calib patch (security)
         // Reset stored message resend counter, so our resends can't be depleted by
         // sending us incorrect messages
         self.reset_stored_message_resend_counter(&remote_guid_prefix);

@@ -127,6 +127,22 @@ impl Certificate {
       .map_err(|e| security_error(&format!("Signature verification failure: {e:?}")))
   }
 
+  // tracer_calib patch (security): the certificate's validity period holds now. The
+  // built-in authentication checked a remote identity's CA signature but not its dates,
+  // so an expired (or not yet valid) certificate was accepted (DDS Security 1.1
+  // 9.3.2.5.1: the identity certificate is validated, which includes its period).
+  pub fn verify_valid_now(&self) -> SecurityResult<()> {
+    if self.cert.time_constraints_valid(None) {
+      Ok(())
+    } else {
+      Err(security_error(&format!(
+        "Certificate not valid now: valid from {} to {}",
+        self.cert.validity_not_before(),
+        self.cert.validity_not_after()
+      )))
+    }
+  }
+
   // Verify that `self` was signed by `other` Certificate
   // e.g.
   // `someones_identity.verify_signed_by_certificate( certificate_authority )`

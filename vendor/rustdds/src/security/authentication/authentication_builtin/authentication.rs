@@ -534,6 +534,7 @@ impl Authentication for AuthenticationBuiltin {
 
     // Verify that 1's identity cert checks out against CA.
     cert1.verify_signed_by_certificate(&local_info.identity_ca)?;
+    cert1.verify_valid_now()?; // tracer_calib patch (security): an expired certificate is refused
 
     // Verify that the remote GUID is as specified by the spec
     let remote_pdata =
@@ -727,6 +728,7 @@ impl Authentication for AuthenticationBuiltin {
 
         // Verify that 2's identity cert checks out against CA.
         cert2.verify_signed_by_certificate(&local_info.identity_ca)?;
+        cert2.verify_valid_now()?; // tracer_calib patch (security): an expired certificate is refused
 
         // Verify that the remote GUID is as specified by the spec.
         // Note that spec does say that this check needs to be done here. But it seems
