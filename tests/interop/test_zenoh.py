@@ -22,6 +22,9 @@ shutdown on rmw_zenoh can hang for 10 s: ../shared/notes/ros2-peer.md).
   describe and set (a bad value refused with its reason), and the set is in the params file.
 - zenoh_node_cli: the real `ros2 node list`, `ros2 topic info -v`, `ros2 service call`
   and `ros2 param get/set` on Zenoh: the node with rosidl's type hashes, a calibration.
+- zenoh_node_lifecycle: the node managed (`-p managed:=true`) on Zenoh: the real `ros2
+  lifecycle get/set` configure and activate it; a scan while inactive is held (no contour),
+  one after activation comes back; each transition on ~/transition_event.
 - zenoh_node_namespaces: ten nodes (namespaces /cell0../cell9, one remapped topic) on one
   router, each one's scans and /calibrate its own.
 - zenoh_node_leave: SIGTERM: the node gone from a stock peer's graph within 1 s.
@@ -405,6 +408,63 @@ def test_zenoh_node_cli():
         node.stop()
 
 
+def lines(text):
+    return [ln.strip() for ln in text.splitlines()]
+
+
+def test_zenoh_node_lifecycle():
+    if not shutil.which("ros2"):
+        return "skipped: no ros2 command (tests/interop/ros2cli.sh installs it)"
+    from lifecycle_msgs.msg import TransitionEvent
+    router()
+    node = zenoh_node("zenoh_lifecycle", ["-p", "managed:=true"])
+    peer = peer_node()
+    env = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
+
+    def cli(*args):
+        out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=env, capture_output=True, text=True)
+        assert out.returncode == 0, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
+        return out.stdout
+
+    try:
+        events = peer.subscribe(TransitionEvent, "/tracer_calibrator/transition_event")
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        deadline = time.monotonic() + 15
+        while True:
+            out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", "lifecycle", "get", "--no-daemon",
+                                  "/tracer_calibrator"], env=env, capture_output=True, text=True)
+            if out.returncode == 0:
+                break
+            node.check_alive()
+            assert time.monotonic() < deadline, f"ros2 lifecycle get on Zenoh: {out.stdout}\n{out.stderr}"
+            time.sleep(0.3)
+        # (rmw_zenoh's CLI process may add a zenoh ERROR line as its session closes.)
+        assert "unconfigured [1]" in lines(out.stdout), out.stdout
+        assert "Transitioning successful" in cli("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "configure")
+        assert "inactive [2]" in lines(cli("lifecycle", "get", "--no-daemon", "/tracer_calibrator"))
+        lens = tn.simulate("zlc_lens", "ellipse", seed=9)
+        peer.wait_matched(pub)
+        pub.publish(tn.raw_scan(40, RawScan.TARGET_LENS, *lens))
+        try:
+            peer.spin_until(lambda: contours, 1.0, "a contour")
+            raise AssertionError("an inactive node published a contour")
+        except AssertionError as e:
+            if "inactive" in str(e):
+                raise
+        assert "Transitioning successful" in cli("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "activate")
+        assert "active [3]" in lines(cli("lifecycle", "get", "--no-daemon", "/tracer_calibrator"))
+        c = peer.send_scan(pub, tn.raw_scan(41, RawScan.TARGET_LENS, *lens), contours)
+        assert c.scan_id == 41
+        peer.spin_until(lambda: len(events) >= 4, 5, "four transition events")
+        labels = [(e.start_state.label, e.goal_state.label) for e in events]
+        assert labels == [("unconfigured", "configuring"), ("configuring", "inactive"),
+                          ("inactive", "activating"), ("activating", "active")], labels
+        return "unconfigured -> inactive -> active by ros2 lifecycle on Zenoh, 4 transition events"
+    finally:
+        node.stop()
+
+
 def test_zenoh_node_namespaces():
     router()
     cells = 10
@@ -578,6 +638,7 @@ def main():
         ("zenoh_stock_pair", test_zenoh_stock_pair),
         ("zenoh_node_calibrate", test_zenoh_node_calibrate),
         ("zenoh_node_cli", test_zenoh_node_cli),
+        ("zenoh_node_lifecycle", test_zenoh_node_lifecycle),
         ("zenoh_node_namespaces", test_zenoh_node_namespaces),
         ("zenoh_node_leave", test_zenoh_node_leave),
         ("zenoh_node_bad_environment", test_zenoh_node_bad_environment),

@@ -11,13 +11,14 @@
 //!
 //! QoS as rcl's defaults for services and publishers (reliable, volatile, keep last 10).
 //! The state machine and the node's callbacks are the cell's ([`crate::cell::lifecycle`],
-//! [`crate::cell::managed`]); this maps them onto `lifecycle_msgs`. Each transition taken is
+//! [`crate::cell::managed`]); this maps them onto `lifecycle_msgs`, through a
+//! [`LifecycleWire`]: [`LifecycleEntities`] on DDS, `super::zenoh::ZenohLifecycle` on Zenoh. Each transition taken is
 //! one `transition_event` (rcl publishes the start and goal states; the transition's id and
 //! label and the timestamp, on the node's clock in nanoseconds, are filled in too). A
 //! transition the current state does not offer is logged at ERROR and answered
 //! `success: false`, as rclcpp_lifecycle does.
 
-use futures::{StreamExt, stream};
+use futures::{Stream, StreamExt, stream};
 use log::{debug, error, info, warn};
 use ros2_client::dds::{Node, Publisher, Server, ServiceMapping};
 use ros2_client::{Name, service::RmwRequestId};
@@ -94,7 +95,7 @@ fn description(t: &Transition) -> TransitionDescription {
 }
 
 /// A request to one of the five services.
-enum Call {
+pub(super) enum Call {
     ChangeState(ChangeStateRequest),
     GetState,
     GetAvailableStates,
@@ -102,25 +103,72 @@ enum Call {
     GetTransitionGraph,
 }
 
+/// The answer to a [`Call`].
+pub(super) enum Reply {
+    ChangeState(ChangeStateResponse),
+    GetState(GetStateResponse),
+    GetAvailableStates(GetAvailableStatesResponse),
+    GetAvailableTransitions(GetAvailableTransitionsResponse),
+    GetTransitionGraph(GetAvailableTransitionsResponse),
+}
+
+/// A middleware's lifecycle services and transition event publisher: the seam the
+/// lifecycle loop is written against (as [`super::Wire`] for the others).
+pub(super) trait LifecycleWire {
+    /// A service request's identity, to answer it with.
+    type RequestId: std::fmt::Debug + Copy;
+    /// The requests to the five services, merged.
+    fn calls(&self) -> impl Stream<Item = Result<(Self::RequestId, Call), String>> + '_;
+    /// Answer a request (`reply` is the answer to its kind of call).
+    fn answer(&self, id: Self::RequestId, reply: Reply) -> impl Future<Output = Result<(), String>> + '_;
+    /// Publish a transition event.
+    fn publish_event(&self, event: TransitionEvent) -> impl Future<Output = Result<(), String>> + '_;
+}
+
 /// The five request streams merged into one.
-type Calls<'a> = std::pin::Pin<Box<dyn futures::Stream<Item = Result<(RmwRequestId, Call), String>> + 'a>>;
+type Calls<'a, Id> = std::pin::Pin<Box<dyn futures::Stream<Item = Result<(Id, Call), String>> + 'a>>;
+
+/// `s`, a service's request stream, as [`Call`]s made by `call`.
+pub(super) fn calls<'a, Id: 'a, R: 'a, E: std::fmt::Debug + 'a>(
+    s: impl futures::Stream<Item = Result<(Id, R), E>> + 'a,
+    call: fn(R) -> Call,
+) -> Calls<'a, Id> {
+    Box::pin(s.map(move |r| r.map(|(id, req)| (id, call(req))).map_err(|e| format!("{e:?}"))))
+}
+
+impl LifecycleWire for LifecycleEntities {
+    type RequestId = RmwRequestId;
+
+    fn calls(&self) -> impl Stream<Item = Result<(RmwRequestId, Call), String>> + '_ {
+        stream::select_all([
+            calls(self.change_state.receive_request_stream(), Call::ChangeState),
+            calls(self.get_state.receive_request_stream(), |_| Call::GetState),
+            calls(self.get_available_states.receive_request_stream(), |_| Call::GetAvailableStates),
+            calls(self.get_available_transitions.receive_request_stream(), |_| Call::GetAvailableTransitions),
+            calls(self.get_transition_graph.receive_request_stream(), |_| Call::GetTransitionGraph),
+        ])
+    }
+
+    async fn answer(&self, id: RmwRequestId, reply: Reply) -> Result<(), String> {
+        match reply {
+            Reply::ChangeState(r) => self.change_state.async_send_response(id, r).await,
+            Reply::GetState(r) => self.get_state.async_send_response(id, r).await,
+            Reply::GetAvailableStates(r) => self.get_available_states.async_send_response(id, r).await,
+            Reply::GetAvailableTransitions(r) => self.get_available_transitions.async_send_response(id, r).await,
+            Reply::GetTransitionGraph(r) => self.get_transition_graph.async_send_response(id, r).await,
+        }
+        .map_err(|e| format!("{e:?}"))
+    }
+
+    async fn publish_event(&self, event: TransitionEvent) -> Result<(), String> {
+        self.transition_event.async_publish(event).await.map_err(|e| format!("{e:?}"))
+    }
+}
 
 /// Each request to the five services answered in turn, transitions one at a time (the
 /// cell's state is locked for each). Ends when the request streams do.
-pub(super) async fn run(l: &LifecycleEntities, shared: &Shared) {
-    fn calls<'a, R: 'a>(
-        s: impl futures::Stream<Item = ros2_client::ReadResult<(RmwRequestId, R)>> + 'a,
-        call: fn(R) -> Call,
-    ) -> Calls<'a> {
-        Box::pin(s.map(move |r| r.map(|(id, req)| (id, call(req))).map_err(|e| format!("{e:?}"))))
-    }
-    let mut requests = stream::select_all([
-        calls(l.change_state.receive_request_stream(), Call::ChangeState),
-        calls(l.get_state.receive_request_stream(), |_| Call::GetState),
-        calls(l.get_available_states.receive_request_stream(), |_| Call::GetAvailableStates),
-        calls(l.get_available_transitions.receive_request_stream(), |_| Call::GetAvailableTransitions),
-        calls(l.get_transition_graph.receive_request_stream(), |_| Call::GetTransitionGraph),
-    ]);
+pub(super) async fn run(l: &impl LifecycleWire, shared: &Shared) {
+    let mut requests = std::pin::pin!(l.calls());
     while let Some(item) = requests.next().await {
         let (id, call) = match item {
             Ok(r) => r,
@@ -129,36 +177,32 @@ pub(super) async fn run(l: &LifecycleEntities, shared: &Shared) {
                 continue;
             }
         };
-        let sent = match call {
+        let reply = match call {
             Call::ChangeState(req) => {
                 let success = change_state(l, shared, &req).await;
-                l.change_state.async_send_response(id, ChangeStateResponse { success }).await
+                Reply::ChangeState(ChangeStateResponse { success })
             }
             Call::GetState => {
                 let current = current_state(shared);
-                l.get_state.async_send_response(id, GetStateResponse { current_state: state_msg(current) }).await
+                Reply::GetState(GetStateResponse { current_state: state_msg(current) })
             }
             Call::GetAvailableStates => {
                 let available_states = STATES.iter().copied().map(state_msg).collect();
-                l.get_available_states.async_send_response(id, GetAvailableStatesResponse { available_states }).await
+                Reply::GetAvailableStates(GetAvailableStatesResponse { available_states })
             }
             Call::GetAvailableTransitions => {
                 let available_transitions = {
                     let st = shared.state.lock().expect("state lock");
                     st.lifecycle.as_ref().map(|lc| lc.available().map(description).collect()).unwrap_or_default()
                 };
-                let response = GetAvailableTransitionsResponse { available_transitions };
-                l.get_available_transitions.async_send_response(id, response).await
+                Reply::GetAvailableTransitions(GetAvailableTransitionsResponse { available_transitions })
             }
-            Call::GetTransitionGraph => {
-                let response = GetAvailableTransitionsResponse {
-                    available_transitions: TRANSITIONS.iter().map(description).collect(),
-                };
-                l.get_transition_graph.async_send_response(id, response).await
-            }
+            Call::GetTransitionGraph => Reply::GetTransitionGraph(GetAvailableTransitionsResponse {
+                available_transitions: TRANSITIONS.iter().map(description).collect(),
+            }),
         };
-        if let Err(err) = sent {
-            warn!("cannot send a lifecycle response: {err:?}");
+        if let Err(err) = l.answer(id, reply).await {
+            warn!("cannot send a lifecycle response: {err}");
         }
     }
 }
@@ -171,7 +215,7 @@ fn current_state(shared: &Shared) -> lifecycle::State {
 /// One requested transition walked through the cell: each step published as a
 /// `transition_event`, the calibration in force republished (configure and cleanup change
 /// what it rests on). Returns `ChangeState`'s `success`.
-async fn change_state(l: &LifecycleEntities, shared: &Shared, req: &ChangeStateRequest) -> bool {
+async fn change_state(l: &impl LifecycleWire, shared: &Shared, req: &ChangeStateRequest) -> bool {
     let request = lifecycle::Request { id: req.transition.id, label: &req.transition.label };
     let now = shared.now();
     let mut history = None;
@@ -198,8 +242,8 @@ async fn change_state(l: &LifecycleEntities, shared: &Shared, req: &ChangeStateR
             start_state: state_msg(step.start),
             goal_state: state_msg(step.goal),
         };
-        if let Err(err) = l.transition_event.async_publish(event).await {
-            warn!("cannot publish a transition event: {err:?}");
+        if let Err(err) = l.publish_event(event).await {
+            warn!("cannot publish a transition event: {err}");
         }
     }
     let (first, last) = (walk.steps[0], walk.steps[walk.steps.len() - 1]);

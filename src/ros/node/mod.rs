@@ -11,7 +11,7 @@
 //! | [`diagnostics`] | `/diagnostics` at 1 Hz |
 //! | [`type_description`] | `~/get_type_description` (REP-2016) |
 //! | [`graph`] | DDS: matches (polygons only when someone listens) and incompatible QoS |
-//! | [`lifecycle`] | DDS: a managed node's lifecycle services and transition events |
+//! | [`lifecycle`] | a managed node's lifecycle services and transition events |
 //! | [`zenoh`] | Zenoh: the graph (polygons only when someone listens), the parameter services |
 //!
 //! The parameters ([`parameters`]) are served by ros2-client's parameter services, with
@@ -163,9 +163,6 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         }
         #[cfg(feature = "zenoh")]
         Middleware::Zenoh => {
-            if params.managed {
-                return Err("managed:=true: the lifecycle is served on DDS only; on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) run the node unmanaged".into());
-            }
             if let crate::rmw::Security::Enclave { name, .. } = &security {
                 return Err(format!(
                     "ROS_SECURITY_ENABLE=true (enclave {name}): SROS2 is served on DDS only; on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) secure the router's links with Zenoh's TLS and access control"
@@ -175,13 +172,21 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 return Err("use_sim_time:=true: simulated time is followed on DDS only; on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) the node runs on the system clock".into());
             }
             let zenv = crate::rmw::zenoh::ZenohEnv::from_env();
-            let entities = zenoh::ZenohEntities::create(&env, &zenv, &identity, options, &endpoints)?;
+            let entities = zenoh::ZenohEntities::create(&env, &zenv, &identity, options, &endpoints, params.managed)?;
             info!(
                 "{fqn}: listening on {} (raw scans), serving {}; Zenoh (rmw_zenoh_cpp), domain {}",
                 endpoints.raw_scan.0, endpoints.calibrate, env.domain_id
             );
             let e = &entities;
-            serve(e, &shared, vec![Box::pin(e.run_graph_and_parameters(&shared))], shutdown, &fqn);
+            let mut extra: Vec<Loop<'_>> = vec![Box::pin(e.run_graph_and_parameters(&shared))];
+            if let Some(l) = &e.lifecycle {
+                let shared = &shared;
+                extra.push(Box::pin(async move {
+                    lifecycle::run(l, shared).await;
+                    error!("the lifecycle request streams ended")
+                }));
+            }
+            serve(e, &shared, extra, shutdown, &fqn);
             entities.close();
         }
         #[cfg(not(feature = "zenoh"))]

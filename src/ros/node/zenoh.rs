@@ -12,7 +12,8 @@
 //! - `calibration` (transient local, depth 1) from a publisher with a cache of one sample
 //!   and publisher detection, so a late rmw_zenoh subscriber gets the calibration in force
 //!   (`vendor/ros2-client/PATCHES.md`);
-//! - the parameter services and `/parameter_events`, rosout.
+//! - the parameter services and `/parameter_events`, rosout;
+//! - a managed node's lifecycle services and `~/transition_event` ([`ZenohLifecycle`]).
 //!
 //! The session, its router and the environment: [`crate::rmw::zenoh`].
 
@@ -24,11 +25,17 @@ use ros2_client::zenoh::{Context, Node, Publisher, Server, Subscription};
 use ros2_client::{MessageTypeName, NodeOptions, ParameterValue, RmwRequestId, ServiceTypeName};
 
 use super::entities::{Endpoints, latched_qos, reliable};
+use super::lifecycle::{Call, LifecycleWire, Reply, calls};
 use super::{Shared, Wire};
 use crate::interfaces::{
     Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
     tracer_calib_msgs as msgs,
+};
+use crate::interfaces::{
+    ChangeState, ChangeStateRequest, ChangeStateResponse, GetAvailableStates, GetAvailableStatesRequest,
+    GetAvailableStatesResponse, GetAvailableTransitions, GetAvailableTransitionsRequest,
+    GetAvailableTransitionsResponse, GetState, GetStateRequest, GetStateResponse, TransitionEvent,
 };
 use crate::rmw::RosEnv;
 use crate::rmw::dds::TypesInUse;
@@ -46,6 +53,8 @@ pub(super) struct ZenohEntities {
     calibration: Publisher<msgs::Calibration>,
     calibrate: Server<CalibrateRequest, CalibrateResponse>,
     type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
+    /// The lifecycle services and events of a managed node.
+    pub lifecycle: Option<ZenohLifecycle>,
     types_in_use: TypesInUse,
 }
 
@@ -66,6 +75,7 @@ impl ZenohEntities {
         identity: &NodeIdentity,
         options: NodeOptions,
         endpoints: &Endpoints,
+        managed: bool,
     ) -> Result<Self, String> {
         let types_in_use = TypesInUse::default();
         let ctx = crate::rmw::zenoh::context(zenoh, env.domain_id, types_in_use.hashing_resolver())?;
@@ -88,6 +98,8 @@ impl ZenohEntities {
             .map_err(|e| e.to_string())?;
         let type_description =
             node.create_server(&type_description_name, &service_type::<GetTypeDescription>()).map_err(mk)?;
+        let lifecycle =
+            if managed { Some(ZenohLifecycle::create(&node, &identity.fully_qualified_name())?) } else { None };
         Ok(ZenohEntities {
             ctx,
             node,
@@ -98,6 +110,7 @@ impl ZenohEntities {
             calibration,
             calibrate,
             type_description,
+            lifecycle,
             types_in_use,
         })
     }
@@ -136,9 +149,10 @@ impl ZenohEntities {
             calibration,
             calibrate,
             type_description,
+            lifecycle,
             types_in_use: _,
         } = self;
-        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description));
+        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description, lifecycle));
         drop(node);
         if let Err(e) = zenoh::Wait::wait(ctx.session().close()) {
             log::debug!("closing the Zenoh session: {e}");
@@ -227,4 +241,69 @@ impl Wire for ZenohEntities {
     }
 
     fn tick(&self, _shared: &Shared) {}
+}
+
+type TransitionsServer = Server<GetAvailableTransitionsRequest, GetAvailableTransitionsResponse>;
+
+/// A managed node's lifecycle services and transition event publisher on Zenoh (names,
+/// types and QoS as on DDS: [`super::lifecycle`]).
+pub(super) struct ZenohLifecycle {
+    change_state: Server<ChangeStateRequest, ChangeStateResponse>,
+    get_state: Server<GetStateRequest, GetStateResponse>,
+    get_available_states: Server<GetAvailableStatesRequest, GetAvailableStatesResponse>,
+    get_available_transitions: TransitionsServer,
+    get_transition_graph: TransitionsServer,
+    transition_event: Publisher<TransitionEvent>,
+}
+
+impl ZenohLifecycle {
+    /// Made on `node`, whose fully qualified name is `fqn`.
+    fn create(node: &Node, fqn: &str) -> Result<Self, String> {
+        let name = |suffix: &str| ros2_name(&format!("{fqn}/{suffix}")).map_err(|e| e.to_string());
+        let mk = |e: ros2_client::CreateError| format!("cannot create a lifecycle entity on Zenoh: {e}");
+        let topic = node.create_topic(&name("transition_event")?, type_name::<TransitionEvent>(), &reliable(10));
+        Ok(ZenohLifecycle {
+            change_state: node.create_server(&name("change_state")?, &service_type::<ChangeState>()).map_err(mk)?,
+            get_state: node.create_server(&name("get_state")?, &service_type::<GetState>()).map_err(mk)?,
+            get_available_states: node
+                .create_server(&name("get_available_states")?, &service_type::<GetAvailableStates>())
+                .map_err(mk)?,
+            get_available_transitions: node
+                .create_server(&name("get_available_transitions")?, &service_type::<GetAvailableTransitions>())
+                .map_err(mk)?,
+            get_transition_graph: node
+                .create_server(&name("get_transition_graph")?, &service_type::<GetAvailableTransitions>())
+                .map_err(mk)?,
+            transition_event: node.create_publisher::<TransitionEvent>(&topic, None).map_err(mk)?,
+        })
+    }
+}
+
+impl LifecycleWire for ZenohLifecycle {
+    type RequestId = RmwRequestId;
+
+    fn calls(&self) -> impl Stream<Item = Result<(RmwRequestId, Call), String>> + '_ {
+        futures::stream::select_all([
+            calls(requests(&self.change_state), Call::ChangeState),
+            calls(requests(&self.get_state), |_| Call::GetState),
+            calls(requests(&self.get_available_states), |_| Call::GetAvailableStates),
+            calls(requests(&self.get_available_transitions), |_| Call::GetAvailableTransitions),
+            calls(requests(&self.get_transition_graph), |_| Call::GetTransitionGraph),
+        ])
+    }
+
+    async fn answer(&self, id: RmwRequestId, reply: Reply) -> Result<(), String> {
+        match reply {
+            Reply::ChangeState(r) => self.change_state.send_response(id, r),
+            Reply::GetState(r) => self.get_state.send_response(id, r),
+            Reply::GetAvailableStates(r) => self.get_available_states.send_response(id, r),
+            Reply::GetAvailableTransitions(r) => self.get_available_transitions.send_response(id, r),
+            Reply::GetTransitionGraph(r) => self.get_transition_graph.send_response(id, r),
+        }
+        .map_err(|e| e.to_string())
+    }
+
+    async fn publish_event(&self, event: TransitionEvent) -> Result<(), String> {
+        self.transition_event.async_publish(event).await.map_err(|e| e.to_string())
+    }
 }
