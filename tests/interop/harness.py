@@ -106,7 +106,10 @@ class NodeProcess:
         self.log_path = os.path.join(WORK, label + ".log")
         self.log = open(self.log_path, "w")
         argv = argv or [NODE_BIN, "--ros-args", *ros_args]
-        self.proc = subprocess.Popen(argv, stdout=self.log, stderr=subprocess.STDOUT)
+        # The node never takes a peer's preload (the SONAME shims that put rclpy on Cyclone
+        # DDS or rmw_zenoh_cpp): it speaks its middleware itself.
+        env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}
+        self.proc = subprocess.Popen(argv, stdout=self.log, stderr=subprocess.STDOUT, env=env)
         RUNNING.append(self)
 
     def check_alive(self):

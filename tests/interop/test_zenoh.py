@@ -25,6 +25,12 @@ shutdown on rmw_zenoh can hang for 10 s: ../shared/notes/ros2-peer.md).
 - zenoh_node_lifecycle: the node managed (`-p managed:=true`) on Zenoh: the real `ros2
   lifecycle get/set` configure and activate it; a scan while inactive is held (no contour),
   one after activation comes back; each transition on ~/transition_event.
+- zenoh_node_sim_time, zenoh_node_sim_time_no_clock: test_runtime.py's sim-time tests,
+  run as they are against the node on Zenoh (an rclpy /clock at 5000 s: diagnostics, the
+  calibration, its rosout record and history record stamped with it, a jump back
+  followed; no /clock: time 0, a warning on /diagnostics, the node serving).
+- zenoh_node_describe: test_runtime.py's descriptor test on Zenoh (`ros2 param describe`,
+  ranges and read-only enforced with rclcpp's reasons).
 - zenoh_node_namespaces: ten nodes (namespaces /cell0../cell9, one remapped topic) on one
   router, each one's scans and /calibrate its own.
 - zenoh_node_leave: SIGTERM: the node gone from a stock peer's graph within 1 s.
@@ -58,6 +64,7 @@ from rclpy.utilities import get_rmw_implementation_identifier
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import runner  # noqa: E402
 import harness as tn  # noqa: E402
+import test_runtime  # noqa: E402
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import PolygonStamped  # noqa: E402
@@ -264,12 +271,34 @@ def router():
     return ROUTER[0]
 
 
+def node_env():
+    """What puts a tracer_calib_node started now on Zenoh, through the test's router."""
+    return dict(RMW_IMPLEMENTATION="rmw_zenoh_cpp",
+                ZENOH_CONFIG_OVERRIDE=f'connect/endpoints=["tcp/127.0.0.1:{ROUTER_PORT}"]')
+
+
+def on_zenoh(test):
+    """A test of another script (it starts its nodes with harness.NodeProcess, in this
+    process's environment) run with its nodes on Zenoh and this process's rclpy as peer."""
+    def run():
+        router()
+        peer = peer_node()
+        saved = dict(os.environ)
+        os.environ.update(ZENOH_ENV)  # the ros2 CLI it runs: on rmw_zenoh_cpp too
+        os.environ.update(node_env())
+        try:
+            return test(peer)
+        finally:
+            os.environ.clear()
+            os.environ.update(saved)
+    return run
+
+
 def zenoh_node(label, ros_args=(), env=None):
     """tracer_calib_node on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp), the router at
     tcp/127.0.0.1:7447 (rmw_zenoh's default endpoint, tcp/localhost:7447, is tried first on
     ::1, where nothing listens in the namespace)."""
-    extra = dict(RMW_IMPLEMENTATION="rmw_zenoh_cpp",
-                 ZENOH_CONFIG_OVERRIDE=f'connect/endpoints=["tcp/127.0.0.1:{ROUTER_PORT}"]')
+    extra = node_env()
     extra.update(env or {})
     saved = dict(os.environ)
     os.environ.update(extra)
@@ -639,6 +668,9 @@ def main():
         ("zenoh_node_calibrate", test_zenoh_node_calibrate),
         ("zenoh_node_cli", test_zenoh_node_cli),
         ("zenoh_node_lifecycle", test_zenoh_node_lifecycle),
+        ("zenoh_node_sim_time", on_zenoh(test_runtime.test_sim_time)),
+        ("zenoh_node_sim_time_no_clock", on_zenoh(test_runtime.test_sim_time_no_clock)),
+        ("zenoh_node_describe", on_zenoh(test_runtime.test_describe)),
         ("zenoh_node_namespaces", test_zenoh_node_namespaces),
         ("zenoh_node_leave", test_zenoh_node_leave),
         ("zenoh_node_bad_environment", test_zenoh_node_bad_environment),

@@ -69,7 +69,25 @@ struct Shared {
     /// Remote endpoints with an incompatible QoS, reported once each.
     qos_reports: Mutex<QosReports>,
     /// The node's clock (simulated under `use_sim_time`), once the node exists.
-    clock: Arc<OnceLock<NodeClock>>,
+    clock: Arc<OnceLock<RosClock>>,
+}
+
+/// The node's ROS clock, from its middleware's node: the last `/clock` under
+/// `use_sim_time`, else the system time.
+enum RosClock {
+    Dds(NodeClock),
+    #[cfg(feature = "zenoh")]
+    Zenoh(ros2_client::zenoh::NodeClock),
+}
+
+impl RosClock {
+    fn now(&self) -> ros2_client::ROSTime {
+        match self {
+            RosClock::Dds(c) => c.now(),
+            #[cfg(feature = "zenoh")]
+            RosClock::Zenoh(c) => c.now(),
+        }
+    }
 }
 
 impl Shared {
@@ -80,7 +98,7 @@ impl Shared {
 }
 
 /// Now, on the system clock and on `clock` (the system clock too until it is set).
-fn now_on(clock: &OnceLock<NodeClock>) -> Now {
+fn now_on(clock: &OnceLock<RosClock>) -> Now {
     let now = Now::system();
     match clock.get() {
         Some(clock) => Now { ros: clock.now().into(), ..now },
@@ -143,7 +161,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     match middleware {
         Middleware::Dds => {
             let entities = Entities::create(&env, &security, &identity, options, &endpoints, params.managed)?;
-            let _ = shared.clock.set(entities.node.clock());
+            let _ = shared.clock.set(RosClock::Dds(entities.node.clock()));
             info!(
                 "{fqn}: listening on {} (raw scans), serving {}; DDS, domain {}, discovery {:?}",
                 endpoints.raw_scan.0, endpoints.calibrate, env.domain_id, env.discovery_range
@@ -168,11 +186,9 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                     "ROS_SECURITY_ENABLE=true (enclave {name}): SROS2 is served on DDS only; on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) secure the router's links with Zenoh's TLS and access control"
                 ));
             }
-            if params.use_sim_time {
-                return Err("use_sim_time:=true: simulated time is followed on DDS only; on Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) the node runs on the system clock".into());
-            }
             let zenv = crate::rmw::zenoh::ZenohEnv::from_env();
             let entities = zenoh::ZenohEntities::create(&env, &zenv, &identity, options, &endpoints, params.managed)?;
+            let _ = shared.clock.set(RosClock::Zenoh(entities.clock()));
             info!(
                 "{fqn}: listening on {} (raw scans), serving {}; Zenoh (rmw_zenoh_cpp), domain {}",
                 endpoints.raw_scan.0, endpoints.calibrate, env.domain_id

@@ -12,7 +12,7 @@
 //! - `calibration` (transient local, depth 1) from a publisher with a cache of one sample
 //!   and publisher detection, so a late rmw_zenoh subscriber gets the calibration in force
 //!   (`vendor/ros2-client/PATCHES.md`);
-//! - the parameter services and `/parameter_events`, rosout;
+//! - the parameter services and `/parameter_events`, rosout, `/clock` (`use_sim_time`);
 //! - a managed node's lifecycle services and `~/transition_event` ([`ZenohLifecycle`]).
 //!
 //! The session, its router and the environment: [`crate::rmw::zenoh`].
@@ -113,6 +113,11 @@ impl ZenohEntities {
             lifecycle,
             types_in_use,
         })
+    }
+
+    /// The node's clock (`use_sim_time`, `/clock`).
+    pub fn clock(&self) -> ros2_client::zenoh::NodeClock {
+        self.node.clock()
     }
 
     /// Keeps [`Shared::polygon_wanted`] from the graph (a subscription on the polygons'
@@ -237,7 +242,7 @@ impl Wire for ZenohEntities {
     }
 
     fn use_sim_time(&self) -> bool {
-        false
+        self.node.clock().use_sim_time()
     }
 
     fn tick(&self, _shared: &Shared) {}

@@ -236,7 +236,7 @@ pub mod zenoh {
   #[doc(inline)]
   pub use crate::zenoh_backend::context::{Context, ContextOptions};
   #[doc(inline)]
-  pub use crate::zenoh_backend::node::{Node, Topic};
+  pub use crate::zenoh_backend::node::{Node, NodeClock, Topic}; // PATCH (tracer_calib): NodeClock
   #[doc(inline)]
   pub use crate::zenoh_backend::pubsub::{Publisher, Subscription};
   #[doc(inline)]

@@ -459,7 +459,7 @@ impl ParameterStore {
   }
 
   /// Current value of the built-in `use_sim_time` parameter.
-  #[cfg(any(feature = "dds", test))]
+  #[cfg(any(feature = "dds", feature = "zenoh", test))] // PATCH (tracer_calib): zenoh too
   pub fn use_sim_time(&self) -> bool {
     self.use_sim_time.load(Ordering::SeqCst)
   }

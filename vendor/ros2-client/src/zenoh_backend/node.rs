@@ -39,6 +39,7 @@ use crate::{
   names::{ActionTypeName, MessageTypeName, Name, NodeName, ServiceTypeName},
   parameters::{Parameter, ParameterStore},
   qos::QosProfile,
+  ros_time::ROSTime, // PATCH (tracer_calib)
 };
 
 /// The `get_result` action service is queried with a long timeout, mirroring
@@ -90,6 +91,47 @@ pub struct Node {
   logger: Option<Logger>,
   rosout_reader: Option<Subscription<Log>>,
   parameter_server: Option<ParameterServer>,
+  // PATCH (tracer_calib): the node's clock (`use_sim_time`, `/clock`), as the DDS node's.
+  clock: NodeClock,
+  _clock_subscriber: Option<(zenoh::pubsub::Subscriber<()>, Option<LivelinessToken>)>,
+}
+
+/// PATCH (tracer_calib): a node's clock, as the DDS backend's `NodeClock`: the last
+/// `/clock` (rosgraph_msgs/msg/Clock) received (0 before the first) while the
+/// node's `use_sim_time` parameter is true, else the system time.
+#[derive(Clone)]
+pub struct NodeClock {
+  parameters: Arc<std::sync::OnceLock<Arc<ParameterStore>>>,
+  sim_time: Arc<std::sync::Mutex<ROSTime>>,
+}
+
+impl NodeClock {
+  fn new() -> Self {
+    Self {
+      parameters: Arc::new(std::sync::OnceLock::new()),
+      sim_time: Arc::new(std::sync::Mutex::new(ROSTime::ZERO)),
+    }
+  }
+
+  /// The node's time: simulated under `use_sim_time`, else the system time.
+  pub fn now(&self) -> ROSTime {
+    if self.use_sim_time() {
+      *self.sim_time.lock().unwrap()
+    } else {
+      ROSTime::now()
+    }
+  }
+
+  /// Whether the node is on simulated time (false for a node without parameters).
+  pub fn use_sim_time(&self) -> bool {
+    self.parameters.get().is_some_and(|p| p.use_sim_time())
+  }
+}
+
+/// PATCH (tracer_calib): rosgraph_msgs/msg/Clock, what `/clock` carries.
+#[derive(serde::Deserialize)]
+struct ClockMsg {
+  clock: crate::builtin_interfaces::Time,
 }
 
 impl Node {
@@ -124,7 +166,11 @@ impl Node {
       logger: None,
       rosout_reader: None,
       parameter_server: None,
+      clock: NodeClock::new(),         // PATCH (tracer_calib)
+      _clock_subscriber: None,         // PATCH (tracer_calib)
     };
+    // PATCH (tracer_calib): follow /clock, as rclcpp's TimeSource does.
+    node._clock_subscriber = Some(node.clock_subscription()?);
 
     if options.enable_rosout {
       node.logger = Some(node.create_logger()?);
@@ -168,6 +214,55 @@ impl Node {
   /// additional, independent server.
   pub fn parameter_server(&self) -> Option<&ParameterServer> {
     self.parameter_server.as_ref()
+  }
+
+  /// PATCH (tracer_calib): the node's clock as a handle of its own (rclcpp's
+  /// `get_clock()`): simulated time under `use_sim_time`, else the system time.
+  pub fn clock(&self) -> NodeClock {
+    self.clock.clone()
+  }
+
+  /// PATCH (tracer_calib): a subscription to `/clock` that keeps the last time in
+  /// the node's clock (a callback: no one has to take the samples), with its
+  /// liveliness token. QoS as rclcpp's clock subscription: best effort, depth 1.
+  fn clock_subscription(
+    &self,
+  ) -> CreateResult<(zenoh::pubsub::Subscriber<()>, Option<LivelinessToken>)> {
+    let topic = self.create_topic(
+      &Name::new("/", "clock").map_err(name_err)?,
+      MessageTypeName::new("rosgraph_msgs", "Clock"),
+      &QosProfile::default()
+        .reliability(crate::qos::Reliability::BestEffort)
+        .history(crate::qos::History::KeepLast { depth: 1 }),
+    );
+    let key = keyexpr::topic_keyexpr(
+      self.context.domain_id(),
+      &topic.fully_qualified_name,
+      &topic.dds_type_name,
+      type_hash::WILDCARD,
+    );
+    let sim_time = Arc::clone(&self.clock.sim_time);
+    let subscriber = self
+      .context
+      .session()
+      .declare_subscriber(key)
+      .callback(move |sample| {
+        match super::cdr::from_cdr::<ClockMsg>(&sample.payload().to_bytes()) {
+          Ok(m) => *sim_time.lock().unwrap() = m.clock.into(),
+          Err(e) => log::debug!("a /clock sample that does not decode: {e}"),
+        }
+      })
+      .wait()?;
+    let entity_id = self.next_entity_id.fetch_add(1, Ordering::Relaxed);
+    let hash = self.context.sender_hash(&topic.dds_type_name);
+    let liveliness_key = self.entity_liveliness_key(
+      entity_id,
+      keyexpr::EntityKind::Subscription,
+      &topic,
+      &hash,
+      &topic.qos,
+    );
+    Ok((subscriber, declare_liveliness(&self.context, liveliness_key)))
   }
 
   /// The node's name.
@@ -540,9 +635,12 @@ impl Node {
     );
     let events = self.create_publisher::<ParameterEvent>(&events_topic, None)?;
 
+    // PATCH (tracer_calib): the clock reads `use_sim_time` from this store.
+    let store = Arc::new(store);
+    let _ = self.clock.parameters.set(Arc::clone(&store));
     Ok(ParameterServer::new(
       node_fqn,
-      Arc::new(store),
+      store,
       get_parameters,
       get_parameter_types,
       set_parameters,
@@ -596,6 +694,7 @@ impl Node {
     Ok(Logger::new(
       self.node_name.base_name().to_string(),
       publisher,
+      self.clock.clone(), // PATCH (tracer_calib): records stamped with the node's clock
     ))
   }
 

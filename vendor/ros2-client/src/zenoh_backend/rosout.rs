@@ -20,13 +20,19 @@ use crate::log::{Log, LogLevel};
 pub struct Logger {
   node_name: String,
   publisher: Publisher<Log>,
+  clock: super::node::NodeClock, // PATCH (tracer_calib)
 }
 
 impl Logger {
-  pub(crate) fn new(node_name: String, publisher: Publisher<Log>) -> Self {
+  pub(crate) fn new(
+    node_name: String,
+    publisher: Publisher<Log>,
+    clock: super::node::NodeClock, // PATCH (tracer_calib)
+  ) -> Self {
     Self {
       node_name,
       publisher,
+      clock,
     }
   }
 
@@ -41,7 +47,7 @@ impl Logger {
   /// from the call site.
   pub fn log_at(&self, level: LogLevel, msg: &str, file: &str, function: &str, line: u32) {
     let record = Log {
-      stamp: crate::builtin_interfaces::Time::now(),
+      stamp: self.clock.now().into(), // PATCH (tracer_calib): the node's clock
       level: level as u8,
       name: self.node_name.clone(),
       msg: msg.to_string(),
