@@ -72,6 +72,10 @@ fn init_logging(args: &RosArgs) {
     // turns it on) every span would come out as an ERROR "rosout_raw;" line. Zenoh's own
     // tracing events still come through, as log records of their modules.
     builder.filter_module("tracing::span", log::LevelFilter::Off);
+    // zenoh 1.8's admin space, as the session closes at shutdown, fails to publish the
+    // closing links' events ("Unable to publish transport event: session closed", ERROR;
+    // rmw_zenoh's processes print it too): harmless, and the admin space is all it logs.
+    builder.filter_module("zenoh::api::admin", log::LevelFilter::Off);
     if let Some(level) = args.log_level.and_then(|l| l.level_filter()) {
         builder.filter_module("tracer_calib", level);
         builder.filter_module("tracer_calib_node", level);

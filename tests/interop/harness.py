@@ -280,7 +280,8 @@ rclpy.shutdown()
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     if out.returncode != 0:
         raise AssertionError(f"rclpy could not load {path}:\n{out.stderr}")
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    # The last JSON line: a middleware may log after it (rmw_zenoh_cpp's session, closing).
+    return json.loads(next(ln for ln in reversed(out.stdout.splitlines()) if ln.startswith("{")))
 
 
 def run_tests(tests, only, label, summary, after_each=None):

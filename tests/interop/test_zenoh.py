@@ -31,6 +31,9 @@ shutdown on rmw_zenoh can hang for 10 s: ../shared/notes/ros2-peer.md).
   followed; no /clock: time 0, a warning on /diagnostics, the node serving).
 - zenoh_node_describe: test_runtime.py's descriptor test on Zenoh (`ros2 param describe`,
   ranges and read-only enforced with rclcpp's reasons).
+- zenoh_suite_NAME: test_node.py's and test_records.py's tests (node_suite.py's on DDS),
+  run as they are with the node on Zenoh and this process's rclpy on rmw_zenoh_cpp: all
+  but replay_foreign_bags (`tracer_calib replay` publishes on DDS only).
 - zenoh_node_namespaces: ten nodes (namespaces /cell0../cell9, one remapped topic) on one
   router, each one's scans and /calibrate its own.
 - zenoh_node_leave: SIGTERM: the node gone from a stock peer's graph within 1 s.
@@ -663,6 +666,15 @@ def main():
     if rmw != "rmw_zenoh_cpp":
         print(f"test_zenoh.py: this rclpy is on {rmw}, not rmw_zenoh_cpp: source zenoh_env.sh", flush=True)
         os._exit(2)
+    # test_node.py's and test_records.py's tests (node_suite.py's on DDS), as they are, with
+    # the node on Zenoh.
+    import test_node  # noqa: E402
+    import test_records  # noqa: E402
+    # Not replay_foreign_bags: `tracer_calib replay` publishes on DDS only (it says so, one
+    # line, under RMW_IMPLEMENTATION=rmw_zenoh_cpp).
+    suite = [(f"zenoh_suite_{name}", on_zenoh(lambda _peer, fn=fn: fn()))
+             for name, fn in test_node.tests(peer_node()) + test_records.tests(peer_node())
+             if name != "replay_foreign_bags"]
     tests = [
         ("zenoh_stock_pair", test_zenoh_stock_pair),
         ("zenoh_node_calibrate", test_zenoh_node_calibrate),
@@ -676,7 +688,7 @@ def main():
         ("zenoh_node_bad_environment", test_zenoh_node_bad_environment),
         ("zenoh_node_router_restart", test_zenoh_node_router_restart),
         ("zenoh_latency", test_zenoh_latency),
-    ]
+    ] + suite
     runner.run_tests_and_exit("test_zenoh.py", tests, sys.argv[1:], "interop::", "zenoh", WORK, log_dir=WORK)
 
 if __name__ == "__main__":
