@@ -2,7 +2,8 @@
 //! scan samples that are malformed as rmw_zenoh samples: a payload that is no `RawScan`, and
 //! a good payload with an attachment that is no (sequence, timestamp, GID). Each is dropped
 //! and counted on `/diagnostics` (`scans_rejected`), and the node goes on serving: the next
-//! good scan's contour comes back.
+//! good scan's contour comes back. The same for `calibrate` queries (a payload that is no
+//! request, a request without attachment): not answered, counted (`requests_unreadable`).
 //!
 //! The test's own Zenoh session listens on loopback and the node connects to it directly
 //! (`ZENOH_ROUTER_CHECK_ATTEMPTS=-1`: no router). Run inside a private network namespace,
@@ -107,18 +108,39 @@ fn malformed_samples_are_counted_and_dropped_and_the_node_keeps_serving() {
         let good = to_cdr(&scan(2)).unwrap();
         raw.put(good).attachment(vec![1u8, 2, 3, 4, 5]).wait().unwrap();
 
+        // Two calibrate queries the node cannot read: a payload of no request, and a good
+        // request without its attachment. Neither is answered.
+        let hash = tracer_calib::interfaces::type_hash::type_hash("tracer_calib_msgs/srv/Calibrate").unwrap();
+        let service_key = format!("{DOMAIN}/calibrate/tracer_calib_msgs::srv::dds_::Calibrate_/{hash}");
+        let timeout = Duration::from_millis(500);
+        let bad = ctx.session().get(&service_key).payload(vec![0u8, 1, 0, 0]).attachment(attachment(1));
+        let replies = bad.timeout(timeout).wait().unwrap();
+        let request = to_cdr(&tracer_calib::interfaces::CalibrateRequest::default()).unwrap();
+        let no_attachment = ctx.session().get(&service_key).payload(request).timeout(timeout).wait().unwrap();
+
         let mut stream = std::pin::pin!(diagnostics.async_stream());
         let deadline = Instant::now() + Duration::from_secs(15);
-        let counted = within(20, "scans_rejected 2 on /diagnostics", async {
+        let counted = within(20, "scans_rejected 2 and requests_unreadable 2 on /diagnostics", async {
             while let Some(Ok((d, _))) = stream.next().await {
-                if value(&d, "scans_rejected").as_deref() == Some("2") || Instant::now() > deadline {
-                    return (value(&d, "scans_rejected"), value(&d, "last_rejection"));
+                let both = value(&d, "scans_rejected").as_deref() == Some("2")
+                    && value(&d, "requests_unreadable").as_deref() == Some("2");
+                if both || Instant::now() > deadline {
+                    return (
+                        value(&d, "scans_rejected"),
+                        value(&d, "requests_unreadable"),
+                        value(&d, "last_rejection"),
+                    );
                 }
             }
-            (None, None)
+            (None, None, None)
         })
         .await;
-        assert_eq!(counted.0.as_deref(), Some("2"), "last rejection: {:?}", counted.1);
+        assert_eq!(counted.0.as_deref(), Some("2"), "last rejection: {:?}", counted.2);
+        assert_eq!(counted.1.as_deref(), Some("2"));
+        for (what, r) in [("a bad payload", replies), ("no attachment", no_attachment)] {
+            let answered = r.recv_async().await.ok().and_then(|reply| reply.into_result().ok());
+            assert!(answered.is_none(), "a calibrate query with {what} was answered");
+        }
 
         // And the node serves the next good scan.
         scans.publish(scan(3)).unwrap();

@@ -168,13 +168,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             );
             let e = &entities;
             let mut extra: Vec<Loop<'_>> = vec![Box::pin(graph::run(e, &shared))];
-            if let Some(l) = &e.lifecycle {
-                let shared = &shared;
-                extra.push(Box::pin(async move {
-                    lifecycle::run(l, shared).await;
-                    error!("the lifecycle request streams ended")
-                }));
-            }
+            extra.extend(e.lifecycle.as_ref().map(|l| lifecycle_loop(l, &shared)));
             serve(e, &shared, extra, shutdown, &fqn);
             shared.qos_reports.lock().expect("qos reports lock").flush(&entities.node, Instant::now(), true);
             entities.close();
@@ -195,13 +189,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             );
             let e = &entities;
             let mut extra: Vec<Loop<'_>> = vec![Box::pin(e.run_graph_and_parameters(&shared))];
-            if let Some(l) = &e.lifecycle {
-                let shared = &shared;
-                extra.push(Box::pin(async move {
-                    lifecycle::run(l, shared).await;
-                    error!("the lifecycle request streams ended")
-                }));
-            }
+            extra.extend(e.lifecycle.as_ref().map(|l| lifecycle_loop(l, &shared)));
             serve(e, &shared, extra, shutdown, &fqn);
             entities.close();
         }
@@ -218,6 +206,14 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
 
 /// One of the node's loops.
 type Loop<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
+
+/// A managed node's lifecycle loop, on either middleware.
+fn lifecycle_loop<'a>(l: &'a impl lifecycle::LifecycleWire, shared: &'a Shared) -> Loop<'a> {
+    Box::pin(async move {
+        lifecycle::run(l, shared).await;
+        error!("the lifecycle request streams ended")
+    })
+}
 
 /// Run the loops every middleware has, and its `extra` ones, until one ends or `shutdown`
 /// resolves.

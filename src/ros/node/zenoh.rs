@@ -17,7 +17,9 @@
 //!
 //! The session, its router and the environment: [`crate::rmw::zenoh`].
 
-use std::sync::atomic::Ordering;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 use futures::{Stream, StreamExt};
 use ros2_client::ros2::LogLevel;
@@ -26,7 +28,7 @@ use ros2_client::{MessageTypeName, NodeOptions, ParameterValue, RmwRequestId, Se
 
 use super::entities::{Endpoints, latched_qos, reliable};
 use super::lifecycle::{Call, LifecycleWire, Reply, calls};
-use super::{Shared, Wire};
+use super::{RateLimit, Shared, Wire};
 use crate::interfaces::{
     Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
@@ -56,6 +58,10 @@ pub(super) struct ZenohEntities {
     /// The lifecycle services and events of a managed node.
     pub lifecycle: Option<ZenohLifecycle>,
     types_in_use: TypesInUse,
+    /// `calibrate` requests that could not be read (a payload that is no request, no
+    /// attachment), and the limit on warning of them (one a second).
+    calibrate_unreadable: AtomicU64,
+    unreadable_log: Mutex<RateLimit>,
 }
 
 fn type_name<M: RosMsg>() -> MessageTypeName {
@@ -112,6 +118,8 @@ impl ZenohEntities {
             type_description,
             lifecycle,
             types_in_use,
+            calibrate_unreadable: AtomicU64::new(0),
+            unreadable_log: Mutex::new(RateLimit::new(Duration::from_secs(1))),
         })
     }
 
@@ -156,6 +164,8 @@ impl ZenohEntities {
             type_description,
             lifecycle,
             types_in_use: _,
+            calibrate_unreadable: _,
+            unreadable_log: _,
         } = self;
         drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description, lifecycle));
         drop(node);
@@ -199,11 +209,20 @@ impl Wire for ZenohEntities {
     }
 
     fn calibrate_requests(&self) -> impl Stream<Item = Result<(RmwRequestId, CalibrateRequest), String>> + '_ {
-        requests(&self.calibrate)
+        // An unreadable request is counted (and warned of, once a second at most) here, as
+        // the DDS server counts its own; it gets no reply.
+        requests(&self.calibrate).inspect(|r| {
+            if let Err(err) = r {
+                let n = self.calibrate_unreadable.fetch_add(1, Ordering::Relaxed) + 1;
+                if let Some(held) = self.unreadable_log.lock().expect("rate limit lock").allow(Instant::now()) {
+                    log::warn!("an unreadable calibrate request, not answered: {err} ({n} so far, {held} not shown)");
+                }
+            }
+        })
     }
 
     fn calibrate_unreadable(&self) -> u64 {
-        0
+        self.calibrate_unreadable.load(Ordering::Relaxed)
     }
 
     async fn answer_calibrate(&self, id: RmwRequestId, response: CalibrateResponse) -> Result<(), String> {
