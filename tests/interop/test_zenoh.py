@@ -45,7 +45,7 @@ shutdown on rmw_zenoh can hang for 10 s: ../shared/notes/ros2-peer.md).
 - zenoh_latency: a figure, not a check: round trips of a 400-sample lens scan from this
   process through the router to the node and its contour back, and the same through a
   stock rclpy relay node (RawScan in, a Contour of the same size out, nothing computed),
-  side by side (median and 90th percentile; BENCHMARKS.md).
+  side by side (median and 90th percentile, after 3 s of warm-up rounds; BENCHMARKS.md).
 
 Prints one line per test and a closing 'N passed, N failed'.
 """
@@ -619,21 +619,30 @@ while not stop.is_set():
 LATENCY_ROUNDS = 300
 
 
-def round_trips(peer, in_topic, out_topic, msg_of, rounds):
-    """Seconds from publishing each scan to its reply, one at a time."""
-    pub = peer.publisher(in_topic)
-    replies = peer.subscribe(Contour, out_topic)
-    peer.send_scan(pub, msg_of(0), replies)  # matched both ways, warm
-    times = []
-    for i in range(1, rounds + 1):
-        msg = msg_of(i)
-        t0 = time.perf_counter()
-        pub.publish(msg)
-        peer.spin_until(lambda: any(c.scan_id == msg.scan_id for c in replies), 5, f"reply {i}")
-        times.append(time.perf_counter() - t0)
-        replies.clear()
-    times.sort()
-    return times
+class RoundTrips:
+    """Scans to `in_topic`, their replies on `out_topic`: one publisher, one subscription."""
+
+    def __init__(self, peer, in_topic, out_topic, msg_of):
+        self.peer, self.msg_of, self.sent = peer, msg_of, 0
+        self.pub = peer.publisher(in_topic)
+        self.replies = peer.subscribe(Contour, out_topic)
+        peer.send_scan(self.pub, self.next_msg(), self.replies)  # matched both ways
+
+    def next_msg(self):
+        self.sent += 1
+        return self.msg_of(self.sent)
+
+    def measure(self, rounds):
+        """Seconds from publishing each scan to its reply, one at a time, sorted."""
+        times = []
+        for _ in range(rounds):
+            msg = self.next_msg()
+            self.replies.clear()
+            t0 = time.perf_counter()
+            self.pub.publish(msg)
+            self.peer.spin_until(lambda: any(c.scan_id == msg.scan_id for c in self.replies), 5, "a reply")
+            times.append(time.perf_counter() - t0)
+        return sorted(times)
 
 
 def test_zenoh_latency():
@@ -644,10 +653,17 @@ def test_zenoh_latency():
     try:
         assert relay.stdout.readline().strip() == "ready", "the stock relay did not start"
         lens = tn.simulate("zl_lens", "ellipse", seed=8)
-        node_t = round_trips(peer_, "/raw_scan", "/contour",
-                             lambda i: tn.raw_scan(1000 + i, RawScan.TARGET_LENS, *lens), LATENCY_ROUNDS)
-        relay_t = round_trips(peer_, "/relay_in", "/relay_out",
-                              lambda i: tn.raw_scan(5000 + i, RawScan.TARGET_LENS, *lens), LATENCY_ROUNDS)
+        node_rt = RoundTrips(peer_, "/raw_scan", "/contour", lambda i: tn.raw_scan(1000 + i, RawScan.TARGET_LENS, *lens))
+        relay_rt = RoundTrips(peer_, "/relay_in", "/relay_out",
+                              lambda i: tn.raw_scan(5000 + i, RawScan.TARGET_LENS, *lens))
+        # Peers first reach each other through the router; gossip then links them directly.
+        # Both measured once that has settled (warm-up rounds, discarded, for 3 s).
+        warm_until = time.monotonic() + 3.0
+        while time.monotonic() < warm_until:
+            node_rt.measure(20)
+            relay_rt.measure(20)
+        node_t = node_rt.measure(LATENCY_ROUNDS)
+        relay_t = relay_rt.measure(LATENCY_ROUNDS)
 
         def fig(t):
             return f"median {t[len(t) // 2] * 1e3:.2f} ms, p90 {t[int(len(t) * 0.9)] * 1e3:.2f} ms"
