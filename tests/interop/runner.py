@@ -41,17 +41,20 @@ def run_tests(tests, only, label, summary, after_each=None, log_dir=None):
     return failed
 
 
-def run_tests_and_exit(script, tests, argv, label, summary, work, log_dir=None):
+def run_tests_and_exit(script, tests, argv, label, summary, work, log_dir=None, at_end=None):
     """A test script's end: the tests `argv` names (all if none; `summary` itself names all
     of them, a `test_` prefix is dropped), run as `run_tests` does; an unknown name exits 2
-    listing the tests there are. `work` (the script's scratch folder) is removed when all
-    passed. Exits 0 or 1 without rclpy's shutdown, which can hang (notes/ros2-peer.md)."""
+    listing the tests there are. `at_end()`, if given, runs after them (what the tests
+    shared, stopped). `work` (the script's scratch folder) is removed when all passed.
+    Exits 0 or 1 without rclpy's shutdown, which can hang (notes/ros2-peer.md)."""
     only = [a.removeprefix("test_") for a in argv if a != summary]
     unknown = sorted(set(only) - {name for name, _ in tests})
     if unknown:
         print(f"{script}: no such test: {', '.join(unknown)} (have: {', '.join(n for n, _ in tests)})", flush=True)
         os._exit(2)
     failed = run_tests(tests, only, label, summary, log_dir=log_dir)
+    if at_end:
+        at_end()
     if failed == 0:
         shutil.rmtree(work, ignore_errors=True)
     sys.stdout.flush()

@@ -705,7 +705,12 @@ def main():
         ("zenoh_node_router_restart", test_zenoh_node_router_restart),
         ("zenoh_latency", test_zenoh_latency),
     ] + suite
-    runner.run_tests_and_exit("test_zenoh.py", tests, sys.argv[1:], "interop::", "zenoh", WORK, log_dir=WORK)
+    def stop_router():
+        if ROUTER[0] is not None:
+            ROUTER[0].stop()
+
+    runner.run_tests_and_exit("test_zenoh.py", tests, sys.argv[1:], "interop::", "zenoh", WORK, log_dir=WORK,
+                              at_end=stop_router)
 
 if __name__ == "__main__":
     main()
