@@ -76,6 +76,12 @@ fn latched() -> QosProfile {
         .history(History::KeepLast { depth: 1 })
 }
 
+/// A name in the node's private namespace (`~/suffix`, the node being `fqn`): its
+/// type description and lifecycle services, on either middleware.
+pub(super) fn private_name(fqn: &str, suffix: &str) -> Result<Name, String> {
+    ros2_name(&format!("{fqn}/{suffix}")).map_err(|e| e.to_string())
+}
+
 /// The `latched` QoS (for the Zenoh shell, which maps it as rmw_zenoh does).
 pub(super) fn latched_qos() -> QosProfile {
     latched()
@@ -192,8 +198,7 @@ impl Entities {
                 reliable(CALIBRATE_QUEUE),
             )
             .map_err(mk)?;
-        let type_description_name = ros2_name(&format!("{}/get_type_description", identity.fully_qualified_name()))
-            .map_err(|e| e.to_string())?;
+        let type_description_name = private_name(&identity.fully_qualified_name(), "get_type_description")?;
         let type_description = node
             .create_server::<GetTypeDescriptionRequest, GetTypeDescriptionResponse>(
                 ServiceMapping::Enhanced,

@@ -23,7 +23,11 @@ use log::{debug, error, info, warn};
 use ros2_client::dds::{Node, Publisher, Server, ServiceMapping};
 use ros2_client::{Name, service::RmwRequestId};
 
-use super::{Shared, entities::reliable, log_history_read};
+use super::{
+    Shared,
+    entities::{private_name, reliable},
+    log_history_read,
+};
 use crate::cell::lifecycle::{self, STATES, TRANSITIONS, Transition};
 use crate::interfaces::{
     ChangeState, ChangeStateRequest, ChangeStateResponse, GetAvailableStates, GetAvailableStatesRequest,
@@ -31,7 +35,6 @@ use crate::interfaces::{
     GetAvailableTransitionsResponse, GetState, GetStateRequest, GetStateResponse, LifecycleState, LifecycleTransition,
     RosMsg, RosService, TransitionDescription, TransitionEvent,
 };
-use crate::ros::names::ros2_name;
 
 type TransitionsServer = Server<GetAvailableTransitionsRequest, GetAvailableTransitionsResponse>;
 
@@ -48,7 +51,7 @@ pub(super) struct LifecycleEntities {
 impl LifecycleEntities {
     /// Made on `node`, whose fully qualified name is `fqn`.
     pub fn create(node: &mut Node, fqn: &str) -> Result<Self, String> {
-        let name = |suffix: &str| ros2_name(&format!("{fqn}/{suffix}")).map_err(|e| e.to_string());
+        let name = |suffix: &str| private_name(fqn, suffix);
         let mk = |e: ros2_client::CreateError| format!("cannot create a lifecycle entity: {e:?}");
         fn server<S: RosService>(
             node: &mut Node,

@@ -26,7 +26,7 @@ use ros2_client::ros2::LogLevel;
 use ros2_client::zenoh::{Context, Node, Publisher, Server, Subscription};
 use ros2_client::{MessageTypeName, NodeOptions, ParameterValue, RmwRequestId, ServiceTypeName};
 
-use super::entities::{Endpoints, latched_qos, reliable};
+use super::entities::{Endpoints, latched_qos, private_name, reliable};
 use super::lifecycle::{Call, LifecycleWire, Reply, calls};
 use super::{RateLimit, Shared, Wire};
 use crate::interfaces::{
@@ -42,7 +42,7 @@ use crate::interfaces::{
 use crate::rmw::RosEnv;
 use crate::rmw::dds::TypesInUse;
 use crate::rmw::zenoh::ZenohEnv;
-use crate::ros::names::{NodeIdentity, ros2_name};
+use crate::ros::names::NodeIdentity;
 
 /// The node's Zenoh entities.
 pub(super) struct ZenohEntities {
@@ -100,8 +100,7 @@ impl ZenohEntities {
         let diagnostics = node.create_publisher::<DiagnosticArray>(&diag_topic, None).map_err(mk)?;
         let calibration = node.create_publisher::<msgs::Calibration>(&calibration_topic, None).map_err(mk)?;
         let calibrate = node.create_server(calibrate, &service_type::<Calibrate>()).map_err(mk)?;
-        let type_description_name = ros2_name(&format!("{}/get_type_description", identity.fully_qualified_name()))
-            .map_err(|e| e.to_string())?;
+        let type_description_name = private_name(&identity.fully_qualified_name(), "get_type_description")?;
         let type_description =
             node.create_server(&type_description_name, &service_type::<GetTypeDescription>()).map_err(mk)?;
         let lifecycle =
@@ -283,7 +282,7 @@ pub(super) struct ZenohLifecycle {
 impl ZenohLifecycle {
     /// Made on `node`, whose fully qualified name is `fqn`.
     fn create(node: &Node, fqn: &str) -> Result<Self, String> {
-        let name = |suffix: &str| ros2_name(&format!("{fqn}/{suffix}")).map_err(|e| e.to_string());
+        let name = |suffix: &str| private_name(fqn, suffix);
         let mk = |e: ros2_client::CreateError| format!("cannot create a lifecycle entity on Zenoh: {e}");
         let topic = node.create_topic(&name("transition_event")?, type_name::<TransitionEvent>(), &reliable(10));
         Ok(ZenohLifecycle {
