@@ -78,6 +78,8 @@ from tracer_calib_msgs.srv import Calibrate  # noqa: E402
 # This interpreter has loaded rmw_zenoh_cpp through the preloaded shim; the node and the
 # tool (`tracer_calib simulate`) must not get the preload (they speak Zenoh themselves).
 ZENOH_ENV = dict(os.environ)
+# The stock `ros2` command's: on rmw_zenoh_cpp, without its daemon.
+CLI_ENV = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
 os.environ.pop("LD_PRELOAD", None)
 
 ROUTER_PORT = 7447
@@ -205,7 +207,9 @@ def peer(name, script, *args):
 
 
 def ros2(*args):
-    out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=ZENOH_ENV, capture_output=True, text=True)
+    """The stock `ros2` command on rmw_zenoh_cpp, without its daemon: its output; a failure
+    fails the test."""
+    out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=CLI_ENV, capture_output=True, text=True)
     assert out.returncode == 0, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
     return out.stdout
 
@@ -399,23 +403,17 @@ def test_zenoh_node_cli():
         return "skipped: no ros2 command (tests/interop/ros2cli.sh installs it)"
     router()
     node = zenoh_node("zenoh_cli")
-    env = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
-
-    def cli(*args):
-        out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=env, capture_output=True, text=True)
-        assert out.returncode == 0, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
-        return out.stdout
 
     try:
         deadline = time.monotonic() + 15
-        while "/tracer_calibrator" not in cli("node", "list", "--no-daemon").split():
+        while "/tracer_calibrator" not in ros2("node", "list", "--no-daemon").split():
             node.check_alive()
             assert time.monotonic() < deadline, "the node not in `ros2 node list` on Zenoh"
             time.sleep(0.3)
         for topic, ros_type in (("/raw_scan", "tracer_calib_msgs/msg/RawScan"),
                                 ("/contour", "tracer_calib_msgs/msg/Contour"),
                                 ("/calibration", "tracer_calib_msgs/msg/Calibration")):
-            info = cli("topic", "info", "--no-daemon", "-v", topic)
+            info = ros2("topic", "info", "--no-daemon", "-v", topic)
             assert "Node name: tracer_calibrator" in info, info
             hashes = [ln.split(":", 1)[1].strip() for ln in info.splitlines() if "Topic type hash" in ln]
             assert hashes and set(hashes) == {tn.rosidl_hash(ros_type)}, info
@@ -423,7 +421,7 @@ def test_zenoh_node_cli():
             assert "Reliability: RELIABLE" in info, info
             durability = "TRANSIENT_LOCAL" if topic == "/calibration" else "VOLATILE"
             assert f"Durability: {durability}" in info, info
-        services = cli("service", "list", "-t", "--no-daemon")
+        services = ros2("service", "list", "-t", "--no-daemon")
         assert "/calibrate [tracer_calib_msgs/srv/Calibrate]" in services, services
         assert "/tracer_calibrator/get_parameters [rcl_interfaces/srv/GetParameters]" in services, services
         peer = peer_node()
@@ -431,11 +429,11 @@ def test_zenoh_node_cli():
         contours = peer.subscribe(Contour, "/contour")
         plate = tn.simulate("zc_plate", "plate", seed=4)
         peer.send_scan(pub, tn.raw_scan(5, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
-        out = cli("service", "call", "/calibrate", "tracer_calib_msgs/srv/Calibrate", "{dry_run: true}")
+        out = ros2("service", "call", "/calibrate", "tracer_calib_msgs/srv/Calibrate", "{dry_run: true}")
         assert "success=True" in out and "scan 5:" in out, out
-        assert "Double value is: 0.045" in cli("param", "get", "--no-daemon", "/tracer_calibrator", "plate.side")
-        assert "Set parameter successful" in cli("param", "set", "--no-daemon", "/tracer_calibrator", "model", "paper")
-        assert "String value is: paper" in cli("param", "get", "--no-daemon", "/tracer_calibrator", "model")
+        assert "Double value is: 0.045" in ros2("param", "get", "--no-daemon", "/tracer_calibrator", "plate.side")
+        assert "Set parameter successful" in ros2("param", "set", "--no-daemon", "/tracer_calibrator", "model", "paper")
+        assert "String value is: paper" in ros2("param", "get", "--no-daemon", "/tracer_calibrator", "model")
     finally:
         node.stop()
 
@@ -451,12 +449,6 @@ def test_zenoh_node_lifecycle():
     router()
     node = zenoh_node("zenoh_lifecycle", ["-p", "managed:=true"])
     peer = peer_node()
-    env = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
-
-    def cli(*args):
-        out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=env, capture_output=True, text=True)
-        assert out.returncode == 0, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
-        return out.stdout
 
     try:
         events = peer.subscribe(TransitionEvent, "/tracer_calibrator/transition_event")
@@ -465,7 +457,7 @@ def test_zenoh_node_lifecycle():
         deadline = time.monotonic() + 15
         while True:
             out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", "lifecycle", "get", "--no-daemon",
-                                  "/tracer_calibrator"], env=env, capture_output=True, text=True)
+                                  "/tracer_calibrator"], env=CLI_ENV, capture_output=True, text=True)
             if out.returncode == 0:
                 break
             node.check_alive()
@@ -473,8 +465,8 @@ def test_zenoh_node_lifecycle():
             time.sleep(0.3)
         # (rmw_zenoh's CLI process may add a zenoh ERROR line as its session closes.)
         assert "unconfigured [1]" in lines(out.stdout), out.stdout
-        assert "Transitioning successful" in cli("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "configure")
-        assert "inactive [2]" in lines(cli("lifecycle", "get", "--no-daemon", "/tracer_calibrator"))
+        assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "configure")
+        assert "inactive [2]" in lines(ros2("lifecycle", "get", "--no-daemon", "/tracer_calibrator"))
         lens = tn.simulate("zlc_lens", "ellipse", seed=9)
         peer.wait_matched(pub)
         pub.publish(tn.raw_scan(40, RawScan.TARGET_LENS, *lens))
@@ -484,8 +476,8 @@ def test_zenoh_node_lifecycle():
         except AssertionError as e:
             if "inactive" in str(e):
                 raise
-        assert "Transitioning successful" in cli("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "activate")
-        assert "active [3]" in lines(cli("lifecycle", "get", "--no-daemon", "/tracer_calibrator"))
+        assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "activate")
+        assert "active [3]" in lines(ros2("lifecycle", "get", "--no-daemon", "/tracer_calibrator"))
         c = peer.send_scan(pub, tn.raw_scan(41, RawScan.TARGET_LENS, *lens), contours)
         assert c.scan_id == 41
         peer.spin_until(lambda: len(events) >= 4, 5, "four transition events")
@@ -559,7 +551,6 @@ def test_zenoh_node_router_restart():
     r = router()
     node = zenoh_node("zenoh_restart")
     peer = peer_node()
-    env = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
     try:
         pub = peer.publisher("/raw_scan")
         contours = peer.subscribe(Contour, "/contour")
@@ -574,7 +565,7 @@ def test_zenoh_node_router_restart():
         while True:
             out = subprocess.run(["timeout", "-s", "KILL", "30", "ros2", "service", "call", "/calibrate",
                                   "tracer_calib_msgs/srv/Calibrate", "{scan_id: 30, dry_run: true}"],
-                                 env=env, capture_output=True, text=True)
+                                 env=CLI_ENV, capture_output=True, text=True)
             if "success=True" in out.stdout and "scan 30:" in out.stdout:
                 break
             node.check_alive()
