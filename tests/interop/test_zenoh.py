@@ -640,7 +640,11 @@ def test_zenoh_latency():
     router()
     node = zenoh_node("zenoh_latency")
     relay = peer("relay", RELAY)
-    peer_ = peer_node()
+    # A peer of its own: the shared one holds every earlier test's /contour subscriptions,
+    # and each would take (deserialize) every contour, timed against the node.
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    peer_ = tn.Peer("zenoh_latency_peer", context=ctx)
     try:
         assert relay.stdout.readline().strip() == "ready", "the stock relay did not start"
         lens = tn.simulate("zl_lens", "ellipse", seed=8)
@@ -666,6 +670,7 @@ def test_zenoh_latency():
         relay.kill()
         relay.wait()
         node.stop()
+        peer_.close()
 
 
 def main():
