@@ -153,16 +153,20 @@ def test_secure_calibrate(peer, label="secure_calibrate"):
     )
 
 
-INSECURE_PEER = r"""
+# A peer that watches for SECONDS (argv[1]) as node NAME (argv[2]), in ENCLAVE (argv[3], if
+# given): the contours it got and the nodes it saw, as one JSON line. The insecure peer and
+# the peer of a foreign keystore.
+WATCHER = r"""
 import json, sys, time, rclpy
 from tracer_calib_msgs.msg import Contour
-rclpy.init()
-n = rclpy.create_node('insecure_peer')
+seconds, name, enclave = float(sys.argv[1]), sys.argv[2], sys.argv[3:]
+rclpy.init(args=['--ros-args', '--enclave', enclave[0]] if enclave else None)
+n = rclpy.create_node(name)
 got = []
 n.create_subscription(Contour, '/contour', got.append, 10)
 seen = set()
 t0 = time.time()
-while time.time() - t0 < float(sys.argv[1]):
+while time.time() - t0 < seconds:
     rclpy.spin_once(n, timeout_sec=0.1)
     seen.update(name for name, _ in n.get_node_names_and_namespaces())
 print(json.dumps(dict(contours=len(got), nodes=sorted(seen))), flush=True)
@@ -174,7 +178,7 @@ def test_insecure_peer_sees_nothing(peer):
     node = SecureNode("insecure_peer", ["--enclave", "/tracer_calibrator"])
     env = {k: v for k, v in CYCLONE_ENV.items() if not k.startswith("ROS_SECURITY_")}
     spy = subprocess.Popen(
-        [sys.executable, "-c", INSECURE_PEER, "10"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+        [sys.executable, "-c", WATCHER, "10", "insecure_peer"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
     )
     try:
         pub = peer.publisher("/raw_scan")
@@ -430,23 +434,6 @@ def test_capture_secure_vs_clear(peer):
     )
 
 
-FOREIGN_PEER = r"""
-import json, sys, time, rclpy
-from tracer_calib_msgs.msg import Contour
-rclpy.init(args=['--ros-args', '--enclave', '/planner'])
-n = rclpy.create_node('planner')
-got = []
-n.create_subscription(Contour, '/contour', got.append, 10)
-seen = set()
-t0 = time.time()
-while time.time() - t0 < float(sys.argv[1]):
-    rclpy.spin_once(n, timeout_sec=0.1)
-    seen.update(name for name, _ in n.get_node_names_and_namespaces())
-print(json.dumps(dict(contours=len(got), nodes=sorted(seen))), flush=True)
-import os; os._exit(0)
-"""
-
-
 def make_foreign_keystore():
     """A keystore of another CA (its own `ros2 security create_keystore`), with an enclave
     /planner: a valid identity there, a foreign one for the node."""
@@ -490,7 +477,7 @@ def test_foreign_ca_peer_refused(peer):
         env = dict(CYCLONE_ENV, ROS_SECURITY_KEYSTORE=foreign)
         t0 = time.monotonic()
         intruder = subprocess.Popen(
-            [sys.executable, "-c", FOREIGN_PEER, "15"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+            [sys.executable, "-c", WATCHER, "15", "planner", "/planner"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
         )
         # A refusal is counted when the handshake fails, or when ours went unanswered
         # for its 10 resends (a Cyclone peer refusing our certificate is silent).
