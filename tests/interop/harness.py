@@ -99,16 +99,17 @@ RUNNING = []
 
 class NodeProcess:
     """tracer_calib_node in a subprocess, stopped with SIGTERM. `argv`, if given, is the
-    command that runs the node instead of `NODE_BIN --ros-args ROS_ARGS`."""
+    command that runs the node instead of `NODE_BIN --ros-args ROS_ARGS`; `peer=True`
+    runs it with the peer's environment whole (a stock rclpy node in the node's place)."""
 
-    def __init__(self, label, ros_args=(), argv=None):
+    def __init__(self, label, ros_args=(), argv=None, peer=False):
         self.label = label
         self.log_path = os.path.join(WORK, label + ".log")
         self.log = open(self.log_path, "w")
         argv = argv or [NODE_BIN, "--ros-args", *ros_args]
         # The node never takes a peer's preload (the SONAME shims that put rclpy on Cyclone
         # DDS or rmw_zenoh_cpp): it speaks its middleware itself.
-        env = {k: v for k, v in os.environ.items() if k != "LD_PRELOAD"}
+        env = {k: v for k, v in os.environ.items() if peer or k != "LD_PRELOAD"}
         self.proc = subprocess.Popen(argv, stdout=self.log, stderr=subprocess.STDOUT, env=env)
         RUNNING.append(self)
 

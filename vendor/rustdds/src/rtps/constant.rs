@@ -52,6 +52,26 @@ pub const HEARTBEAT_PERIOD_SLOW: crate::structure::duration::Duration =
 pub const HEARTBEAT_PERIOD_FAST: crate::structure::duration::Duration =
   crate::structure::duration::Duration::from_millis(100);
 
+// tracer_calib patch: begin (a HEARTBEAT soon after data)
+// How soon after sending a sample a reliable Writer repeats its HEARTBEAT when some
+// reliable reader has not acknowledged it yet, and the most it backs off to (doubling)
+// before the periodic HEARTBEAT (HEARTBEAT_PERIOD_FAST while a reader is behind) takes
+// over. The HEARTBEAT piggybacked on the DATA is lost with it; without this, the reader
+// learns of the loss from the next sample's HEARTBEAT or the periodic one, up to
+// HEARTBEAT_PERIOD_SLOW later. The first repeat waits for a reader's usual ACKNACK
+// (Fast DDS answers a HEARTBEAT after its heartbeatResponseDelay, 5 ms) so that on a
+// network that loses nothing it is rarely sent. Cyclone DDS does the same with its
+// adaptive heartbeat control (ddsi hbcontrol), RTI Connext with its fast heartbeats.
+pub const HEARTBEAT_AFTER_DATA_FIRST: Duration = Duration::from_millis(10);
+pub const HEARTBEAT_AFTER_DATA_MAX: Duration = Duration::from_millis(80);
+
+// How long a reliable Reader waits before it asks again, at the next sample that
+// arrives, for samples still missing below it that it has asked for already (the
+// ACKNACK or the repair was lost too). A repair comes a writer's nack_response_delay
+// (Fast DDS, RustDDS: 5 ms) and a round trip after the request.
+pub const GAP_NACK_REPEAT: Duration = Duration::from_millis(25);
+// tracer_calib patch: end
+
 // Fallback upper bound on the number of CacheChanges a Writer retains in its
 // history when the Writer QoS does not specify ResourceLimits.max_samples. This
 // is only a memory-safety backstop: for reliable Writers, samples that matched

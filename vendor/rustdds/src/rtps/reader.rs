@@ -42,6 +42,7 @@ use crate::{
   network::udp_sender::UDPSender,
   polling::{ReadySender, SharedTimer, WakeReceiver},
   rtps::{
+    constant::GAP_NACK_REPEAT, // tracer_calib patch
     fragment_assembler::FragmentAssembler, message_receiver::MessageReceiverState,
     rtps_writer_proxy::RtpsWriterProxy, timed_event::DpTimerEvent, Message,
   },
@@ -609,6 +610,7 @@ impl Reader {
 
     let writer_guid = GUID::new_with_prefix_and_id(mr_state.source_guid_prefix, data.writer_id);
     let writer_seq_num = data.writer_sn; // for borrow checker
+    self.nack_gap_below(writer_guid, writer_seq_num, mr_state); // tracer_calib patch
 
     match self.data_to_dds_data(data, data_flags) {
       Ok(dds_data) => self.process_received_data(
@@ -630,6 +632,7 @@ impl Reader {
   ) {
     let writer_guid = GUID::new_with_prefix_and_id(mr_state.source_guid_prefix, datafrag.writer_id);
     let seq_num = datafrag.writer_sn;
+    self.nack_gap_below(writer_guid, seq_num, mr_state); // tracer_calib patch
     let receive_timestamp = Timestamp::now();
     //trace!("DATAFRAG received topic={:?}", self.topic_name);
 
@@ -934,6 +937,77 @@ impl Reader {
   // Returns if responding with ACKNACK?
   // TODO: Return value seems to go unused in callers.
   // ...except in test cases, but not sure if this is strictly necessary to have.
+  // tracer_calib patch: begin (a gap below a newer sample is NACKed at once)
+  /// A reliable reader that receives sample `sn` of a writer whose newest sample so far
+  /// was older than `sn - 1` has lost what lies between (or it comes late, reordered):
+  /// ask for it now, with an ACKNACK whose set names those sequence numbers, instead of
+  /// waiting for the writer's next HEARTBEAT. RTPS lets a reader send an ACKNACK at any
+  /// time (8.4.12.2; the preemptive ACKNACK is one), and a writer answers every ACKNACK
+  /// that requests samples after its nack_response_delay. That HEARTBEAT may be seconds
+  /// away: a Fast DDS writer piggybacks one only every few tens of kilobytes (seen: one
+  /// in 25 scans of 3.3 kB), and its periodic one is 3 s apart, so a scan lost at 20 Hz
+  /// held every later one back (KEEP_LAST readers get samples in order) for up to 3 s.
+  /// A gap is asked for when a sample opens it, and again at a later sample if it is
+  /// still open GAP_NACK_REPEAT after (the request or the repair was lost too); a
+  /// reordered sample costs one repair that the reader then drops as a duplicate. The
+  /// set starts at the first sequence number not yet received (its base acknowledges
+  /// what lies below) and holds what is missing below `sn`, within the 256 an ACKNACK
+  /// can carry.
+  fn nack_gap_below(
+    &mut self,
+    writer_guid: GUID,
+    sn: SequenceNumber,
+    mr_state: &MessageReceiverState,
+  ) {
+    if self.reliability == policy::Reliability::BestEffort || self.like_stateless {
+      return;
+    }
+    if !self.matched_writers.contains_key(&writer_guid) {
+      return;
+    }
+    let reader_id = self.entity_id();
+    self.with_mutable_writer_proxy(writer_guid, |this, writer_proxy| {
+      let gap = writer_proxy.gap_to_nack(sn, std::time::Instant::now(), GAP_NACK_REPEAT);
+      let Some(&first) = gap.first() else {
+        return;
+      };
+      let base = writer_proxy.all_ackable_before();
+      let in_set: Vec<SequenceNumber> = gap
+        .into_iter()
+        .filter(|s| *s >= base && *s < base + SequenceNumber::new(256))
+        .collect();
+      if in_set.is_empty() {
+        return;
+      }
+      debug!(
+        "Reader {:?} topic={:?}: sample {sn:?} of {writer_guid:?} came after a gap from \
+         {first:?}: NACK {in_set:?}",
+        reader_id, this.topic_name
+      );
+      let acknack = AckNack {
+        reader_id,
+        writer_id: writer_guid.entity_id,
+        reader_sn_state: SequenceNumberSet::from_base_and_set(base, &in_set.into_iter().collect()),
+        count: writer_proxy.next_ack_nack_sequence_number(),
+      };
+      let reply_locators = match mr_state.unicast_reply_locator_list {
+        [] | [Locator::Invalid] => &writer_proxy.unicast_locator_list,
+        others => others,
+      };
+      this.send_acknack_to(
+        BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness)
+          | BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Final),
+        acknack,
+        InfoDestination {
+          guid_prefix: writer_guid.prefix,
+        },
+        reply_locators,
+        writer_guid,
+      );
+    });
+  }
+  // tracer_calib patch: end
+
   pub fn handle_heartbeat_msg(
     &mut self,
     heartbeat: &Heartbeat,

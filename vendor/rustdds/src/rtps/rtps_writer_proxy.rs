@@ -81,6 +81,13 @@ pub(crate) struct RtpsWriterProxy {
   // announcement's PID_VENDORID), VENDOR_UNKNOWN if not known. It decides the form
   // of the preemptive ACKNACK (`Reader::send_preemptive_acknack_to`).
   pub remote_vendor_id: VendorId,
+
+  // tracer_calib patch: the first and the newest sequence number seen in a DATA or
+  // DATA_FRAG of this writer, and when a gap below a newer sample was last NACKed
+  // (`gap_to_nack`, `Reader::nack_gap_below`).
+  first_seen: Option<SequenceNumber>,
+  newest_seen: SequenceNumber,
+  gap_nacked_at: Option<std::time::Instant>,
 }
 
 impl RtpsWriterProxy {
@@ -104,8 +111,45 @@ impl RtpsWriterProxy {
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
       remote_vendor_id: VendorId::VENDOR_UNKNOWN, // tracer_calib patch
+      first_seen: None,                             // tracer_calib patch
+      newest_seen: SequenceNumber::new(0),          // tracer_calib patch
+      gap_nacked_at: None,                          // tracer_calib patch
     }
   }
+
+  // tracer_calib patch: begin (a gap below a newer sample is NACKed at once)
+  /// What to ask this writer for now that its sample `sn` has arrived (in a DATA or
+  /// DATA_FRAG), at `now`: the sequence numbers still missing between the first
+  /// sample seen from it and `sn`, when `sn` opens a new gap (it is beyond the newest
+  /// seen + 1), or when older ones are still missing `repeat` after they were last
+  /// asked for (the request or its repair was lost too). Empty otherwise, and for the
+  /// first sample seen: what comes before it is the HEARTBEAT's to say (a volatile
+  /// reader that matched mid-stream does not ask for history).
+  pub fn gap_to_nack(
+    &mut self,
+    sn: SequenceNumber,
+    now: std::time::Instant,
+    repeat: std::time::Duration,
+  ) -> Vec<SequenceNumber> {
+    let Some(first_seen) = self.first_seen else {
+      self.first_seen = Some(sn);
+      self.newest_seen = sn;
+      return vec![];
+    };
+    let new_gap = sn > self.newest_seen.plus_1();
+    self.newest_seen = max(self.newest_seen, sn);
+    let due = self.gap_nacked_at.is_none_or(|at| now >= at + repeat);
+    if !new_gap && !due {
+      return vec![];
+    }
+    let from = max(first_seen, self.ack_base);
+    let missing = self.missing_seqnums(from, sn - SequenceNumber::new(1));
+    if !missing.is_empty() {
+      self.gap_nacked_at = Some(now);
+    }
+    missing
+  }
+  // tracer_calib patch: end
 
   // tracer_calib patch: the remote participant's vendor (see `remote_vendor_id`).
   pub fn with_vendor_id(mut self, vendor_id: VendorId) -> Self {
@@ -349,6 +393,9 @@ impl RtpsWriterProxy {
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
       remote_vendor_id: VendorId::VENDOR_UNKNOWN, // tracer_calib patch
+      first_seen: None,                             // tracer_calib patch
+      newest_seen: SequenceNumber::new(0),          // tracer_calib patch
+      gap_nacked_at: None,                          // tracer_calib patch
     }
   } // fn
 

@@ -29,7 +29,8 @@ use crate::{
   rtps::{
     constant::{
       DEFAULT_WRITER_MAX_SAMPLES, FALLBACK_MAX_AGGREGATED_DATAGRAM_SIZE, FRAGMENT_SIZE,
-      HEARTBEAT_PERIOD_FAST, HEARTBEAT_PERIOD_SLOW, HEARTBEAT_SUBMESSAGE_SERIALIZED_SIZE,
+      HEARTBEAT_AFTER_DATA_FIRST, HEARTBEAT_AFTER_DATA_MAX, HEARTBEAT_PERIOD_FAST,
+      HEARTBEAT_PERIOD_SLOW, HEARTBEAT_SUBMESSAGE_SERIALIZED_SIZE,
       NACK_RESPONSE_DELAY, NACK_SUPPRESSION_DURATION, REPAIR_BATCH_MAX_BYTES,
       REPAIR_INTERVAL_DEFAULT, REPAIR_INTERVAL_MAX, REPAIR_INTERVAL_MIN,
     },
@@ -113,6 +114,7 @@ pub(crate) enum SendProgress {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum TimedEvent {
   Heartbeat,
+  HeartbeatAfterData, // tracer_calib patch
   CacheCleaning,
   SendRepairData { to_reader: GUID },
   SendRepairFrags { to_reader: GUID },
@@ -265,6 +267,12 @@ pub(crate) struct Writer {
   participant_status_sender: StatusChannelSender<DomainParticipantStatusEvent>,
 
   security_plugins: Option<SecurityPluginsHandle>,
+
+  // tracer_calib patch: when the pending HEARTBEAT after data is due (None: none
+  // pending), and the delay of the next one (doubling from HEARTBEAT_AFTER_DATA_FIRST
+  // while readers stay behind). See `arm_heartbeat_after_data`.
+  heartbeat_after_data_due: Option<std::time::Instant>,
+  heartbeat_after_data_delay: std::time::Duration,
 }
 
 impl Writer {
@@ -364,6 +372,8 @@ impl Writer {
       participant_status_sender,
 
       security_plugins: i.security_plugins,
+      heartbeat_after_data_due: None, // tracer_calib patch
+      heartbeat_after_data_delay: HEARTBEAT_AFTER_DATA_FIRST, // tracer_calib patch
     }
   }
 
@@ -496,6 +506,8 @@ impl Writer {
           self.schedule_timed_event(std::time::Duration::from(period), TimedEvent::Heartbeat);
         }
       }
+      // tracer_calib patch
+      TimedEvent::HeartbeatAfterData => self.handle_heartbeat_after_data(),
       TimedEvent::CacheCleaning => {
         self.handle_cache_cleaning();
         self.schedule_timed_event(
@@ -514,6 +526,8 @@ impl Writer {
         // datagrams: back off and try again in the next round.
         if !self.repair_backlogged(reader_guid) {
           self.handle_repair_data_send(reader_guid);
+          // tracer_calib patch: a lost repair is asked for again
+          self.arm_heartbeat_after_data();
         }
         if self
           .readers
@@ -532,6 +546,8 @@ impl Writer {
         }
         if !self.repair_backlogged(reader_guid) {
           self.handle_repair_frags_send(reader_guid);
+          // tracer_calib patch: a lost repair is asked for again
+          self.arm_heartbeat_after_data();
         }
         if self
           .readers
@@ -830,7 +846,17 @@ impl Writer {
     }
   }
 
+  // tracer_calib patch: begin (a HEARTBEAT soon after data)
   pub fn process_pending(&mut self) {
+    let sent_before = self.last_sent;
+    self.push_pending();
+    if self.last_sent > sent_before {
+      self.arm_heartbeat_after_data();
+    }
+  }
+  // tracer_calib patch: end
+
+  fn push_pending(&mut self) {
     // The doorbell enqueues this writer's id and then wakes. A sample admitted
     // while we are here pushes another id, so the next wake runs us again. The
     // shared buffer's `last_seq` is the source of truth.
@@ -1008,6 +1034,55 @@ impl Writer {
       }
     }
   }
+
+  // tracer_calib patch: begin (a HEARTBEAT soon after data)
+  /// A sample has just been sent: repeat the HEARTBEAT in HEARTBEAT_AFTER_DATA_FIRST
+  /// unless every reliable reader has acknowledged it by then. RTPS (8.4.7.1.1) leaves
+  /// the HEARTBEAT's timing to the writer; one piggybacked on the DATA is lost with it,
+  /// and then the reader cannot know it misses anything until the next sample or the
+  /// periodic HEARTBEAT (1 s when every reader was caught up). Rearmed, earlier, by
+  /// newer data; a timer that an earlier one replaced finds its due time moved and
+  /// does nothing.
+  fn arm_heartbeat_after_data(&mut self) {
+    if !self.is_reliable() || self.like_stateless || self.readers.is_empty() {
+      return;
+    }
+    let due = std::time::Instant::now() + HEARTBEAT_AFTER_DATA_FIRST;
+    self.heartbeat_after_data_delay = HEARTBEAT_AFTER_DATA_FIRST;
+    if self.heartbeat_after_data_due.is_none_or(|pending| due < pending) {
+      self.heartbeat_after_data_due = Some(due);
+      self.schedule_timed_event(HEARTBEAT_AFTER_DATA_FIRST, TimedEvent::HeartbeatAfterData);
+    }
+  }
+
+  /// Some reliable reader has not acknowledged everything sent: HEARTBEAT now, and
+  /// again after twice the delay, up to HEARTBEAT_AFTER_DATA_MAX; then the periodic
+  /// HEARTBEAT (fast while a reader is behind) goes on.
+  fn handle_heartbeat_after_data(&mut self) {
+    let now = std::time::Instant::now();
+    match self.heartbeat_after_data_due {
+      // A timer's granularity may wake it a little early.
+      Some(due) if now + std::time::Duration::from_millis(1) >= due => {}
+      _ => return, // replaced by an earlier one, or served
+    }
+    self.heartbeat_after_data_due = None;
+    let sent = self.heartbeat_last_sn();
+    let behind = self
+      .readers
+      .values()
+      .any(|rp| rp.qos().is_reliable() && rp.all_acked_before <= sent);
+    if !behind {
+      return;
+    }
+    self.handle_heartbeat_tick(false);
+    let next = self.heartbeat_after_data_delay * 2;
+    if next <= HEARTBEAT_AFTER_DATA_MAX {
+      self.heartbeat_after_data_delay = next;
+      self.heartbeat_after_data_due = Some(now + next);
+      self.schedule_timed_event(next, TimedEvent::HeartbeatAfterData);
+    }
+  }
+  // tracer_calib patch: end
 
   /// nonblocking-transmit: drain and return the sockets on which the last push
   /// attempt hit WouldBlock, so the event loop can enqueue this writer for a
@@ -3027,7 +3102,9 @@ mod tests {
               let to_reader = match event {
                 TimedEvent::SendRepairData { to_reader }
                 | TimedEvent::SendRepairFrags { to_reader } => Some(to_reader),
-                TimedEvent::Heartbeat | TimedEvent::CacheCleaning => None,
+                TimedEvent::Heartbeat
+                | TimedEvent::HeartbeatAfterData
+                | TimedEvent::CacheCleaning => None,
               };
               if to_reader == Some(self.reader_guid) {
                 found.push(event);

@@ -1,0 +1,378 @@
+#!/usr/bin/env python3
+"""Nothing lost, nothing late on a lossy network (issue 29).
+
+Each scenario runs in a network namespace of its own (`unshare --net`, made here, inside the
+private namespace run.sh gives the script), whose loopback drops a share of the UDP
+datagrams it receives (nftables: `meta l4proto udp numgen random mod 100 < LOSS drop` on
+the input hook of `lo`), from before the first participant starts: discovery, scans,
+contours, service calls and their repairs all cross the same lossy loopback. Nothing leaves
+the machine; the rule goes with the namespace.
+
+In it, a server (tracer_calib_node, or, for reference, a stock rclpy node in its place that
+answers each scan with a same-size Contour and each /calibrate call at once) and a driver
+(rclpy, this script, on Fast DDS or on Cyclone DDS, as the server's peers):
+  1. discovery: the driver's raw_scan publisher and contour subscription matched;
+  2. a calibration-plate scan, republished until its contour comes back (the path works);
+  3. SCANS lens scans (400 samples, reliable, keep last 50) at 20 Hz; the time from each
+     publish to its contour; a scan whose contour has not come 10 s after the last publish
+     is lost;
+  4. 10 `/calibrate` calls (dry run, the plate scan), one after the other, each waited for
+     10 s at most;
+  5. 3 parameter requests (get `calibration.valid`), likewise;
+  6. a late subscriber to the latched `calibration`: how long until it has the message.
+
+Tests (each runs the stock node, then tracer_calib_node, under the same loss, and prints
+both side by side): lossy_fastdds_10, lossy_fastdds_25, lossy_cyclone_10, lossy_cyclone_25
+(the Cyclone ones need target/ros/DISTRO/cyclone_env.sh, made by tests/interop/cyclone.sh,
+and say they are skipped without it). Each asserts: the node loses no more contours than
+the stock node (none at 10 %), every call and parameter request is answered, the latched
+calibration reaches the late subscriber. Latency is printed, not asserted (a loaded CI
+machine; BENCHMARKS.md has the figures).
+
+    python test_lossy.py [lossy | lossy_fastdds_10 | ...]...
+
+Environment: LOSSY_SCANS (100), LOSSY_RUN="SERVER RMW LOSS" runs one scenario and prints
+its figures (SERVER: node or stock; RMW: fastdds or cyclone), as scripts/bench_lossy.sh
+does for other losses.
+"""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SCANS = int(os.environ.get("LOSSY_SCANS", "100"))
+RATE_HZ = 20.0
+CALLS = 10
+PARAM_CALLS = 3
+WAIT = 10.0
+
+
+def apply_loss(percent):
+    """In this (fresh) network namespace: lo up, and `percent` % of the UDP datagrams that
+    lo receives dropped."""
+    subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
+    if percent <= 0:
+        return
+    rules = f"""
+table inet tracer_loss {{
+    chain input {{
+        type filter hook input priority 0; policy accept;
+        iifname "lo" meta l4proto udp counter
+        iifname "lo" meta l4proto udp numgen random mod 100 < {percent} counter drop
+    }}
+}}
+"""
+    subprocess.run(["nft", "-f", "-"], input=rules, text=True, check=True)
+
+
+def loss_counters():
+    """(UDP datagrams lo received, of which dropped) so far, from the rules' counters."""
+    out = subprocess.run(["nft", "-j", "list", "table", "inet", "tracer_loss"], capture_output=True, text=True)
+    if out.returncode != 0:
+        return (None, None)
+    counts = [
+        e["counter"]["packets"]
+        for item in json.loads(out.stdout)["nftables"]
+        if "rule" in item
+        for e in item["rule"]["expr"]
+        if "counter" in e
+    ]
+    return tuple(counts[:2]) if len(counts) >= 2 else (None, None)
+
+
+def stock_server_main():
+    """A stock rclpy node in the node's place, with its QoS: raw_scan (reliable, keep last
+    100) answered by a Contour as large as the node's (400 points, 360 radii) on contour
+    (reliable, keep last 10); /calibrate answered at once; `calibration` latched
+    (reliable, transient local, depth 1); a parameter `calibration.valid`."""
+    import rclpy
+    from geometry_msgs.msg import Point
+    from rclpy.node import Node
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+
+    from tracer_calib_msgs.msg import Calibration, Contour, RawScan
+    from tracer_calib_msgs.srv import Calibrate
+
+    rclpy.init()
+    node = Node("tracer_calibrator")
+    node.declare_parameter("calibration.valid", False)
+    pub = node.create_publisher(Contour, "/contour", QoSProfile(depth=10))
+    latched = node.create_publisher(
+        Calibration, "/calibration", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    )
+    cal = Calibration()
+    cal.model = "full"
+    latched.publish(cal)
+
+    def on_scan(scan):
+        c = Contour()
+        c.header = scan.header
+        c.scan_id = scan.scan_id
+        c.target = scan.target
+        c.points = [Point(x=1e-6 * n, y=1e-6 * n) for n in scan.counts]
+        c.radii = [0.02] * 360
+        pub.publish(c)
+
+    def on_calibrate(request, response):
+        response.success = True
+        response.message = f"scan {request.scan_id}: dry run"
+        return response
+
+    node.create_subscription(RawScan, "/raw_scan", on_scan, QoSProfile(depth=100))
+    node.create_service(Calibrate, "/calibrate", on_calibrate)
+    rclpy.spin(node)
+
+
+def percentile(xs, p):
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(round(p / 100.0 * (len(xs) - 1))))]
+
+
+def scenario_main(server, loss):
+    """One scenario in this fresh namespace (see the module doc): prints one JSON line."""
+    apply_loss(loss)
+    sys.path.insert(0, HERE)
+    import rclpy
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+
+    import harness as h
+    from tracer_calib_msgs.msg import Calibration, Contour, RawScan
+    from tracer_calib_msgs.srv import Calibrate
+
+    plate = h.simulate("lossy_plate", "plate", seed=3)
+    lens = h.simulate("lossy_lens", "ellipse", seed=4)
+    t_start = time.monotonic()
+    if server == "stock":
+        node = h.NodeProcess("lossy_stock", argv=[sys.executable, os.path.abspath(__file__), "--stock-server"], peer=True)
+    else:
+        node = h.NodeProcess("lossy_node", [])
+    result = {"server": server, "loss": loss}
+    try:
+        rclpy.init()
+        peer = h.Peer("lossy_driver")
+        arrivals = {}
+        contour_sub = peer.node.create_subscription(
+            Contour, "/contour", lambda c: arrivals.setdefault(c.scan_id, time.monotonic()), QoSProfile(depth=50)
+        )
+        pub = peer.node.create_publisher(RawScan, "/raw_scan", QoSProfile(depth=50))
+        peer.spin_until(
+            lambda: pub.get_subscription_count() > 0 and contour_sub.get_publisher_count() > 0,
+            60,
+            "the node's raw_scan subscription and contour publisher",
+        )
+        result["matched_s"] = time.monotonic() - t_start
+
+        # The path works: a plate scan, republished until its contour is back.
+        deadline = time.monotonic() + 60
+        while 1 not in arrivals:
+            assert time.monotonic() < deadline, "no contour for the plate scan within 60 s"
+            pub.publish(h.raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *plate))
+            end = time.monotonic() + 1.0
+            while 1 not in arrivals and time.monotonic() < end:
+                peer.executor.spin_once(timeout_sec=0.01)
+        result["first_contour_s"] = time.monotonic() - t_start
+
+        # SCANS lens scans at RATE_HZ.
+        published = {}
+        period = 1.0 / RATE_HZ
+        t_next = time.monotonic()
+        for k in range(SCANS):
+            scan_id = 100 + k
+            while time.monotonic() < t_next:
+                peer.executor.spin_once(timeout_sec=max(0.0, t_next - time.monotonic()))
+            published[scan_id] = time.monotonic()
+            pub.publish(h.raw_scan(scan_id, RawScan.TARGET_LENS, *lens))
+            t_next += period
+        end = time.monotonic() + WAIT
+        while time.monotonic() < end and not all(s in arrivals for s in published):
+            peer.executor.spin_once(timeout_sec=0.01)
+        lat = [(arrivals[s] - t) * 1e3 for s, t in published.items() if s in arrivals]
+        result["scans"] = SCANS
+        result["contours"] = len(lat)
+        result["latency_ms"] = lat
+
+        # /calibrate calls, one after the other.
+        client = peer.node.create_client(Calibrate, "/calibrate")
+        peer.spin_until(client.service_is_ready, 60, "the /calibrate service")
+        result["calls"] = timed_calls(peer, lambda: client.call_async(Calibrate.Request(scan_id=1, dry_run=True)), CALLS)
+
+        # Parameter requests.
+        params = peer.node.create_client(GetParameters, "/tracer_calibrator/get_parameters")
+        peer.spin_until(params.service_is_ready, 60, "the parameter services")
+        request = GetParameters.Request(names=["calibration.valid"])
+        result["param_calls"] = timed_calls(peer, lambda: params.call_async(request), PARAM_CALLS)
+
+        # A late subscriber to the latched calibration.
+        got = []
+        t0 = time.monotonic()
+        peer.node.create_subscription(
+            Calibration,
+            "/calibration",
+            lambda m: got.append(time.monotonic()),
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+        )
+        end = time.monotonic() + WAIT
+        while not got and time.monotonic() < end:
+            peer.executor.spin_once(timeout_sec=0.01)
+        result["latched_ms"] = (got[0] - t0) * 1e3 if got else None
+        node.check_alive()
+    except BaseException:
+        print(f"--- {node.label}'s log:\n{node.output()[-4000:]}", flush=True)
+        raise
+    finally:
+        node.stop()
+    shutil.rmtree(h.WORK, ignore_errors=True)
+    result["udp_received"], result["udp_dropped"] = loss_counters()
+    print(json.dumps(result), flush=True)
+
+
+def timed_calls(peer, start, count):
+    """`count` requests, one after the other: each one's answer time in ms, or None when
+    none came within WAIT."""
+    out = []
+    for _ in range(count):
+        t0 = time.monotonic()
+        future = start()
+        end = t0 + WAIT
+        while not future.done() and time.monotonic() < end:
+            peer.executor.spin_once(timeout_sec=0.005)
+        out.append((time.monotonic() - t0) * 1e3 if future.done() else None)
+    return out
+
+
+def peer_envs():
+    """{"fastdds": env, "cyclone": env or None}: this environment on Fast DDS, and with
+    target/ros/DISTRO/cyclone_env.sh sourced (when tests/interop/cyclone.sh made it)."""
+    fast = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "CYCLONEDDS_URI")}
+    cyclone = None
+    env_sh = os.path.join(os.environ.get("TRACER_ROS_DIR", ""), "cyclone_env.sh")
+    if os.path.isfile(env_sh):
+        out = subprocess.run(
+            ["bash", "-c", '. "$0" && env -0', env_sh], env=fast, capture_output=True, check=True
+        ).stdout
+        cyclone = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
+    return {"fastdds": fast, "cyclone": cyclone}
+
+
+NO_DATA_SHARING = """
+    <data_writer profile_name="tracer_lossy_writer" is_default_profile="true">
+      <qos><data_sharing><kind>OFF</kind></data_sharing></qos>
+    </data_writer>
+    <data_reader profile_name="tracer_lossy_reader" is_default_profile="true">
+      <qos><data_sharing><kind>OFF</kind></data_sharing></qos>
+    </data_reader>
+  </profiles>"""
+
+
+def over_the_network(env, work):
+    """`env` with Fast DDS' shared memory off: two rclpy processes on one host otherwise
+    pass their samples through it (rmw_fastrtps adds the shared-memory transport under
+    ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST whatever the profile says, and data sharing is
+    on by default), which no packet loss touches, and the stock node would not be compared
+    with the node over the network. So: FASTDDS_BUILTIN_TRANSPORTS=UDPv4, the discovery
+    range SUBNET (the scenario's namespace has no interface but lo), and the peers' loopback
+    profile with default writer and reader profiles that turn data sharing off. Measured:
+    with these, every scan and contour crosses lo as a UDP datagram; without them, none."""
+    src = env.get("FASTDDS_DEFAULT_PROFILES_FILE")
+    if not src or env.get("RMW_IMPLEMENTATION") != "rmw_fastrtps_cpp":
+        return env
+    with open(src) as f:
+        xml = f.read()
+    assert "</profiles>" in xml, f"{src}: no </profiles>"
+    path = os.path.join(work, "fastdds_no_data_sharing.xml")
+    with open(path, "w") as f:
+        f.write(xml.replace("</profiles>", NO_DATA_SHARING.lstrip("\n"), 1))
+    return dict(
+        env,
+        FASTDDS_DEFAULT_PROFILES_FILE=path,
+        FASTDDS_BUILTIN_TRANSPORTS="UDPv4",
+        ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET",
+    )
+
+
+def run_scenario(env, server, loss):
+    """One scenario in a network namespace of its own: its figures (a dict)."""
+    out = subprocess.run(
+        ["unshare", "--net", "--", "timeout", "-s", "KILL", "300", sys.executable, os.path.abspath(__file__),
+         "--scenario", server, str(loss)],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
+    if out.returncode != 0 or not lines:
+        raise AssertionError(
+            f"{server} under {loss} % loss: exit {out.returncode}\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
+        )
+    return json.loads(lines[-1])
+
+
+def describe(r):
+    lat = r["latency_ms"]
+    calls = [c for c in r["calls"] if c is not None]
+    text = f"{r['contours']}/{r['scans']} contours"
+    if lat:
+        text += f", p50 {percentile(lat, 50):.1f} ms, p99 {percentile(lat, 99):.1f} ms, max {max(lat):.0f} ms"
+    text += f"; calls {len(calls)}/{len(r['calls'])}"
+    if calls:
+        text += f" (max {max(calls):.1f} ms)"
+    params = [c for c in r["param_calls"] if c is not None]
+    text += f"; params {len(params)}/{len(r['param_calls'])}"
+    latched = r["latched_ms"]
+    text += "; latched " + ("never" if latched is None else f"{latched:.0f} ms")
+    text += f"; matched after {r['matched_s']:.2f} s"
+    if r.get("udp_received"):
+        text += f"; {r['udp_dropped']} of {r['udp_received']} UDP datagrams dropped"
+    return text
+
+
+def test_lossy(envs, rmw, loss):
+    env = envs[rmw]
+    if env is None:
+        return "skipped: no cyclone_env.sh (tests/interop/cyclone.sh builds it)"
+    stock = run_scenario(env, "stock", loss)
+    print(f"  {rmw} {loss} %: stock rclpy node: {describe(stock)}", flush=True)
+    node = run_scenario(env, "node", loss)
+    print(f"  {rmw} {loss} %: tracer_calib_node: {describe(node)}", flush=True)
+    lost_node = node["scans"] - node["contours"]
+    lost_stock = stock["scans"] - stock["contours"]
+    allowed = 0 if loss <= 10 else lost_stock
+    assert lost_node <= allowed, f"the node lost {lost_node} contours, the stock node {lost_stock}"
+    assert None not in node["calls"], f"/calibrate calls unanswered within {WAIT} s: {node['calls']}"
+    assert None not in node["param_calls"], f"parameter requests unanswered within {WAIT} s: {node['param_calls']}"
+    assert node["latched_ms"] is not None, f"the latched calibration did not reach a late subscriber in {WAIT} s"
+    return f"node {describe(node)} | stock {describe(stock)}"
+
+
+def main():
+    if sys.argv[1:2] == ["--stock-server"]:
+        stock_server_main()
+        os._exit(0)
+    if sys.argv[1:2] == ["--scenario"]:
+        scenario_main(sys.argv[2], int(sys.argv[3]))
+        os._exit(0)
+    sys.path.insert(0, HERE)
+    import harness as h
+
+    envs = {rmw: env and over_the_network(env, h.WORK) for rmw, env in peer_envs().items()}
+    if os.environ.get("LOSSY_RUN"):
+        server, rmw, loss = os.environ["LOSSY_RUN"].split()
+        r = run_scenario(envs[rmw], server, int(loss))
+        print(f"{server} {rmw} {loss} %: {describe(r)}", flush=True)
+        print(json.dumps(r), flush=True)
+        os._exit(0)
+    tests = [
+        (f"{rmw}_{loss}", lambda rmw=rmw, loss=loss: test_lossy(envs, rmw, loss))
+        for rmw in ("fastdds", "cyclone")
+        for loss in (10, 25)
+    ]
+    h.run_tests_and_exit("test_lossy.py", tests, [a.removeprefix("lossy_") for a in sys.argv[1:]], "interop::lossy_", "lossy")
+
+
+if __name__ == "__main__":
+    main()
