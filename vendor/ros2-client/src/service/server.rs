@@ -225,8 +225,11 @@ where
   }
 
   /// PATCH (tracer_calib): how long a response waits for its client's response reader
-  /// to be matched (`wait_for_client_reader`).
-  const CLIENT_READER_WAIT: Duration = Duration::from_millis(500);
+  /// to be matched (`wait_for_client_reader`). Long enough for that reader's
+  /// announcement to be repaired on a lossy network (under 25 % UDP loss, 500 ms lost
+  /// the first calls of new clients); the common case, a reader matched already, does
+  /// not wait at all.
+  const CLIENT_READER_WAIT: Duration = Duration::from_millis(3000);
 
   /// PATCH (tracer_calib): wait, at most `CLIENT_READER_WAIT`, until our response
   /// writer has matched the response reader of the client that sent `rmw_req_id`.

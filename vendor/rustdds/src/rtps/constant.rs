@@ -70,6 +70,12 @@ pub const HEARTBEAT_AFTER_DATA_MAX: Duration = Duration::from_millis(80);
 // ACKNACK or the repair was lost too). A repair comes a writer's nack_response_delay
 // (Fast DDS, RustDDS: 5 ms) and a round trip after the request.
 pub const GAP_NACK_REPEAT: Duration = Duration::from_millis(25);
+
+// How often a reliable user Reader asks each matched writer it has not heard of for
+// that long for a HEARTBEAT (`Reader::poll_quiet_writers`). A sample lost as the last
+// one a writer sends (a service request, a scan before a pause) is otherwise repaired
+// only at the writer's periodic HEARTBEAT: 3 s for Fast DDS.
+pub const QUIET_WRITER_POLL_PERIOD: Duration = Duration::from_secs(1);
 // tracer_calib patch: end
 
 // Fallback upper bound on the number of CacheChanges a Writer retains in its

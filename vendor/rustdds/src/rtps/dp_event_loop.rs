@@ -218,6 +218,8 @@ impl DPEventLoop {
     {
       let mut t = shared_timer.borrow_mut();
       t.set_timeout(PREEMPTIVE_ACKNACK_PERIOD, DpTimerEvent::PreemptiveAcknack);
+      // tracer_calib patch: see `Reader::poll_quiet_writers`
+      t.set_timeout(QUIET_WRITER_POLL_PERIOD / 4, DpTimerEvent::PollQuietWriters);
       t.set_timeout(CACHE_CLEAN_PERIOD, DpTimerEvent::CacheGc);
     }
 
@@ -529,6 +531,14 @@ impl DPEventLoop {
             .shared_timer
             .borrow_mut()
             .set_timeout(PREEMPTIVE_ACKNACK_PERIOD, DpTimerEvent::PreemptiveAcknack);
+        }
+        // tracer_calib patch
+        DpTimerEvent::PollQuietWriters => {
+          self.message_receiver.poll_quiet_writers(QUIET_WRITER_POLL_PERIOD);
+          self
+            .shared_timer
+            .borrow_mut()
+            .set_timeout(QUIET_WRITER_POLL_PERIOD / 4, DpTimerEvent::PollQuietWriters);
         }
         DpTimerEvent::CacheGc => {
           debug!("Clean DDSCache on timer");

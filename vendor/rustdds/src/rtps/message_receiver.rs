@@ -1227,6 +1227,14 @@ impl MessageReceiver {
   }
 
   // sends 0 seqnum acknacks for those writer that haven't had any action
+  // tracer_calib patch: see `Reader::poll_quiet_writers`
+  pub fn poll_quiet_writers(&mut self, period: std::time::Duration) {
+    let now = std::time::Instant::now();
+    for reader in self.available_readers.values_mut() {
+      reader.poll_quiet_writers(now, period);
+    }
+  }
+
   pub fn send_preemptive_acknacks(&mut self) {
     for reader in self.available_readers.values_mut() {
       reader.send_preemptive_acknacks();

@@ -1050,6 +1050,7 @@ impl Reader {
       .with_mutable_writer_proxy(writer_guid, |this, writer_proxy| {
         // Note: This is worker closure. Use `this` instead of `self`.
 
+        writer_proxy.last_heard = Some(std::time::Instant::now()); // tracer_calib patch
         if heartbeat.count <= writer_proxy.received_heartbeat_count {
           // This heartbeat was already seen an processed.
           return false;
@@ -1230,6 +1231,7 @@ impl Reader {
         );
         return;
       };
+      writer_proxy.last_heard = Some(std::time::Instant::now()); // tracer_calib patch
 
       // Check validity of the GAP message (Section 8.3.8.4.3)
       if gap.gap_start <= SequenceNumber::new(0) {
@@ -1531,6 +1533,55 @@ impl Reader {
 
     self.encode_and_send(message, destination_guid, dst_locator_list);
   }
+
+  // tracer_calib patch: begin (a quiet writer is asked for a HEARTBEAT)
+  /// Ask every matched writer not heard of for `period` (no DATA, DATA_FRAG, HEARTBEAT
+  /// or GAP; nor asked within it) for a HEARTBEAT: an ACKNACK without the final flag,
+  /// which a writer answers with one (RTPS 8.4.2.3.2 leaves the answer to it; Fast DDS
+  /// answers its preemptive form, an empty set based at 0, at once). If the writer's
+  /// last sample was lost, the HEARTBEAT shows it and the reader asks for it; if not,
+  /// it costs two small datagrams a period. Without it such a sample waits for the
+  /// writer's own periodic HEARTBEAT: a service request lost on its way from a Fast
+  /// DDS client waited 3 s, and another 3 s each time the repair was lost too. User
+  /// readers only (a reliable one that is not stateless): discovery's own readers have
+  /// the preemptive ACKNACK above.
+  pub fn poll_quiet_writers(&mut self, now: std::time::Instant, period: StdDuration) {
+    if self.like_stateless
+      || self.reliability == policy::Reliability::BestEffort
+      || !self.my_guid.entity_id.entity_kind.is_user_defined()
+    {
+      return;
+    }
+    let mut writer_proxies = std::mem::take(&mut self.matched_writers);
+    for writer_proxy in writer_proxies.values_mut() {
+      if writer_proxy.last_heard.is_some_and(|at| now < at + period) {
+        continue;
+      }
+      writer_proxy.last_heard = Some(now);
+      let base = if writer_proxy.remote_vendor_id == VendorId::EPROSIMA {
+        SequenceNumber::new(0)
+      } else {
+        writer_proxy.all_ackable_before()
+      };
+      let count = writer_proxy.next_ack_nack_sequence_number();
+      self.send_acknack_to(
+        BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness),
+        AckNack {
+          reader_id: self.entity_id(),
+          writer_id: writer_proxy.remote_writer_guid.entity_id,
+          reader_sn_state: SequenceNumberSet::new_empty(base),
+          count,
+        },
+        InfoDestination {
+          guid_prefix: writer_proxy.remote_writer_guid.prefix,
+        },
+        &writer_proxy.unicast_locator_list,
+        writer_proxy.remote_writer_guid,
+      );
+    }
+    self.matched_writers = writer_proxies;
+  }
+  // tracer_calib patch: end
 
   pub fn send_preemptive_acknacks(&mut self) {
     if self.like_stateless {

@@ -88,6 +88,9 @@ pub(crate) struct RtpsWriterProxy {
   first_seen: Option<SequenceNumber>,
   newest_seen: SequenceNumber,
   gap_nacked_at: Option<std::time::Instant>,
+  // tracer_calib patch: when this writer was last heard of (DATA, DATA_FRAG, HEARTBEAT,
+  // GAP) or last asked for a HEARTBEAT (`Reader::poll_quiet_writers`).
+  pub last_heard: Option<std::time::Instant>,
 }
 
 impl RtpsWriterProxy {
@@ -114,6 +117,7 @@ impl RtpsWriterProxy {
       first_seen: None,                             // tracer_calib patch
       newest_seen: SequenceNumber::new(0),          // tracer_calib patch
       gap_nacked_at: None,                          // tracer_calib patch
+      last_heard: None,                             // tracer_calib patch
     }
   }
 
@@ -131,6 +135,7 @@ impl RtpsWriterProxy {
     now: std::time::Instant,
     repeat: std::time::Duration,
   ) -> Vec<SequenceNumber> {
+    self.last_heard = Some(now);
     let Some(first_seen) = self.first_seen else {
       self.first_seen = Some(sn);
       self.newest_seen = sn;
@@ -396,6 +401,7 @@ impl RtpsWriterProxy {
       first_seen: None,                             // tracer_calib patch
       newest_seen: SequenceNumber::new(0),          // tracer_calib patch
       gap_nacked_at: None,                          // tracer_calib patch
+      last_heard: None,                             // tracer_calib patch
     }
   } // fn
 

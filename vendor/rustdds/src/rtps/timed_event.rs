@@ -20,5 +20,6 @@ pub(crate) enum DpTimerEvent {
     event: writer::TimedEvent,
   },
   PreemptiveAcknack,
+  PollQuietWriters, // tracer_calib patch
   CacheGc,
 }
