@@ -17,6 +17,9 @@
 #      - test_first_scan.py, a new driver's first scan reaches the node at once (50 fresh
 #        rclpy peers on Fast DDS; for Jazzy also on Cyclone DDS, after cyclone.sh), and a
 #        new client's first call is answered at once (20 fresh clients), likewise;
+#      - test_lossy.py, under 10 and 25 % UDP loss: the node and a stock rclpy node in its
+#        place side by side (contours lost, latency, calls, parameters, the latched
+#        calibration), with Fast DDS peers and (Jazzy) Cyclone DDS peers;
 #      - test_two_hosts.py on two "hosts", network namespaces joined by a veth pair with
 #        multicast off (tests/interop/two_hosts.sh; root only);
 #   3. tests/interop/workspace.sh DISTRO: the README's `colcon build` in a workspace over
@@ -33,7 +36,7 @@
 # test_type_hash.py's (type_hash: all), runtime or sim_time, replay_clock, describe,
 # lifecycle, rcl_param_rules test_runtime.py's (runtime: all), first_scan test_first_scan.py's
 # (first_scan: all; first_scan_fastdds, first_scan_cyclone, first_scan_call_fastdds,
-# first_scan_call_cyclone), two_hosts test_two_hosts.py's scenarios (two_hosts:
+# first_scan_call_cyclone), lossy test_lossy.py's (lossy: all; lossy_fastdds_10, ...), two_hosts test_two_hosts.py's scenarios (two_hosts:
 # all), cyclone or mixed test_cyclone.py's (cyclone: all), security or secure_* or
 # insecure_* or hmi_* or capture_* or foreign_* or *_missing_enclave or
 # *_bad_credentials test_security.py's (security: all), launch test_launch.py's
@@ -61,7 +64,7 @@ trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
 . "$ROOT/scripts/target_dir.sh"
 export TRACER_CALIB_NODE="$TRACER_RELEASE_DIR/tracer_calib_node"
 export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
-node_tests=() graph=() type_hash=() runtime=() first_scan=() two_hosts=() cyclone=() security=() zenoh=() launch=()
+node_tests=() graph=() type_hash=() runtime=() first_scan=() lossy=() two_hosts=() cyclone=() security=() zenoh=() launch=()
 for a in "$@"; do
     case "$a" in
         launch) launch+=(all) ;;
@@ -70,6 +73,7 @@ for a in "$@"; do
         type_hash*) type_hash+=("$a") ;;
         runtime | sim_time* | replay_clock | describe | lifecycle | rcl_param_rules) runtime+=("$a") ;;
         first_scan*) first_scan+=("$a") ;;
+        lossy*) lossy+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
         cyclone*|mixed*) cyclone+=("$a") ;;
         security|secure_*|insecure_*|hmi_*|capture_*|foreign_*|*_missing_enclave|*_bad_credentials) security+=("$a") ;;
@@ -131,6 +135,17 @@ for d in $DISTROS; do
         failed+=("$d:cyclone_setup")
     fi
     suite test_first_scan.py "$d" "ROS 2 $d rclpy, release binaries" test_first_scan ${first_scan[@]+"${first_scan[@]}"}
+    # test_lossy.py: the node and a stock rclpy node in its place under 10 and 25 % UDP loss
+    # (nftables, in a network namespace of each scenario's own), with Fast DDS peers and, on
+    # Jazzy, Cyclone DDS peers (cyclone_env.sh; Kilted's lossy_cyclone_* say they are skipped).
+    if [ "$all" -eq 1 ] || [ "${#lossy[@]}" -gt 0 ]; then
+        apt_install_missing run.sh "$ROOT/target/lossy_deps.log" nftables
+        if [ "$d" = jazzy ] && ! "$HERE/cyclone.sh" "$d"; then
+            failed+=("$d:cyclone_setup")
+        fi
+        suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
+            ${lossy[@]+"${lossy[@]}"}
+    fi
     if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
         if [ "$(id -u)" -ne 0 ]; then
             echo "run.sh: $d: two_hosts skipped (needs root for ip netns)"

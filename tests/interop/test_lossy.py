@@ -17,7 +17,7 @@ answers each scan with a same-size Contour and each /calibrate call at once) and
      publish to its contour; a scan whose contour has not come 10 s after the last publish
      is lost;
   4. 10 `/calibrate` calls (dry run, the plate scan), one after the other, each waited for
-     10 s at most;
+     15 s at most;
   5. 3 parameter requests (get `calibration.valid`), likewise;
   6. a late subscriber to the latched `calibration`: how long until it has the message.
 
@@ -48,7 +48,8 @@ SCANS = int(os.environ.get("LOSSY_SCANS", "100"))
 RATE_HZ = 20.0
 CALLS = 10
 PARAM_CALLS = 3
-WAIT = 10.0
+WAIT = 10.0  # for the stragglers after the last scan, and for the latched calibration
+CALL_WAIT = 15.0  # for each call: generous, on a loaded CI machine
 
 
 def apply_loss(percent):
@@ -115,7 +116,12 @@ def stock_server_main():
         c.target = scan.target
         c.points = [Point(x=1e-6 * n, y=1e-6 * n) for n in scan.counts]
         c.radii = [0.02] * 360
-        pub.publish(c)
+        try:
+            pub.publish(c)
+        except Exception as e:  # noqa: BLE001 (rclpy's RCLError)
+            # Fast DDS (Kilted) under 25 % loss: "cannot publish data" once the reliable
+            # writer's history stays full; a stock node would die of it. Counted as lost.
+            print(f"stock node: contour {scan.scan_id} not published: {e}", file=sys.stderr, flush=True)
 
     def on_calibrate(request, response):
         response.success = True
@@ -233,12 +239,12 @@ def scenario_main(server, loss):
 
 def timed_calls(peer, start, count):
     """`count` requests, one after the other: each one's answer time in ms, or None when
-    none came within WAIT."""
+    none came within CALL_WAIT."""
     out = []
     for _ in range(count):
         t0 = time.monotonic()
         future = start()
-        end = t0 + WAIT
+        end = t0 + CALL_WAIT
         while not future.done() and time.monotonic() < end:
             peer.executor.spin_once(timeout_sec=0.005)
         out.append((time.monotonic() - t0) * 1e3 if future.done() else None)
@@ -343,8 +349,8 @@ def test_lossy(envs, rmw, loss):
     lost_stock = stock["scans"] - stock["contours"]
     allowed = 0 if loss <= 10 else lost_stock
     assert lost_node <= allowed, f"the node lost {lost_node} contours, the stock node {lost_stock}"
-    assert None not in node["calls"], f"/calibrate calls unanswered within {WAIT} s: {node['calls']}"
-    assert None not in node["param_calls"], f"parameter requests unanswered within {WAIT} s: {node['param_calls']}"
+    assert None not in node["calls"], f"/calibrate calls unanswered within {CALL_WAIT} s: {node['calls']}"
+    assert None not in node["param_calls"], f"parameter requests unanswered within {CALL_WAIT} s: {node['param_calls']}"
     assert node["latched_ms"] is not None, f"the latched calibration did not reach a late subscriber in {WAIT} s"
     return f"node {describe(node)} | stock {describe(stock)}"
 

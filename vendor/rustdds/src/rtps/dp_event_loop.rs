@@ -478,6 +478,7 @@ impl DPEventLoop {
       );
     }
     let writer_ids = self.writer_ready.drain_unique();
+    let mut poll_discovery = false; // tracer_calib patch
     for eid in writer_ids {
       let (blocked, local_readers) = match self.writers.get_mut(&eid) {
         None => {
@@ -486,6 +487,7 @@ impl DPEventLoop {
         }
         Some(writer) => {
           writer.process_pending();
+          poll_discovery |= writer.take_discovery_poll_request(); // tracer_calib patch
           (writer.take_blocked_sockets(), writer.local_readers())
         }
       };
@@ -493,6 +495,10 @@ impl DPEventLoop {
         self.mark_writer_willing(sid, eid);
       }
       self.message_receiver.notify_data_to_readers(local_readers);
+    }
+    // tracer_calib patch: a DataWriter waits for a reader (`wait_for_matched_reader`)
+    if poll_discovery {
+      self.message_receiver.poll_discovery_writers();
     }
     false
   }

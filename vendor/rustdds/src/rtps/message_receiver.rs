@@ -1227,11 +1227,27 @@ impl MessageReceiver {
   }
 
   // sends 0 seqnum acknacks for those writer that haven't had any action
-  // tracer_calib patch: see `Reader::poll_quiet_writers`
+  // tracer_calib patch: see `Reader::poll_quiet_writers`: the user readers.
   pub fn poll_quiet_writers(&mut self, period: std::time::Duration) {
     let now = std::time::Instant::now();
     for reader in self.available_readers.values_mut() {
-      reader.poll_quiet_writers(now, period);
+      if reader.entity_id().entity_kind.is_user_defined() {
+        reader.poll_quiet_writers(now, period);
+      }
+    }
+  }
+
+  // tracer_calib patch: the SEDP readers ask every remote SEDP writer for a
+  // HEARTBEAT now (a DataWriter waits for a reader whose announcement may be lost).
+  pub fn poll_discovery_writers(&mut self) {
+    let now = std::time::Instant::now();
+    for id in [
+      EntityId::SEDP_BUILTIN_PUBLICATIONS_READER,
+      EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_READER,
+    ] {
+      if let Some(reader) = self.available_readers.get_mut(&id) {
+        reader.poll_quiet_writers(now, std::time::Duration::ZERO);
+      }
     }
   }
 

@@ -1542,14 +1542,12 @@ impl Reader {
   /// last sample was lost, the HEARTBEAT shows it and the reader asks for it; if not,
   /// it costs two small datagrams a period. Without it such a sample waits for the
   /// writer's own periodic HEARTBEAT: a service request lost on its way from a Fast
-  /// DDS client waited 3 s, and another 3 s each time the repair was lost too. User
-  /// readers only (a reliable one that is not stateless): discovery's own readers have
-  /// the preemptive ACKNACK above.
+  /// DDS client waited 3 s, and another 3 s each time the repair was lost too. A
+  /// reliable reader that is not stateless; the event loop polls the user readers every
+  /// quarter period, and the SEDP readers with a zero period while a DataWriter waits
+  /// for a reader to match (`DataWriter::wait_for_matched_reader`).
   pub fn poll_quiet_writers(&mut self, now: std::time::Instant, period: StdDuration) {
-    if self.like_stateless
-      || self.reliability == policy::Reliability::BestEffort
-      || !self.my_guid.entity_id.entity_kind.is_user_defined()
-    {
+    if self.like_stateless || self.reliability == policy::Reliability::BestEffort {
       return;
     }
     let mut writer_proxies = std::mem::take(&mut self.matched_writers);

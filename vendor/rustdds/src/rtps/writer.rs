@@ -1084,6 +1084,11 @@ impl Writer {
   }
   // tracer_calib patch: end
 
+  /// tracer_calib patch: see `WriterSendBuffer::request_discovery_poll`.
+  pub fn take_discovery_poll_request(&self) -> bool {
+    self.send_buffer.take_discovery_poll_request()
+  }
+
   /// nonblocking-transmit: drain and return the sockets on which the last push
   /// attempt hit WouldBlock, so the event loop can enqueue this writer for a
   /// round-robin resume on write readiness.

@@ -81,6 +81,9 @@ struct Inner {
   // tracer_calib patch: the remote readers the Writer has matched, kept by the
   // Writer (`set_reader_matched`), for `wait_for_matched_reader`.
   matched_readers: BTreeSet<GUID>,
+  // tracer_calib patch: a `wait_for_matched_reader` caller asks the event loop to
+  // have discovery's readers ask for HEARTBEATs (`request_discovery_poll`).
+  discovery_poll_requested: bool,
 
   // Wakers of async producers / ack-waiters parked because the window was full
   // or acknowledgements were still pending. Drained (woken) on any advance.
@@ -144,6 +147,7 @@ impl WriterSendBuffer {
           max_retain: max_retain.max(1),
           keep_last_depth: None,           // tracer_calib patch
           matched_readers: BTreeSet::new(), // tracer_calib patch
+          discovery_poll_requested: false,  // tracer_calib patch
           wakers: Vec::new(),
         }),
         progress: Condvar::new(),
@@ -247,6 +251,18 @@ impl WriterSendBuffer {
   /// tracer_calib patch: the number of samples the buffer holds now.
   pub fn retained_len_now(&self) -> usize {
     self.shared.inner.lock().unwrap().changes.len()
+  }
+
+  /// tracer_calib patch: ask the event loop (at its next doorbell for this writer) to
+  /// have the SEDP readers ask every remote SEDP writer for a HEARTBEAT, so that a
+  /// lost announcement of the reader being waited for is repaired at once.
+  pub fn request_discovery_poll(&self) {
+    self.shared.inner.lock().unwrap().discovery_poll_requested = true;
+  }
+
+  /// tracer_calib patch: whether `request_discovery_poll` was called since last asked.
+  pub fn take_discovery_poll_request(&self) -> bool {
+    std::mem::take(&mut self.shared.inner.lock().unwrap().discovery_poll_requested)
   }
 
   /// tracer_calib patch: the Writer has matched (`true`) or lost (`false`) the

@@ -775,7 +775,25 @@ where
     accept: impl Fn(GUID) -> bool,
     max_wait: std::time::Duration,
   ) -> Vec<GUID> {
-    self.send_buffer.wait_for_matched_reader(accept, max_wait)
+    // While nothing acceptable is matched, the reader's announcement may have been
+    // lost: every DISCOVERY_POLL_INTERVAL, ask discovery to have it repaired.
+    const DISCOVERY_POLL_INTERVAL: std::time::Duration = std::time::Duration::from_millis(250);
+    let give_up = std::time::Instant::now() + max_wait;
+    let mut found = self
+      .send_buffer
+      .wait_for_matched_reader(&accept, std::time::Duration::ZERO);
+    while found.is_empty() {
+      let left = give_up.saturating_duration_since(std::time::Instant::now());
+      if left.is_zero() {
+        break;
+      }
+      self.send_buffer.request_discovery_poll();
+      self.doorbell.ring();
+      found = self
+        .send_buffer
+        .wait_for_matched_reader(&accept, left.min(DISCOVERY_POLL_INTERVAL));
+    }
+    found
   }
 
   /// Placeholder only — not implemented. **Will panic if called.**
