@@ -137,11 +137,15 @@ for d in $DISTROS; do
     suite test_first_scan.py "$d" "ROS 2 $d rclpy, release binaries" test_first_scan ${first_scan[@]+"${first_scan[@]}"}
     # test_lossy.py: the node and a stock rclpy node in its place under 10 and 25 % UDP loss
     # (nftables, in a network namespace of each scenario's own), with Fast DDS peers and, on
-    # Jazzy, Cyclone DDS peers (cyclone_env.sh; Kilted's lossy_cyclone_* say they are skipped).
+    # Jazzy, Cyclone DDS and Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's
+    # lossy_cyclone_* and lossy_zenoh_* say they are skipped); ten cells started at once.
     if [ "$all" -eq 1 ] || [ "${#lossy[@]}" -gt 0 ]; then
         apt_install_missing run.sh "$ROOT/target/lossy_deps.log" nftables
         if [ "$d" = jazzy ] && ! "$HERE/cyclone.sh" "$d"; then
             failed+=("$d:cyclone_setup")
+        fi
+        if [ "$d" = jazzy ] && ! "$HERE/zenoh.sh" "$d"; then
+            failed+=("$d:zenoh_setup")
         fi
         suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
             ${lossy[@]+"${lossy[@]}"}

@@ -27,7 +27,14 @@ both side by side): lossy_fastdds_10, lossy_fastdds_25, lossy_cyclone_10, lossy_
 and say they are skipped without it). Each asserts: the node loses no more contours than
 the stock node (none at 10 %), every call and parameter request is answered, the latched
 calibration reaches the late subscriber. Latency is printed, not asserted (a loaded CI
-machine; BENCHMARKS.md has the figures).
+machine; BENCHMARKS.md has the figures). lossy_zenoh_10, lossy_zenoh_25: the same on Zenoh
+(target/ros/DISTRO/zenoh_env.sh, made by tests/interop/zenoh.sh; rmw_zenohd in the
+scenario's namespace, TCP segments dropped as well as UDP datagrams: Zenoh's links are
+TCP). lossy_ten_cells_fastdds_25: ten nodes and a planner (tests/interop/cell_graph.py, an
+rclpy planner on Fast DDS) started at once under 25 % loss; the planner matches every cell,
+every call and scan is answered. (With a Cyclone DDS planner, ten concurrent first calls
+under 25 % loss leave one unanswered in most runs; not solved yet, so not asserted:
+`python test_lossy.py --cells 25` in cyclone_env.sh shows it.)
 
     python test_lossy.py [lossy | lossy_fastdds_10 | ...]...
 
@@ -52,9 +59,9 @@ WAIT = 10.0  # for the stragglers after the last scan, and for the latched calib
 CALL_WAIT = 15.0  # for each call: generous, on a loaded CI machine
 
 
-def apply_loss(percent):
-    """In this (fresh) network namespace: lo up, and `percent` % of the UDP datagrams that
-    lo receives dropped."""
+def apply_loss(percent, protocols="udp"):
+    """In this (fresh) network namespace: lo up, and `percent` % of the packets of
+    `protocols` (nftables' set syntax: "udp", "{ udp, tcp }") that lo receives dropped."""
     subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
     if percent <= 0:
         return
@@ -62,8 +69,8 @@ def apply_loss(percent):
 table inet tracer_loss {{
     chain input {{
         type filter hook input priority 0; policy accept;
-        iifname "lo" meta l4proto udp counter
-        iifname "lo" meta l4proto udp numgen random mod 100 < {percent} counter drop
+        iifname "lo" meta l4proto {protocols} counter
+        iifname "lo" meta l4proto {protocols} numgen random mod 100 < {percent} counter drop
     }}
 }}
 """
@@ -138,9 +145,32 @@ def percentile(xs, p):
     return xs[min(len(xs) - 1, int(round(p / 100.0 * (len(xs) - 1))))]
 
 
+def start_router():
+    """rmw_zenohd on tcp/127.0.0.1:7447 (where rmw_zenoh_cpp and the node look for it), once
+    it listens; its output in the scenario's log folder."""
+    import socket
+
+    import harness as h
+
+    log = open(os.path.join(h.WORK, "router.log"), "w")
+    env = dict(os.environ, ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]')
+    proc = subprocess.Popen([os.environ["TRACER_ZENOHD"]], env=env, stdout=log, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + 30
+    while True:
+        with socket.socket() as sock:
+            sock.settimeout(0.5)
+            if sock.connect_ex(("127.0.0.1", 7447)) == 0:
+                return proc
+        assert proc.poll() is None and time.monotonic() < deadline, "rmw_zenohd not listening after 30 s"
+        time.sleep(0.05)
+
+
 def scenario_main(server, loss):
-    """One scenario in this fresh namespace (see the module doc): prints one JSON line."""
-    apply_loss(loss)
+    """One scenario in this fresh namespace (see the module doc): prints one JSON line. On
+    Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) everything goes by TCP through the router,
+    and TCP segments are dropped too."""
+    zenoh = os.environ.get("RMW_IMPLEMENTATION") == "rmw_zenoh_cpp"
+    apply_loss(loss, "{ udp, tcp }" if zenoh else "udp")
     sys.path.insert(0, HERE)
     import rclpy
     from rcl_interfaces.srv import GetParameters
@@ -152,6 +182,7 @@ def scenario_main(server, loss):
 
     plate = h.simulate("lossy_plate", "plate", seed=3)
     lens = h.simulate("lossy_lens", "ellipse", seed=4)
+    router = start_router() if zenoh else None
     t_start = time.monotonic()
     if server == "stock":
         node = h.NodeProcess("lossy_stock", argv=[sys.executable, os.path.abspath(__file__), "--stock-server"], peer=True)
@@ -231,10 +262,43 @@ def scenario_main(server, loss):
         print(f"--- {node.label}'s log:\n{node.output()[-4000:]}", flush=True)
         raise
     finally:
-        node.stop()
+        if server == "stock":
+            # The reference, not under test: rclpy on rmw_zenoh_cpp may not exit on SIGTERM
+            # within the harness' 5 s (its session's close under loss).
+            h.RUNNING.remove(node)
+            node.proc.kill()
+            node.proc.wait()
+        else:
+            node.stop()
+        if router:
+            router.kill()
+            router.wait()
     shutil.rmtree(h.WORK, ignore_errors=True)
     result["udp_received"], result["udp_dropped"] = loss_counters()
     print(json.dumps(result), flush=True)
+
+
+def cells_main(loss):
+    """Ten nodes (/cell1 ... /cell10) and a planner (rclpy, this process) started at once in
+    this fresh namespace under `loss` % UDP loss (tests/interop/cell_graph.py): prints one
+    JSON line with how long until the planner had matched every cell, and what came back."""
+    apply_loss(loss)
+    sys.path.insert(0, HERE)
+    import rclpy
+
+    import cell_graph
+    import harness as h
+
+    rclpy.init()
+    planner = h.Peer("planner")
+    try:
+        out = cell_graph.cell_graph(planner, 10, scans=3, head_start=0.0, discovery_timeout=60.0)
+    finally:
+        for n in list(h.RUNNING):
+            n.stop()
+    shutil.rmtree(h.WORK, ignore_errors=True)
+    out["udp_received"], out["udp_dropped"] = loss_counters()
+    print(json.dumps(out), flush=True)
 
 
 def timed_calls(peer, start, count):
@@ -252,17 +316,20 @@ def timed_calls(peer, start, count):
 
 
 def peer_envs():
-    """{"fastdds": env, "cyclone": env or None}: this environment on Fast DDS, and with
-    target/ros/DISTRO/cyclone_env.sh sourced (when tests/interop/cyclone.sh made it)."""
+    """{"fastdds": env, "cyclone": env or None, "zenoh": env or None}: this environment on
+    Fast DDS, and with target/ros/DISTRO/cyclone_env.sh or zenoh_env.sh sourced (when
+    tests/interop/cyclone.sh or zenoh.sh made them)."""
     fast = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "CYCLONEDDS_URI")}
-    cyclone = None
-    env_sh = os.path.join(os.environ.get("TRACER_ROS_DIR", ""), "cyclone_env.sh")
-    if os.path.isfile(env_sh):
-        out = subprocess.run(
-            ["bash", "-c", '. "$0" && env -0', env_sh], env=fast, capture_output=True, check=True
-        ).stdout
-        cyclone = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
-    return {"fastdds": fast, "cyclone": cyclone}
+    envs = {"fastdds": fast}
+    for rmw in ("cyclone", "zenoh"):
+        env_sh = os.path.join(os.environ.get("TRACER_ROS_DIR", ""), f"{rmw}_env.sh")
+        envs[rmw] = None
+        if os.path.isfile(env_sh):
+            out = subprocess.run(
+                ["bash", "-c", '. "$0" && env -0', env_sh], env=fast, capture_output=True, check=True
+            ).stdout
+            envs[rmw] = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
+    return envs
 
 
 NO_DATA_SHARING = """
@@ -302,10 +369,11 @@ def over_the_network(env, work):
 
 
 def run_scenario(env, server, loss):
-    """One scenario in a network namespace of its own: its figures (a dict)."""
+    """One scenario in a network namespace of its own (SERVER "cells": the ten-cell graph):
+    its figures (a dict)."""
+    args = ["--cells", str(loss)] if server == "cells" else ["--scenario", server, str(loss)]
     out = subprocess.run(
-        ["unshare", "--net", "--", "timeout", "-s", "KILL", "300", sys.executable, os.path.abspath(__file__),
-         "--scenario", server, str(loss)],
+        ["unshare", "--net", "--", "timeout", "-s", "KILL", "300", sys.executable, os.path.abspath(__file__), *args],
         env=env,
         capture_output=True,
         text=True,
@@ -333,14 +401,14 @@ def describe(r):
     text += "; latched " + ("never" if latched is None else f"{latched:.0f} ms")
     text += f"; matched after {r['matched_s']:.2f} s"
     if r.get("udp_received"):
-        text += f"; {r['udp_dropped']} of {r['udp_received']} UDP datagrams dropped"
+        text += f"; {r['udp_dropped']} of {r['udp_received']} packets dropped"
     return text
 
 
 def test_lossy(envs, rmw, loss):
     env = envs[rmw]
     if env is None:
-        return "skipped: no cyclone_env.sh (tests/interop/cyclone.sh builds it)"
+        return f"skipped: no {rmw}_env.sh (tests/interop/{rmw}.sh builds it)"
     stock = run_scenario(env, "stock", loss)
     print(f"  {rmw} {loss} %: stock rclpy node: {describe(stock)}", flush=True)
     node = run_scenario(env, "node", loss)
@@ -355,7 +423,29 @@ def test_lossy(envs, rmw, loss):
     return f"node {describe(node)} | stock {describe(stock)}"
 
 
+def test_ten_cells(envs, rmw, loss):
+    """Ten nodes and a planner started at once under `loss` % UDP loss: the planner matches
+    every cell (generously within 20 s; BENCHMARKS.md has the figures), every call is
+    answered and every scan comes back corrected."""
+    env = envs[rmw]
+    if env is None:
+        return "skipped: no cyclone_env.sh (tests/interop/cyclone.sh builds it)"
+    out = run_scenario(env, "cells", loss)
+    text = (
+        f"discovery {out['discovery_s']} s; calls {out['calls_answered_ok']}/{out['calls']}; "
+        f"scans {out['scans_answered']}/{out['scans_sent']}; {out['udp_dropped']} of {out['udp_received']} "
+        "packets dropped"
+    )
+    assert out["discovery_s"] <= 20.0, text
+    assert out["calls_answered_ok"] == out["calls"], text
+    assert out["scans_answered"] == out["scans_sent"] and out["all_corrected"], text
+    return text
+
+
 def main():
+    if sys.argv[1:2] == ["--cells"]:
+        cells_main(int(sys.argv[2]))
+        os._exit(0)
     if sys.argv[1:2] == ["--stock-server"]:
         stock_server_main()
         os._exit(0)
@@ -374,9 +464,9 @@ def main():
         os._exit(0)
     tests = [
         (f"{rmw}_{loss}", lambda rmw=rmw, loss=loss: test_lossy(envs, rmw, loss))
-        for rmw in ("fastdds", "cyclone")
+        for rmw in ("fastdds", "cyclone", "zenoh")
         for loss in (10, 25)
-    ]
+    ] + [("ten_cells_fastdds_25", lambda: test_ten_cells(envs, "fastdds", 25))]
     h.run_tests_and_exit("test_lossy.py", tests, [a.removeprefix("lossy_") for a in sys.argv[1:]], "interop::lossy_", "lossy")
 
 

@@ -134,6 +134,9 @@ pub(crate) struct MessageReceiver {
   // bypass Reader, DDSCache, DatasampleCache, and DataReader, because these will drop
   // repeated messages with duplicate SequenceNumbers, but Discovery needs to see them.
   spdp_liveness_sender: WakeSender<GuidPrefix>,
+  // tracer_calib patch: when each remote participant's liveness was last told to
+  // Discovery from a message of any kind (`note_participant_alive`).
+  liveness_told: BTreeMap<GuidPrefix, std::time::Instant>,
   security_plugins: Option<SecurityPluginsHandle>,
 
   // Per-remote-participant record of which local interface / source address we
@@ -174,6 +177,7 @@ impl MessageReceiver {
       available_readers: BTreeMap::new(),
       acknack_sender,
       spdp_liveness_sender,
+      liveness_told: BTreeMap::new(), // tracer_calib patch
       security_plugins,
       interface_observations,
       own_guid_prefix: participant_guid_prefix,
@@ -324,6 +328,34 @@ impl MessageReceiver {
       .record(source_prefix, origin.local_if, source);
   }
 
+  // tracer_calib patch: begin (any message renews its participant's lease)
+  /// A message from a remote participant shows it is alive: tell Discovery (at most once
+  /// a second per participant), which renews the participant's lease as an SPDP
+  /// announcement does. Only SPDP announcements did: Cyclone DDS announces itself every
+  /// 8 s under a 10 s lease (it counts on any message renewing it, as its own receiver
+  /// does), so one announcement lost under 25 % UDP loss dropped a live Cyclone peer,
+  /// its readers with it (a service response written for it then never arrived).
+  fn note_participant_alive(&mut self, prefix: GuidPrefix) {
+    if prefix == self.own_guid_prefix || prefix == GuidPrefix::UNKNOWN {
+      return;
+    }
+    let now = std::time::Instant::now();
+    if self
+      .liveness_told
+      .get(&prefix)
+      .is_some_and(|at| now < *at + std::time::Duration::from_secs(1))
+    {
+      return;
+    }
+    if self.spdp_liveness_sender.try_send(prefix).is_ok() {
+      if self.liveness_told.len() >= 4096 {
+        self.liveness_told.clear(); // a bound; at worst, one more message a participant
+      }
+      self.liveness_told.insert(prefix, now);
+    }
+  }
+  // tracer_calib patch: end
+
   // This is also called directly from dp_event_loop in case of loopback messages.
   pub fn handle_parsed_message(&mut self, rtps_message: Message) {
     self.reset();
@@ -331,6 +363,7 @@ impl MessageReceiver {
     self.source_guid_prefix = rtps_message.header.guid_prefix;
     self.source_version = rtps_message.header.protocol_version;
     self.source_vendor_id = rtps_message.header.vendor_id;
+    self.note_participant_alive(rtps_message.header.guid_prefix); // tracer_calib patch
 
     #[cfg(not(feature = "security"))]
     let decoded_message = rtps_message;

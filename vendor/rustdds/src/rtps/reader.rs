@@ -1535,8 +1535,8 @@ impl Reader {
   }
 
   // tracer_calib patch: begin (a quiet writer is asked for a HEARTBEAT)
-  /// Ask every matched writer not heard of for `period` (no DATA, DATA_FRAG, HEARTBEAT
-  /// or GAP; nor asked within it) for a HEARTBEAT: an ACKNACK without the final flag,
+  /// Ask every matched remote writer (not our own participant's) not heard of for
+  /// `period` (no DATA, DATA_FRAG, HEARTBEAT or GAP; nor asked within it) for a HEARTBEAT: an ACKNACK without the final flag,
   /// which a writer answers with one (RTPS 8.4.2.3.2 leaves the answer to it; Fast DDS
   /// answers its preemptive form, an empty set based at 0, at once). If the writer's
   /// last sample was lost, the HEARTBEAT shows it and the reader asks for it; if not,
@@ -1552,7 +1552,9 @@ impl Reader {
     }
     let mut writer_proxies = std::mem::take(&mut self.matched_writers);
     for writer_proxy in writer_proxies.values_mut() {
-      if writer_proxy.last_heard.is_some_and(|at| now < at + period) {
+      if writer_proxy.last_heard.is_some_and(|at| now < at + period)
+        || writer_proxy.remote_writer_guid.prefix == self.my_guid.prefix
+      {
         continue;
       }
       writer_proxy.last_heard = Some(now);
