@@ -171,6 +171,10 @@ def scenario_main(server, loss):
     and TCP segments are dropped too."""
     zenoh = os.environ.get("RMW_IMPLEMENTATION") == "rmw_zenoh_cpp"
     apply_loss(loss, "{ udp, tcp }" if zenoh else "udp")
+    if zenoh:
+        # A lost SYN fails a connection attempt to the router (TCP tries again after 1 s):
+        # a cell on a lossy network lets rmw_zenoh (and the node) try more than once.
+        os.environ["ZENOH_ROUTER_CHECK_ATTEMPTS"] = "10"
     sys.path.insert(0, HERE)
     import rclpy
     from rcl_interfaces.srv import GetParameters
