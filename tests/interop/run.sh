@@ -138,7 +138,8 @@ for d in $DISTROS; do
     # test_lossy.py: the node and a stock rclpy node in its place under 10 and 25 % UDP loss
     # (nftables, in a network namespace of each scenario's own), with Fast DDS peers and, on
     # Jazzy, Cyclone DDS and Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's
-    # lossy_cyclone_* and lossy_zenoh_* say they are skipped); ten cells started at once.
+    # lossy_cyclone_* and lossy_zenoh_* say they are skipped); ten cells started at once
+    # under 10 % loss.
     if [ "$all" -eq 1 ] || [ "${#lossy[@]}" -gt 0 ]; then
         apt_install_missing run.sh "$ROOT/target/lossy_deps.log" nftables
         if [ "$d" = jazzy ] && ! "$HERE/cyclone.sh" "$d"; then
