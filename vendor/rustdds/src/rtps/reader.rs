@@ -934,9 +934,6 @@ impl Reader {
     }
   }
 
-  // Returns if responding with ACKNACK?
-  // TODO: Return value seems to go unused in callers.
-  // ...except in test cases, but not sure if this is strictly necessary to have.
   // tracer_calib patch: begin (a gap below a newer sample is NACKed at once)
   /// A reliable reader that receives sample `sn` of a writer whose newest sample so far
   /// was older than `sn - 1` has lost what lies between (or it comes late, reordered):
@@ -1008,6 +1005,9 @@ impl Reader {
   }
   // tracer_calib patch: end
 
+  // Returns if responding with ACKNACK?
+  // TODO: Return value seems to go unused in callers.
+  // ...except in test cases, but not sure if this is strictly necessary to have.
   pub fn handle_heartbeat_msg(
     &mut self,
     heartbeat: &Heartbeat,
@@ -1536,9 +1536,10 @@ impl Reader {
 
   // tracer_calib patch: begin (a quiet writer is asked for a HEARTBEAT)
   /// Ask every matched remote writer (not our own participant's) not heard of for
-  /// `period` (no DATA, DATA_FRAG, HEARTBEAT or GAP; nor asked within it) for a HEARTBEAT: an ACKNACK without the final flag,
-  /// which a writer answers with one (RTPS 8.4.2.3.2 leaves the answer to it; Fast DDS
-  /// answers its preemptive form, an empty set based at 0, at once). If the writer's
+  /// `period` (no DATA, DATA_FRAG, HEARTBEAT or GAP; nor asked within it) for a
+  /// HEARTBEAT: an ACKNACK without the final flag, which a writer answers with one
+  /// (RTPS 8.4.2.3.2 leaves the answer to it; Fast DDS answers its preemptive form, an
+  /// empty set based at 0, at once). If the writer's
   /// last sample was lost, the HEARTBEAT shows it and the reader asks for it; if not,
   /// it costs two small datagrams a period. Without it such a sample waits for the
   /// writer's own periodic HEARTBEAT: a service request lost on its way from a Fast
