@@ -331,10 +331,9 @@ impl MessageReceiver {
   // tracer_calib patch: begin (any message renews its participant's lease)
   /// A message from a remote participant shows it is alive: tell Discovery (at most once
   /// a second per participant), which renews the participant's lease as an SPDP
-  /// announcement does. Only SPDP announcements did: Cyclone DDS announces itself every
-  /// 8 s under a 10 s lease (it counts on any message renewing it, as its own receiver
-  /// does), so one announcement lost under 25 % UDP loss dropped a live Cyclone peer,
-  /// its readers with it (a service response written for it then never arrived).
+  /// announcement does. Only SPDP announcements did: Cyclone DDS announces a 10 s lease
+  /// and takes any message as a sign of life itself; under 25 % UDP loss the node dropped
+  /// a live Cyclone peer, its readers with it (a response written for it never arrived).
   fn note_participant_alive(&mut self, prefix: GuidPrefix) {
     if prefix == self.own_guid_prefix || prefix == GuidPrefix::UNKNOWN {
       return;
