@@ -157,7 +157,10 @@ def start_router():
 
     log = open(os.path.join(h.WORK, "router.log"), "w")
     env = dict(os.environ, ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]')
-    proc = subprocess.Popen([os.environ["TRACER_ZENOHD"]], env=env, stdout=log, stderr=subprocess.STDOUT)
+    # Under `timeout`, as test_zenoh.py's: a router orphaned by a killed scenario ends too.
+    proc = subprocess.Popen(
+        ["timeout", "-s", "KILL", "300", os.environ["TRACER_ZENOHD"]], env=env, stdout=log, stderr=subprocess.STDOUT
+    )
     deadline = time.monotonic() + 30
     while True:
         with socket.socket() as sock:
@@ -184,6 +187,7 @@ def scenario_main(server, loss):
     from rclpy.qos import DurabilityPolicy, QoSProfile
 
     import harness as h
+    import runner
     from tracer_calib_msgs.msg import Calibration, Contour, RawScan
     from tracer_calib_msgs.srv import Calibrate
 
@@ -269,17 +273,19 @@ def scenario_main(server, loss):
         print(f"--- {node.label}'s log:\n{node.output()[-4000:]}", flush=True)
         raise
     finally:
-        if server == "stock":
-            # The reference, not under test: rclpy on rmw_zenoh_cpp may not exit on SIGTERM
-            # within the harness' 5 s (its session's close under loss).
-            h.RUNNING.remove(node)
-            node.proc.kill()
-            node.proc.wait()
-        else:
-            node.stop()
-        if router:
-            router.kill()
-            router.wait()
+        try:
+            if server == "stock":
+                # The reference, not under test: rclpy on rmw_zenoh_cpp may not exit on
+                # SIGTERM within the harness' 5 s (its session's close under loss).
+                h.RUNNING.remove(node)
+                node.proc.kill()
+                node.proc.wait()
+            else:
+                node.stop()
+        finally:
+            if router:
+                # SIGTERM: `timeout` passes it on to rmw_zenohd (SIGKILL would orphan it).
+                runner.terminate(router)
     shutil.rmtree(h.WORK, ignore_errors=True)
     result["udp_received"], result["udp_dropped"] = loss_counters()
     print(json.dumps(result), flush=True)
