@@ -215,6 +215,28 @@ class Peer:
         self.node.destroy_node()
 
 
+def peer_envs():
+    """{"fastdds": env, "cyclone": env or None, "zenoh": env or None}: this environment on
+    Fast DDS, and with target/ros/DISTRO/cyclone_env.sh or zenoh_env.sh sourced (when
+    tests/interop/cyclone.sh or zenoh.sh made them)."""
+    fast = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "CYCLONEDDS_URI")}
+    envs = {"fastdds": fast}
+    for rmw in ("cyclone", "zenoh"):
+        env_sh = os.path.join(os.environ.get("TRACER_ROS_DIR", ""), f"{rmw}_env.sh")
+        envs[rmw] = None
+        if os.path.isfile(env_sh):
+            out = subprocess.run(
+                ["bash", "-c", '. "$0" && env -0', env_sh], env=fast, capture_output=True, check=True
+            ).stdout
+            envs[rmw] = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
+    return envs
+
+
+def percentile(xs, p):
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(round(p / 100.0 * (len(xs) - 1))))]
+
+
 def assert_fit(r, scan_id=None):
     """A /calibrate response that applied a fit of a simulated plate scan (`scan_id`, if
     given): success, and alpha0, d, dL within 0.1 deg, 50 um, 10 um of TRUTH."""

@@ -138,24 +138,6 @@ def stock_node_main():
     rclpy.spin(node)
 
 
-def peer_envs():
-    """{"fastdds": env, "cyclone": env or None} for the peer processes."""
-    fast = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "CYCLONEDDS_URI")}
-    cyclone = None
-    env_sh = os.path.join(os.environ.get("TRACER_ROS_DIR", ""), "cyclone_env.sh")
-    if os.path.isfile(env_sh):
-        out = subprocess.run(
-            ["bash", "-c", '. "$0" && env -0', env_sh], env=fast, capture_output=True, check=True
-        ).stdout
-        cyclone = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
-    return {"fastdds": fast, "cyclone": cyclone}
-
-
-def percentile(xs, p):
-    xs = sorted(xs)
-    return xs[min(len(xs) - 1, int(round(p / 100.0 * (len(xs) - 1))))]
-
-
 def first_scans(peer, env, label, scan_base):
     """TRIES fresh peers, one scan each: the latencies (seconds; None: never arrived)."""
     import harness as h
@@ -242,6 +224,8 @@ def first_calls(env, label):
 
 
 def summarize(label, latencies):
+    from harness import percentile
+
     got = [x for x in latencies if x is not None]
     in_time = sum(1 for x in got if x <= LIMIT)
     ms = [x * 1e3 for x in got]
@@ -314,7 +298,7 @@ def main():
 
     rclpy.init()
     peer = h.Peer("first_scan_observer")
-    envs = peer_envs()
+    envs = h.peer_envs()
     tests = [
         ("fastdds", lambda: test_first_scan(peer, envs, "fastdds", 10000)),
         ("cyclone", lambda: test_first_scan(peer, envs, "cyclone", 20000)),

@@ -143,11 +143,6 @@ def stock_server_main():
     rclpy.spin(node)
 
 
-def percentile(xs, p):
-    xs = sorted(xs)
-    return xs[min(len(xs) - 1, int(round(p / 100.0 * (len(xs) - 1))))]
-
-
 def start_router():
     """rmw_zenohd on tcp/127.0.0.1:7447 (where rmw_zenoh_cpp and the node look for it), once
     it listens; its output in the scenario's log folder."""
@@ -328,23 +323,6 @@ def timed_calls(peer, start, count):
     return out
 
 
-def peer_envs():
-    """{"fastdds": env, "cyclone": env or None, "zenoh": env or None}: this environment on
-    Fast DDS, and with target/ros/DISTRO/cyclone_env.sh or zenoh_env.sh sourced (when
-    tests/interop/cyclone.sh or zenoh.sh made them)."""
-    fast = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "CYCLONEDDS_URI")}
-    envs = {"fastdds": fast}
-    for rmw in ("cyclone", "zenoh"):
-        env_sh = os.path.join(os.environ.get("TRACER_ROS_DIR", ""), f"{rmw}_env.sh")
-        envs[rmw] = None
-        if os.path.isfile(env_sh):
-            out = subprocess.run(
-                ["bash", "-c", '. "$0" && env -0', env_sh], env=fast, capture_output=True, check=True
-            ).stdout
-            envs[rmw] = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
-    return envs
-
-
 NO_DATA_SHARING = """
     <data_writer profile_name="tracer_lossy_writer" is_default_profile="true">
       <qos><data_sharing><kind>OFF</kind></data_sharing></qos>
@@ -400,6 +378,8 @@ def run_scenario(env, server, loss):
 
 
 def describe(r):
+    from harness import percentile
+
     lat = r["latency_ms"]
     calls = [c for c in r["calls"] if c is not None]
     text = f"{r['contours']}/{r['scans']} contours"
@@ -482,7 +462,7 @@ def main():
     sys.path.insert(0, HERE)
     import harness as h
 
-    envs = {rmw: env and over_the_network(env, h.WORK) for rmw, env in peer_envs().items()}
+    envs = {rmw: env and over_the_network(env, h.WORK) for rmw, env in h.peer_envs().items()}
     if os.environ.get("LOSSY_RUN"):
         server, rmw, loss = os.environ["LOSSY_RUN"].split()
         r = run_scenario(envs[rmw], server, int(loss))
