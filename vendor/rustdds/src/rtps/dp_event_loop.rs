@@ -1523,6 +1523,7 @@ mod tests {
         None,
         0,
         true,
+        Vec::new(), // tracer_calib patch: no static peers
         reader_ready,
         writer_ready,
         waker,

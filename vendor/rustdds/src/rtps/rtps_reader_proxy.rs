@@ -79,6 +79,10 @@ pub(crate) struct RtpsReaderProxy {
   // sends one ACKNACK to each of our locators; the copies carry the same count.
   pub last_acknack_count: Option<i32>,
   pub last_nackfrag_count: Option<i32>,
+  // tracer_calib patch: where this reader's stream begins (the last sample we had
+  // sent when we matched it) while it may not have seen a HEARTBEAT of ours yet;
+  // None once it has acknowledged a later sample. See `Writer::add_heartbeat`.
+  pub stream_start: Option<SequenceNumber>,
   qos: QosPolicies,
   frags_requested: BTreeMap<SequenceNumber, BitVec>,
 
@@ -115,6 +119,7 @@ impl RtpsReaderProxy {
       repair_frags_scheduled: false,
       last_acknack_count: None,
       last_nackfrag_count: None,
+      stream_start: None, // tracer_calib patch
       qos,
       frags_requested: BTreeMap::new(),
       send_route: SendRoute::default(),
@@ -244,6 +249,7 @@ impl RtpsReaderProxy {
       repair_frags_scheduled: false,
       last_acknack_count: None,
       last_nackfrag_count: None,
+      stream_start: None, // tracer_calib patch
       qos: reader.qos_policy.clone(),
       frags_requested: BTreeMap::new(),
       send_route: SendRoute::default(),
@@ -322,6 +328,7 @@ impl RtpsReaderProxy {
       repair_frags_scheduled: false,
       last_acknack_count: None,
       last_nackfrag_count: None,
+      stream_start: None, // tracer_calib patch
       qos: discovered_reader_data.subscription_topic_data.qos(),
       frags_requested: BTreeMap::new(),
       send_route: SendRoute::default(),
