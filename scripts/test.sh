@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The test command (README, .ci/run). One release build, reused by every step:
 #   1. the Rust tests (unit, engine, node over DDS), inside a private network namespace;
+#      then the vendored rustdds' own unit tests, with our patches' (scripts/test_vendored.sh);
 #   2. the real ROS 2 peer, once per distribution (Kilted, and Jazzy, the LTS): rclpy with
 #      Fast DDS from PyPI wheels and the message package built by rosidl
 #      (tests/interop/setup.sh installs both), against the node; then this repository
@@ -33,4 +34,5 @@ part "cargo test build" cargo test --release --locked --features security --no-r
 # to read the bags we write. Needs the package registries, so outside the namespace.
 part "ROS setup (kilted, jazzy)" tests/interop/setup.sh
 part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline --features security
+part "rustdds unit tests" bash scripts/test_vendored.sh
 part "interop (kilted, jazzy)" bash tests/interop/run.sh
