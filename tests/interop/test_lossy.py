@@ -60,20 +60,34 @@ CALLS = 10
 PARAM_CALLS = 3
 WAIT = 10.0  # for the stragglers after the last scan, and for the latched calibration
 CALL_WAIT = 15.0  # for each call: generous, on a loaded CI machine
+CAPTURE = None  # dumpcap, with LOSSY_PCAP
 
 
 def apply_loss(percent, protocols="udp"):
     """In this (fresh) network namespace: lo up, and `percent` % of the packets of
-    `protocols` (nftables' set syntax: "udp", "{ udp, tcp }") that lo receives dropped."""
+    `protocols` (nftables' set syntax: "udp", "{ udp, tcp }") that lo receives dropped.
+
+    With LOSSY_PCAP=FILE (for a maintainer chasing a loss), the packets are dropped as they
+    are sent instead, and a capture of what lo delivered is written to FILE: a capture on lo
+    sees a packet before the input hook, so it would show the dropped ones too. The
+    server's log is kept beside it (FILE.log)."""
     subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
+    pcap = os.environ.get("LOSSY_PCAP")
+    if pcap:
+        global CAPTURE
+        CAPTURE = subprocess.Popen(
+            ["dumpcap", "-q", "-i", "lo", "-w", pcap], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        time.sleep(1.0)
     if percent <= 0:
         return
+    hook, iface = ("output", "oifname") if pcap else ("input", "iifname")
     rules = f"""
 table inet tracer_loss {{
-    chain input {{
-        type filter hook input priority 0; policy accept;
-        iifname "lo" meta l4proto {protocols} counter
-        iifname "lo" meta l4proto {protocols} numgen random mod 100 < {percent} counter drop
+    chain {hook} {{
+        type filter hook {hook} priority 0; policy accept;
+        {iface} "lo" meta l4proto {protocols} counter
+        {iface} "lo" meta l4proto {protocols} numgen random mod 100 < {percent} counter drop
     }}
 }}
 """
@@ -281,8 +295,13 @@ def scenario_main(server, loss):
             if router:
                 # SIGTERM: `timeout` passes it on to rmw_zenohd (SIGKILL would orphan it).
                 runner.terminate(router)
+    if CAPTURE:
+        shutil.copy(node.log_path, os.environ["LOSSY_PCAP"] + ".log")
     shutil.rmtree(h.WORK, ignore_errors=True)
     result["udp_received"], result["udp_dropped"] = loss_counters()
+    if CAPTURE:
+        CAPTURE.terminate()
+        CAPTURE.wait()
     print(json.dumps(result), flush=True)
 
 
