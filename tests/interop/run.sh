@@ -136,12 +136,24 @@ for d in $DISTROS; do
     fi
     suite test_first_scan.py "$d" "ROS 2 $d rclpy, release binaries" test_first_scan ${first_scan[@]+"${first_scan[@]}"}
     # test_lossy.py: the node and a stock rclpy node in its place under 10 and 25 % UDP loss
-    # (nftables, in a network namespace of each scenario's own), with Fast DDS peers and, on
-    # Jazzy, Cyclone DDS and Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's
-    # lossy_cyclone_* and lossy_zenoh_* say they are skipped); ten cells started at once
-    # under 10 % loss.
+    # (nftables, in a network namespace of each scenario's own), and under 10 % loss with
+    # datagrams delayed and reordered, with Fast DDS peers and, on Jazzy, Cyclone DDS and
+    # Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's lossy_cyclone_* and lossy_zenoh_*
+    # say they are skipped); ten cells started at once under 10 % (Fast DDS planner) and
+    # 25 % loss (Cyclone DDS planner).
     if [ "$all" -eq 1 ] || [ "${#lossy[@]}" -gt 0 ]; then
-        apt_install_missing run.sh "$ROOT/target/lossy_deps.log" nftables
+        # iptables' NFQUEUE and a venv with NetfilterQueue (built against
+        # libnetfilter-queue): tests/interop/netdelay.py, the *_delay scenarios' delay.
+        apt_install_missing run.sh "$ROOT/target/lossy_deps.log" nftables iptables libnetfilter-queue-dev
+        if [ ! -x "$ROOT/target/tools/netdelay/bin/python" ] \
+            || ! "$ROOT/target/tools/netdelay/bin/python" -c 'import netfilterqueue' 2>/dev/null; then
+            rm -rf "$ROOT/target/tools/netdelay"
+            python3 -m venv "$ROOT/target/tools/netdelay" \
+                && "$ROOT/target/tools/netdelay/bin/pip" install -q NetfilterQueue==1.1.0 \
+                    >"$ROOT/target/netdelay_setup.log" 2>&1 \
+                || { tail -n 20 "$ROOT/target/netdelay_setup.log" >&2; failed+=("netdelay_setup"); }
+        fi
+        export TRACER_NETDELAY_PYTHON=$ROOT/target/tools/netdelay/bin/python
         if [ "$d" = jazzy ] && ! "$HERE/cyclone.sh" "$d"; then
             failed+=("$d:cyclone_setup")
         fi
