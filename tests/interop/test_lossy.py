@@ -45,7 +45,7 @@ lossy_zenoh_25 says, rather than asserts, contours lost beyond the stock node's 
 
 Environment: LOSSY_SCANS (100), LOSSY_RUN="SERVER RMW LOSS [delay]" runs one scenario and
 prints its figures (SERVER: node or stock; RMW: fastdds, cyclone or zenoh; delay: delayed
-and reordered too), as scripts/bench_lossy.sh does for other losses.
+and reordered too; mtu1500: lo's MTU 1500), as scripts/bench_lossy.sh does for other losses.
 """
 
 import json
@@ -213,14 +213,17 @@ def start_router():
         time.sleep(0.05)
 
 
-def scenario_main(server, loss, delayed=False):
+def scenario_main(server, loss, variant=""):
     """One scenario in this fresh namespace (see the module doc): prints one JSON line. On
     Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) everything goes by TCP through the router,
-    and TCP segments are dropped too. `delayed`: UDP datagrams delayed and reordered too
-    (apply_delay)."""
+    and TCP segments are dropped too. `variant` "delay": UDP datagrams delayed and
+    reordered too (apply_delay); "mtu1500": lo's MTU that of an Ethernet link, so that
+    large samples travel as several datagrams (RustDDS: DATA_FRAG) or IP fragments."""
     zenoh = os.environ.get("RMW_IMPLEMENTATION") == "rmw_zenoh_cpp"
     apply_loss(loss, "{ udp, tcp }" if zenoh else "udp")
-    delay = apply_delay() if delayed else None
+    if variant == "mtu1500":
+        subprocess.run(["ip", "link", "set", "lo", "mtu", "1500"], check=True)
+    delay = apply_delay() if variant == "delay" else None
     if zenoh:
         # A lost SYN fails a connection attempt to the router (TCP tries again after 1 s):
         # a cell on a lossy network lets rmw_zenoh (and the node) try more than once.
@@ -415,11 +418,11 @@ def over_the_network(env, work):
     )
 
 
-def run_scenario(env, server, loss, delayed=False):
+def run_scenario(env, server, loss, variant=""):
     """One scenario in a network namespace of its own (SERVER "cells": the ten-cell graph;
-    `delayed`: datagrams delayed and reordered as well): its figures (a dict)."""
+    `variant`: see scenario_main): its figures (a dict)."""
     args = ["--cells", str(loss)] if server == "cells" else ["--scenario", server, str(loss)]
-    args += ["delay"] if delayed else []
+    args += [variant] if variant else []
     out = subprocess.run(
         ["unshare", "--net", "--", "timeout", "-s", "KILL", "300", sys.executable, os.path.abspath(__file__), *args],
         env=env,
@@ -463,14 +466,17 @@ def describe(r):
 OPEN = {("zenoh", 25): "contours"}
 
 
-def test_lossy(envs, rmw, loss, delayed=False):
+VARIANTS = {"": "", "delay": f", delayed {DELAY_MS} ± {JITTER_MS} ms", "mtu1500": ", MTU 1500"}
+
+
+def test_lossy(envs, rmw, loss, variant=""):
     env = envs[rmw]
     if env is None:
         return f"skipped: no {rmw}_env.sh (tests/interop/{rmw}.sh builds it)"
-    label = f"{rmw} {loss} %" + (f", delayed {DELAY_MS} ± {JITTER_MS} ms" if delayed else "")
-    stock = run_scenario(env, "stock", loss, delayed)
+    label = f"{rmw} {loss} %{VARIANTS[variant]}"
+    stock = run_scenario(env, "stock", loss, variant)
     print(f"  {label}: stock rclpy node: {describe(stock)}", flush=True)
-    node = run_scenario(env, "node", loss, delayed)
+    node = run_scenario(env, "node", loss, variant)
     print(f"  {label}: tracer_calib_node: {describe(node)}", flush=True)
     lost_node = node["scans"] - node["contours"]
     lost_stock = stock["scans"] - stock["contours"]
@@ -516,16 +522,17 @@ def main():
         stock_server_main()
         os._exit(0)
     if sys.argv[1:2] == ["--scenario"]:
-        scenario_main(sys.argv[2], int(sys.argv[3]), sys.argv[4:5] == ["delay"])
+        scenario_main(sys.argv[2], int(sys.argv[3]), "".join(sys.argv[4:5]))
         os._exit(0)
     sys.path.insert(0, HERE)
     import harness as h
 
     envs = {rmw: env and over_the_network(env, h.WORK) for rmw, env in h.peer_envs().items()}
     if os.environ.get("LOSSY_RUN"):
-        server, rmw, loss, *delay = os.environ["LOSSY_RUN"].split()
-        r = run_scenario(envs[rmw], server, int(loss), delay == ["delay"])
-        print(f"{server} {rmw} {loss} %{' delayed' if delay else ''}: {describe(r)}", flush=True)
+        server, rmw, loss, *variant = os.environ["LOSSY_RUN"].split()
+        variant = "".join(variant)
+        r = run_scenario(envs[rmw], server, int(loss), variant)
+        print(f"{server} {rmw} {loss} %{VARIANTS[variant]}: {describe(r)}", flush=True)
         print(json.dumps(r), flush=True)
         os._exit(0)
     tests = [
@@ -533,7 +540,7 @@ def main():
         for rmw in ("fastdds", "cyclone", "zenoh")
         for loss in (10, 25)
     ] + [
-        (f"{rmw}_10_delay", lambda rmw=rmw: test_lossy(envs, rmw, 10, delayed=True)) for rmw in ("fastdds", "cyclone")
+        (f"{rmw}_10_delay", lambda rmw=rmw: test_lossy(envs, rmw, 10, "delay")) for rmw in ("fastdds", "cyclone")
     ] + [
         ("ten_cells_fastdds_10", lambda: test_ten_cells(envs, "fastdds", 10)),
         ("ten_cells_cyclone_25", lambda: test_ten_cells(envs, "cyclone", 25)),
