@@ -45,6 +45,10 @@ const RTPS_MESSAGE_HEADER_SIZE: usize = 20;
 // the writer (`MessageReceiver::replay_unmatched`).
 const UNMATCHED_KEEP_COUNT: usize = 64;
 const UNMATCHED_KEEP_TIME: Duration = Duration::from_secs(2);
+// How often, at most, the SEDP writers of one participant are asked for a HEARTBEAT
+// because a writer of it that no reader has matched sends us samples
+// (`MessageReceiver::poll_discovery_of`).
+const UNKNOWN_WRITER_POLL_REPEAT: Duration = Duration::from_millis(100);
 
 struct UnmatchedSubmessage {
   received: Instant,
@@ -157,6 +161,9 @@ pub(crate) struct MessageReceiver {
   secure_receiver_state: Option<SecureReceiverState>,
   // tracer_calib patch: samples of writers no reader has matched yet, oldest first
   unmatched: VecDeque<UnmatchedSubmessage>,
+  // tracer_calib patch: when each participant's SEDP writers were last asked for a
+  // HEARTBEAT for an unknown writer of it (`poll_discovery_of`)
+  discovery_polled: BTreeMap<GuidPrefix, Instant>,
   #[cfg(feature = "security")]
   secure_rtps_wrapped: Option<SecureWrapping>,
   #[cfg(feature = "security")]
@@ -192,7 +199,8 @@ impl MessageReceiver {
 
       submessage_count: 0,
       secure_receiver_state: None,
-      unmatched: VecDeque::new(), // tracer_calib patch
+      unmatched: VecDeque::new(),         // tracer_calib patch
+      discovery_polled: BTreeMap::new(), // tracer_calib patch
       #[cfg(feature = "security")]
       secure_rtps_wrapped: None,
       #[cfg(feature = "security")]
@@ -1177,6 +1185,7 @@ impl MessageReceiver {
       return;
     }
     let now = Instant::now();
+    self.poll_discovery_of(writer.prefix, now);
     self.expire_unmatched(now);
     if self.unmatched.len() >= UNMATCHED_KEEP_COUNT {
       self.unmatched.pop_front();
@@ -1199,6 +1208,36 @@ impl MessageReceiver {
       source_timestamp: self.source_timestamp,
       submessage,
     });
+  }
+
+  // A writer that no reader has matched sends us samples: its announcement may have
+  // been lost, typically the last one a new service client makes before it sends its
+  // first request, and nothing newer from that SEDP writer shows the gap. Its periodic
+  // HEARTBEAT would (Fast DDS: every 3 s; the sample kept here expires after 2 s, and
+  // is repaired later still). Instead the SEDP readers ask that participant's SEDP
+  // writers for a HEARTBEAT at once, at most every UNKNOWN_WRITER_POLL_REPEAT.
+  fn poll_discovery_of(&mut self, prefix: GuidPrefix, now: Instant) {
+    if self
+      .discovery_polled
+      .get(&prefix)
+      .is_some_and(|at| now < *at + UNKNOWN_WRITER_POLL_REPEAT)
+    {
+      return;
+    }
+    if self.discovery_polled.len() >= 1024 {
+      self
+        .discovery_polled
+        .retain(|_, at| now < *at + UNKNOWN_WRITER_POLL_REPEAT);
+    }
+    self.discovery_polled.insert(prefix, now);
+    for id in [
+      EntityId::SEDP_BUILTIN_PUBLICATIONS_READER,
+      EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_READER,
+    ] {
+      if let Some(reader) = self.available_readers.get_mut(&id) {
+        reader.poll_quiet_writers(now, Duration::ZERO, Some(prefix));
+      }
+    }
   }
 
   fn expire_unmatched(&mut self, now: Instant) {
@@ -1264,7 +1303,7 @@ impl MessageReceiver {
     let now = std::time::Instant::now();
     for reader in self.available_readers.values_mut() {
       if reader.entity_id().entity_kind.is_user_defined() {
-        reader.poll_quiet_writers(now, period);
+        reader.poll_quiet_writers(now, period, None);
       }
     }
   }
@@ -1278,7 +1317,7 @@ impl MessageReceiver {
       EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_READER,
     ] {
       if let Some(reader) = self.available_readers.get_mut(&id) {
-        reader.poll_quiet_writers(now, std::time::Duration::ZERO);
+        reader.poll_quiet_writers(now, std::time::Duration::ZERO, None);
       }
     }
   }

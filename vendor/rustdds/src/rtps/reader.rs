@@ -1546,8 +1546,15 @@ impl Reader {
   /// DDS client waited 3 s, and another 3 s each time the repair was lost too. A
   /// reliable reader that is not stateless; the event loop polls the user readers every
   /// quarter period, and the SEDP readers with a zero period while a DataWriter waits
-  /// for a reader to match (`DataWriter::wait_for_matched_reader`).
-  pub fn poll_quiet_writers(&mut self, now: std::time::Instant, period: StdDuration) {
+  /// for a reader to match (`DataWriter::wait_for_matched_reader`), and, `only_of` a
+  /// participant, when a writer of it no reader has matched sends us samples
+  /// (`MessageReceiver::poll_discovery_of`).
+  pub fn poll_quiet_writers(
+    &mut self,
+    now: std::time::Instant,
+    period: StdDuration,
+    only_of: Option<GuidPrefix>, // the writers of this participant alone
+  ) {
     if self.like_stateless || self.reliability == policy::Reliability::BestEffort {
       return;
     }
@@ -1555,6 +1562,7 @@ impl Reader {
     for writer_proxy in writer_proxies.values_mut() {
       if writer_proxy.last_heard.is_some_and(|at| now < at + period)
         || writer_proxy.remote_writer_guid.prefix == self.my_guid.prefix
+        || only_of.is_some_and(|prefix| writer_proxy.remote_writer_guid.prefix != prefix)
       {
         continue;
       }
