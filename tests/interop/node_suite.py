@@ -6,7 +6,7 @@ process (one rclpy context, one DDS participant for the peer).
 
 Run by tests/interop/run.sh inside a private network namespace, with a distribution's
 target/ros/DISTRO/env.sh sourced and TRACER_CALIB_NODE, TRACER_CALIB set. Prints one
-line per test and a closing 'interop: N passed, N failed'; after a failure, the node
+line per test and a closing 'interop: N passed, N skipped, N failed'; after a failure, the node
 logs stay in harness.WORK.
 """
 

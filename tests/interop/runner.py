@@ -16,18 +16,24 @@ def run_tests(tests, only, label, summary, after_each=None, log_dir=None):
     """Run the `(name, fn)` pairs (all, or those named in `only`), one line each as cargo
     test prints them (`test LABELname ... ok (1.2 s)`, with what `fn` returns if it is a
     string), a failure's traceback and, if `log_dir` is given, the tail of every `.log`
-    file in it, and a closing `SUMMARY: N passed, M failed`. `after_each()` runs after
-    every test. Returns M."""
-    passed = failed = 0
+    file in it, and a closing `SUMMARY: N passed, K skipped, M failed`. A test that returns
+    "skipped: WHY" (what it needs is not on this machine) is counted skipped, not passed,
+    and printed `test LABELname ... skipped: WHY`. `after_each()` runs after every test.
+    Returns M."""
+    passed = skipped = failed = 0
     for name, fn in tests:
         if only and name not in only:
             continue
         t0 = time.monotonic()
         try:
             detail = fn()
-            passed += 1
-            extra = f" {detail}" if isinstance(detail, str) and detail else ""
-            print(f"test {label}{name} ... ok ({time.monotonic() - t0:.1f} s){extra}", flush=True)
+            if isinstance(detail, str) and detail.startswith("skipped:"):
+                skipped += 1
+                print(f"test {label}{name} ... {detail}", flush=True)
+            else:
+                passed += 1
+                extra = f" {detail}" if isinstance(detail, str) and detail else ""
+                print(f"test {label}{name} ... ok ({time.monotonic() - t0:.1f} s){extra}", flush=True)
         except Exception:
             failed += 1
             print(f"test {label}{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
@@ -37,7 +43,7 @@ def run_tests(tests, only, label, summary, after_each=None, log_dir=None):
                     print(f"--- {log}:\n" + open(os.path.join(log_dir, log)).read()[-3000:], flush=True)
         if after_each:
             after_each()
-    print(f"{summary}: {passed} passed, {failed} failed", flush=True)
+    print(f"{summary}: {passed} passed, {skipped} skipped, {failed} failed", flush=True)
     return failed
 
 

@@ -20,7 +20,7 @@ preload; Fast DDS peers are subprocesses with the Fast DDS environment of env.sh
 - mixed_cell: a Cyclone client process and a Fast DDS client process, 30 /calibrate calls
   each at once, every one answered with the fit of the plate scan it named.
 
-Prints one line per test and a closing 'N passed, N failed'.
+Prints one line per test and a closing 'N passed, N skipped, N failed'.
 """
 
 import json

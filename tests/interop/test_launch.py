@@ -45,7 +45,7 @@ logs go to the test's temporary directory (ROS_LOG_DIR), not ~/.ros.
 
 Run by tests/interop/run.sh inside a private network namespace (tests/interop/netns.sh),
 with the workspace's install/setup.bash sourced. Prints one line per test and a closing
-'launch: N passed, N failed'.
+'launch: N passed, N skipped, N failed'.
     python test_launch.py [TEST_NAME...]
 """
 

@@ -44,7 +44,7 @@ then joins as `/planner`, Enforce.
 - permissive_missing_enclave: the same under Permissive: one warning, and the node runs
   (unsecured).
 
-Prints one line per test and a closing 'N passed, N failed'.
+Prints one line per test and a closing 'N passed, N skipped, N failed'.
 """
 
 import json

@@ -47,7 +47,7 @@ shutdown on rmw_zenoh can hang for 10 s: ../shared/notes/ros2-peer.md).
   stock rclpy relay node (RawScan in, a Contour of the same size out, nothing computed),
   side by side (median and 90th percentile, after 3 s of warm-up rounds; BENCHMARKS.md).
 
-Prints one line per test and a closing 'N passed, N failed'.
+Prints one line per test and a closing 'N passed, N skipped, N failed'.
 """
 
 import json
