@@ -57,6 +57,45 @@ struct UnmatchedSubmessage {
   source_timestamp: Option<Timestamp>,
   submessage: WriterSubmessage,
 }
+
+// At most one action per remote participant a `period` (`note_participant_alive`,
+// `poll_discovery_of`): when each participant last had one, in a map of bounded size.
+struct PerParticipantPacer {
+  period: Duration,
+  last: BTreeMap<GuidPrefix, Instant>,
+}
+
+impl PerParticipantPacer {
+  const BOUND: usize = 4096;
+
+  fn new(period: Duration) -> Self {
+    Self {
+      period,
+      last: BTreeMap::new(),
+    }
+  }
+
+  // Whether `prefix` has had no action within the period before `now`.
+  fn is_due(&self, prefix: GuidPrefix, now: Instant) -> bool {
+    !self
+      .last
+      .get(&prefix)
+      .is_some_and(|at| now < *at + self.period)
+  }
+
+  // `prefix` had an action at `now`. At the bound, the entries whose period is over
+  // go (if none is, all: at worst one action more for a participant).
+  fn record(&mut self, prefix: GuidPrefix, now: Instant) {
+    if self.last.len() >= Self::BOUND {
+      let period = self.period;
+      self.last.retain(|_, at| now < *at + period);
+      if self.last.len() >= Self::BOUND {
+        self.last.clear();
+      }
+    }
+    self.last.insert(prefix, now);
+  }
+}
 // tracer_calib patch: end
 
 // Secure submessage receiving state machine:
@@ -140,7 +179,7 @@ pub(crate) struct MessageReceiver {
   spdp_liveness_sender: WakeSender<GuidPrefix>,
   // tracer_calib patch: when each remote participant's liveness was last told to
   // Discovery from a message of any kind (`note_participant_alive`).
-  liveness_told: BTreeMap<GuidPrefix, std::time::Instant>,
+  liveness_told: PerParticipantPacer,
   security_plugins: Option<SecurityPluginsHandle>,
 
   // Per-remote-participant record of which local interface / source address we
@@ -163,7 +202,7 @@ pub(crate) struct MessageReceiver {
   unmatched: VecDeque<UnmatchedSubmessage>,
   // tracer_calib patch: when each participant's SEDP writers were last asked for a
   // HEARTBEAT for an unknown writer of it (`poll_discovery_of`)
-  discovery_polled: BTreeMap<GuidPrefix, Instant>,
+  discovery_polled: PerParticipantPacer,
   #[cfg(feature = "security")]
   secure_rtps_wrapped: Option<SecureWrapping>,
   #[cfg(feature = "security")]
@@ -184,7 +223,7 @@ impl MessageReceiver {
       available_readers: BTreeMap::new(),
       acknack_sender,
       spdp_liveness_sender,
-      liveness_told: BTreeMap::new(), // tracer_calib patch
+      liveness_told: PerParticipantPacer::new(Duration::from_secs(1)), // tracer_calib patch
       security_plugins,
       interface_observations,
       own_guid_prefix: participant_guid_prefix,
@@ -200,7 +239,7 @@ impl MessageReceiver {
       submessage_count: 0,
       secure_receiver_state: None,
       unmatched: VecDeque::new(),         // tracer_calib patch
-      discovery_polled: BTreeMap::new(), // tracer_calib patch
+      discovery_polled: PerParticipantPacer::new(UNKNOWN_WRITER_POLL_REPEAT), // tracer_calib patch
       #[cfg(feature = "security")]
       secure_rtps_wrapped: None,
       #[cfg(feature = "security")]
@@ -346,19 +385,10 @@ impl MessageReceiver {
     if prefix == self.own_guid_prefix || prefix == GuidPrefix::UNKNOWN {
       return;
     }
-    let now = std::time::Instant::now();
-    if self
-      .liveness_told
-      .get(&prefix)
-      .is_some_and(|at| now < *at + std::time::Duration::from_secs(1))
+    let now = Instant::now();
+    if self.liveness_told.is_due(prefix, now) && self.spdp_liveness_sender.try_send(prefix).is_ok()
     {
-      return;
-    }
-    if self.spdp_liveness_sender.try_send(prefix).is_ok() {
-      if self.liveness_told.len() >= 4096 {
-        self.liveness_told.clear(); // a bound; at worst, one more message a participant
-      }
-      self.liveness_told.insert(prefix, now);
+      self.liveness_told.record(prefix, now);
     }
   }
   // tracer_calib patch: end
@@ -1217,19 +1247,10 @@ impl MessageReceiver {
   // is repaired later still). Instead the SEDP readers ask that participant's SEDP
   // writers for a HEARTBEAT at once, at most every UNKNOWN_WRITER_POLL_REPEAT.
   fn poll_discovery_of(&mut self, prefix: GuidPrefix, now: Instant) {
-    if self
-      .discovery_polled
-      .get(&prefix)
-      .is_some_and(|at| now < *at + UNKNOWN_WRITER_POLL_REPEAT)
-    {
+    if !self.discovery_polled.is_due(prefix, now) {
       return;
     }
-    if self.discovery_polled.len() >= 1024 {
-      self
-        .discovery_polled
-        .retain(|_, at| now < *at + UNKNOWN_WRITER_POLL_REPEAT);
-    }
-    self.discovery_polled.insert(prefix, now);
+    self.discovery_polled.record(prefix, now);
     for id in [
       EntityId::SEDP_BUILTIN_PUBLICATIONS_READER,
       EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_READER,
