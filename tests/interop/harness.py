@@ -15,6 +15,7 @@ directory for scans, params files and node logs.
 import json
 import math
 import os
+import socket
 import subprocess
 import sys
 import tempfile
@@ -213,6 +214,44 @@ class Peer:
     def close(self):
         self.executor.remove_node(self.node)
         self.node.destroy_node()
+
+
+ZENOH_ROUTER_PORT = 7447  # where rmw_zenoh_cpp and the node look for the router
+
+
+def port_open(port):
+    with socket.socket() as s:
+        s.settimeout(0.2)
+        return s.connect_ex(("127.0.0.1", port)) == 0
+
+
+class ZenohRouter:
+    """rmw_zenohd (TRACER_ZENOHD) on tcp/127.0.0.1:ZENOH_ROUTER_PORT only, its output in
+    LOG_DIR/router.log, once it listens (within `wait` seconds). Under `timeout`: a router
+    orphaned by a killed test ends too; stop() sends SIGTERM, which `timeout` passes on
+    (SIGKILL would orphan it)."""
+
+    def __init__(self, log_dir, wait=10.0):
+        port = ZENOH_ROUTER_PORT
+        assert not port_open(port), f"something listens on 127.0.0.1:{port} already"
+        self.log_path = os.path.join(log_dir, "router.log")
+        env = dict(os.environ, ZENOH_CONFIG_OVERRIDE=f'listen/endpoints=["tcp/127.0.0.1:{port}"]')
+        self.proc = subprocess.Popen(
+            ["timeout", "-s", "KILL", "300", os.environ["TRACER_ZENOHD"]],
+            env=env, stdout=open(self.log_path, "w"), stderr=subprocess.STDOUT,
+        )
+        deadline = time.monotonic() + wait
+        while not port_open(port):
+            assert self.proc.poll() is None, f"rmw_zenohd exited with {self.proc.returncode}:\n{self.output()}"
+            assert time.monotonic() < deadline, f"rmw_zenohd not listening after {wait} s:\n{self.output()}"
+            time.sleep(0.05)
+
+    def output(self):
+        with open(self.log_path) as f:
+            return f.read()
+
+    def stop(self):
+        runner.terminate(self.proc)
 
 
 def peer_envs():

@@ -194,29 +194,6 @@ def stock_server_main():
     rclpy.spin(node)
 
 
-def start_router():
-    """rmw_zenohd on tcp/127.0.0.1:7447 (where rmw_zenoh_cpp and the node look for it), once
-    it listens; its output in the scenario's log folder."""
-    import socket
-
-    import harness as h
-
-    log = open(os.path.join(h.WORK, "router.log"), "w")
-    env = dict(os.environ, ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]')
-    # Under `timeout`, as test_zenoh.py's: a router orphaned by a killed scenario ends too.
-    proc = subprocess.Popen(
-        ["timeout", "-s", "KILL", "300", os.environ["TRACER_ZENOHD"]], env=env, stdout=log, stderr=subprocess.STDOUT
-    )
-    deadline = time.monotonic() + 30
-    while True:
-        with socket.socket() as sock:
-            sock.settimeout(0.5)
-            if sock.connect_ex(("127.0.0.1", 7447)) == 0:
-                return proc
-        assert proc.poll() is None and time.monotonic() < deadline, "rmw_zenohd not listening after 30 s"
-        time.sleep(0.05)
-
-
 def scenario_main(server, loss, variant=""):
     """One scenario in this fresh namespace (see the module doc): prints one JSON line. On
     Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) everything goes by TCP through the router,
@@ -238,13 +215,13 @@ def scenario_main(server, loss, variant=""):
     from rclpy.qos import DurabilityPolicy, QoSProfile
 
     import harness as h
-    import runner
     from tracer_calib_msgs.msg import Calibration, Contour, RawScan
     from tracer_calib_msgs.srv import Calibrate
 
     plate = h.simulate("lossy_plate", "plate", seed=3)
     lens = h.simulate("lossy_lens", "ellipse", seed=4)
-    router = start_router() if zenoh else None
+    # 30 s: under loss a lost SYN of the listening check costs a second.
+    router = h.ZenohRouter(h.WORK, wait=30.0) if zenoh else None
     t_start = time.monotonic()
     if server == "stock":
         node = h.NodeProcess("lossy_stock", argv=[sys.executable, os.path.abspath(__file__), "--stock-server"], peer=True)
@@ -335,8 +312,7 @@ def scenario_main(server, loss, variant=""):
                 node.stop()
         finally:
             if router:
-                # SIGTERM: `timeout` passes it on to rmw_zenohd (SIGKILL would orphan it).
-                runner.terminate(router)
+                router.stop()
     if CAPTURE:
         shutil.copy(node.log_path, os.environ["LOSSY_PCAP"] + ".log")
     shutil.rmtree(h.WORK, ignore_errors=True)

@@ -53,7 +53,6 @@ Prints one line per test and a closing 'N passed, N skipped, N failed'.
 import json
 import os
 import shutil
-import socket
 import subprocess
 import sys
 import tempfile
@@ -82,7 +81,6 @@ ZENOH_ENV = dict(os.environ)
 CLI_ENV = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
 os.environ.pop("LD_PRELOAD", None)
 
-ROUTER_PORT = 7447
 WORK = tempfile.mkdtemp(prefix="tracer_calib_zenoh_")
 MESSAGES = 10
 
@@ -167,37 +165,6 @@ print("bye", flush=True)
 """
 
 
-def port_open(port):
-    with socket.socket() as s:
-        s.settimeout(0.2)
-        return s.connect_ex(("127.0.0.1", port)) == 0
-
-
-class Router:
-    """rmw_zenohd on tcp/127.0.0.1:ROUTER_PORT only, its output in WORK/router.log."""
-
-    def __init__(self):
-        assert not port_open(ROUTER_PORT), f"something listens on 127.0.0.1:{ROUTER_PORT} already"
-        self.log_path = os.path.join(WORK, "router.log")
-        env = dict(os.environ, ZENOH_CONFIG_OVERRIDE=f'listen/endpoints=["tcp/127.0.0.1:{ROUTER_PORT}"]')
-        self.proc = subprocess.Popen(
-            ["timeout", "-s", "KILL", "300", os.environ["TRACER_ZENOHD"]],
-            env=env, stdout=open(self.log_path, "w"), stderr=subprocess.STDOUT,
-        )
-        deadline = time.monotonic() + 10
-        while not port_open(ROUTER_PORT):
-            assert self.proc.poll() is None, f"rmw_zenohd exited with {self.proc.returncode}:\n{self.output()}"
-            assert time.monotonic() < deadline, f"rmw_zenohd not listening after 10 s:\n{self.output()}"
-            time.sleep(0.05)
-
-    def output(self):
-        with open(self.log_path) as f:
-            return f.read()
-
-    def stop(self):
-        runner.terminate(self.proc)
-
-
 def peer(name, script, *args):
     return subprocess.Popen(
         ["timeout", "-s", "KILL", "120", sys.executable, "-c", script, *args], env=ZENOH_ENV,
@@ -234,7 +201,7 @@ def string_hash():
 
 
 def test_zenoh_stock_pair():
-    router = Router()
+    router = tn.ZenohRouter(WORK)
     procs = {}
     try:
         t0 = time.monotonic()
@@ -282,14 +249,14 @@ ROUTER = [None]
 def router():
     """The router the node tests share (started by the first one that needs it)."""
     if ROUTER[0] is None or ROUTER[0].proc.poll() is not None:
-        ROUTER[0] = Router()
+        ROUTER[0] = tn.ZenohRouter(WORK)
     return ROUTER[0]
 
 
 def node_env():
     """What puts a tracer_calib_node started now on Zenoh, through the test's router."""
     return dict(RMW_IMPLEMENTATION="rmw_zenoh_cpp",
-                ZENOH_CONFIG_OVERRIDE=f'connect/endpoints=["tcp/127.0.0.1:{ROUTER_PORT}"]')
+                ZENOH_CONFIG_OVERRIDE=f'connect/endpoints=["tcp/127.0.0.1:{tn.ZENOH_ROUTER_PORT}"]')
 
 
 def on_zenoh(test):
