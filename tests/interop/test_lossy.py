@@ -40,15 +40,17 @@ travel as several DATA_FRAGs (RustDDS) or IP fragments (the stock peers): assert
 BENCHMARKS.md, open). lossy_ten_cells_fastdds_10,
 lossy_ten_cells_cyclone_25: ten nodes and a planner (tests/interop/cell_graph.py, an rclpy
 planner on Fast DDS, or on Cyclone DDS under 25 % loss) started at once; the planner matches
-every cell, every call and scan is answered. Not asserted yet (BENCHMARKS.md, "A lossy
-network"): with a Fast DDS planner under 25 % loss a Kilted planner left one cell unmatched
-in 1 of 4 runs (`python test_lossy.py --cells 25` in the peer's environment shows it); and
-lossy_zenoh_25 says, rather than asserts, contours lost beyond the stock node's (OPEN).
+every cell, every call and scan is answered; lossy_ten_cells_fastdds_25 the same under 25 % loss
+(a Fast DDS planner used to leave cells unmatched for good in 1 run of 4-12: RustDDS sent
+discovery samples unstamped, and Fast DDS misfiled the late repairs of such a stream;
+vendor/rustdds/PATCHES.md, "A sample written without a timestamp is stamped now"). Not
+asserted yet (BENCHMARKS.md, "A lossy network"): lossy_zenoh_25 says, rather than asserts,
+contours lost beyond the stock node's (OPEN).
 
     python test_lossy.py [lossy | lossy_fastdds_10 | ...]...
 
 Environment: LOSSY_SCANS (100), LOSSY_RUN="SERVER RMW LOSS [delay]" runs one scenario and
-prints its figures (SERVER: node or stock; RMW: fastdds, cyclone or zenoh; delay: delayed
+prints its figures (SERVER: node or stock, or cells for the ten-cell graph; RMW: fastdds, cyclone or zenoh; delay: delayed
 and reordered too; mtu1500: lo's MTU 1500), as scripts/bench_lossy.sh does for other losses.
 """
 
@@ -343,6 +345,13 @@ def cells_main(loss):
     finally:
         for n in list(h.RUNNING):
             n.stop()
+        if CAPTURE:
+            # The cells' logs beside the capture (FILE.cellK.log), as for a scenario.
+            for name in os.listdir(h.WORK):
+                if name.startswith("cell") and name.endswith(".log"):
+                    shutil.copy(os.path.join(h.WORK, name), os.environ["LOSSY_PCAP"] + "." + name)
+            CAPTURE.terminate()
+            CAPTURE.wait()
     shutil.rmtree(h.WORK, ignore_errors=True)
     out["udp_received"], out["udp_dropped"] = loss_counters()
     print(json.dumps(out), flush=True)
@@ -512,7 +521,8 @@ def main():
         server, rmw, loss, *variant = os.environ["LOSSY_RUN"].split()
         variant = "".join(variant)
         r = run_scenario(envs[rmw], server, int(loss), variant)
-        print(f"{server} {rmw} {loss} %{VARIANTS[variant]}: {describe(r)}", flush=True)
+        if server != "cells":
+            print(f"{server} {rmw} {loss} %{VARIANTS[variant]}: {describe(r)}", flush=True)
         print(json.dumps(r), flush=True)
         os._exit(0)
     tests = [
@@ -525,6 +535,7 @@ def main():
         for rmw in ("fastdds", "cyclone")
     ] + [
         ("ten_cells_fastdds_10", lambda: test_ten_cells(envs, "fastdds", 10)),
+        ("ten_cells_fastdds_25", lambda: test_ten_cells(envs, "fastdds", 25)),
         ("ten_cells_cyclone_25", lambda: test_ten_cells(envs, "cyclone", 25)),
     ]
     h.run_tests_and_exit("test_lossy.py", tests, [a.removeprefix("lossy_") for a in sys.argv[1:]], "interop::lossy_", "lossy")

@@ -146,11 +146,23 @@ impl WriteOptions {
   }
 }
 
+/// The options of `write(data, source_timestamp)`, `dispose(key,
+/// source_timestamp)` and their async forms.
 impl From<Option<Timestamp>> for WriteOptions {
   fn from(source_timestamp: Option<Timestamp>) -> Self {
     Self {
       related_sample_identity: None,
-      source_timestamp,
+      // tracer_calib patch: `None` is the current time, as DDS v1.4
+      // 2.2.2.4.2.11 (write) and this crate's own doc of dispose say: the sample
+      // then goes out with an INFO_TS, repairs included. Published, `None` sent
+      // no timestamp, so every discovery sample (SEDP, participant message)
+      // reached its readers stamped zero. Fast DDS orders a reader's history by
+      // source timestamp across writers and by sequence number within one, and
+      // inserts after the last change unless the new one sorts before it: with
+      // all stamps zero, a repaired SEDP sample 1 that arrives after that
+      // writer's sample 10 went in behind it, and Fast DDS never delivered
+      // samples 1..9, so it never matched those endpoints (PATCHES.md).
+      source_timestamp: source_timestamp.or_else(|| Some(Timestamp::now())),
       to_single_reader: None,
       best_effort_may_block: false,
     }
@@ -1172,6 +1184,17 @@ mod tests {
 
     // TODO: verify that data is sent/written correctly
     // TODO: write also with timestamp
+  }
+
+  // tracer_calib patch: `write(data, None)` stamps the current time.
+  #[test]
+  fn write_without_a_timestamp_stamps_now() {
+    let before = Timestamp::now();
+    let stamped = WriteOptions::from(None).source_timestamp().expect("stamped");
+    assert!(before <= stamped && stamped <= Timestamp::now());
+    let given = Timestamp::now();
+    assert_eq!(WriteOptions::from(Some(given)).source_timestamp(), Some(given));
+    assert_eq!(WriteOptionsBuilder::new().build().source_timestamp(), None);
   }
 
   #[test]
