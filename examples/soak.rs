@@ -173,7 +173,11 @@ fn main() {
                 publisher.async_publish(msg).await.unwrap();
                 if sent % 2000 == 0 {
                     calls += 1;
-                    let call = client.async_call_service(CalibrateRequest { scan_id: 0, dry_run: sent % 4000 == 0 });
+                    let call = client.async_call_service(CalibrateRequest {
+                        scan_id: 0,
+                        dry_run: sent % 4000 == 0,
+                        ring_scan_id: 0,
+                    });
                     if let futures::future::Either::Left((Ok(r), _)) =
                         futures::future::select(std::pin::pin!(call), smol::Timer::after(Duration::from_secs(5))).await
                         && r.success

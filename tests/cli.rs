@@ -95,6 +95,7 @@ fn simulate_then_calibrate_json() {
             "rms_residual",
             "iterations",
             "samples_used",
+            "covariance",
         ];
         let at: Vec<usize> = keys.iter().map(|k| text.find(&format!("\"{k}\":")).expect(k)).collect();
         assert!(at.windows(2).all(|w| w[0] < w[1]), "{text}");
@@ -102,6 +103,12 @@ fn simulate_then_calibrate_json() {
         assert_eq!(v["success"], true);
         let sd: Vec<f64> = v["stddev"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
         assert_eq!(sd.len(), 3);
+        // The whole covariance, in the contract's layout: its diagonal the stddevs squared.
+        let cov: Vec<f64> = v["covariance"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        assert_eq!(cov.len(), 25);
+        for i in 0..3 {
+            assert!((cov[6 * i].sqrt() - sd[i]).abs() <= 1e-12 * sd[i], "{model}: {v}");
+        }
         // Within 5 reported standard uncertainties of the truth.
         for (i, (key, truth)) in
             [("alpha0", -3f64.to_radians()), ("offset", 0.006), ("delta_l", 0.002)].iter().enumerate()
@@ -325,6 +332,8 @@ fn history_table_json_and_svg_with_a_torn_last_line() {
             rms_residual: 5e-6,
             samples_used: 400,
             iterations: 7,
+            tip_radius: 0.0,
+            covariance: Vec::new(),
             previous,
             ros_time: None,
         };

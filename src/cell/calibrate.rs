@@ -3,7 +3,7 @@
 //! that cannot be recorded, leaves the calibration in force as it was on disk.
 
 use super::{InForce, NodeState, Now};
-use crate::engine::calibrate::{Calibration, calibrate};
+use crate::engine::calibrate::{Calibration, calibrate, covariance_values};
 use crate::engine::geometry::Mounting;
 use crate::interfaces::{CalibrateRequest, CalibrateResponse};
 use crate::records::{self, Previous, Record};
@@ -91,11 +91,14 @@ impl NodeState {
             rms_residual: cal.rms_residual,
             samples_used: cal.samples_used as u32,
             iterations: cal.iterations as u32,
+            tip_radius: 0.0,
+            covariance: response.covariance.clone(),
             previous: previous.map(Previous::from),
             ros_time: Some(records::RosTime::from_nanos(now.ros.to_nanos())),
         };
         self.params.calibration = cal.mounting;
         self.params.calibration_valid = true;
+        self.params.covariance = response.covariance.clone();
         // The time the record gives, to the millisecond: what a restart reads back.
         self.in_force = InForce {
             applied_at: record.applied_at().unwrap_or(now.wall),
@@ -122,7 +125,9 @@ impl NodeState {
 
 /// The Calibrate response of a successful fit (the node's, and the offline tool's JSON):
 /// `scale` and `scale_stddev` are the fitted ones, or 1 and 0 for a model that does not
-/// fit the scale.
+/// fit the scale; `covariance` the whole covariance, in the contract's layout; no model
+/// fits the tip radius yet, so `tip_radius` is 0 (no tip modelled) and so is its
+/// uncertainty.
 pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
     let (scale, scale_stddev) =
         if cal.model.fits_scale() { (cal.mounting.scale, cal.scale_stddev) } else { (1.0, 0.0) };
@@ -138,5 +143,8 @@ pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
         samples_used: cal.samples_used as u32,
         scale,
         scale_stddev,
+        tip_radius: 0.0,
+        tip_radius_stddev: 0.0,
+        covariance: covariance_values(&cal.covariance),
     }
 }

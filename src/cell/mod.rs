@@ -152,6 +152,8 @@ impl NodeState {
             stddev: self.in_force.stddev.clone(),
             rms_residual: self.in_force.rms_residual,
             samples_used: self.in_force.samples_used,
+            tip_radius: 0.0,
+            covariance: if p.calibration_valid { p.covariance.clone() } else { Vec::new() },
         }
     }
 

@@ -40,10 +40,19 @@ fn scans_are_corrected_once_calibrated() {
     assert_eq!(before.contour.points.len(), 400);
     assert_eq!(before.contour.radii.len(), 400);
     assert_eq!(before.polygon.as_ref().unwrap().polygon.points.len(), 400);
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
     assert!(out.response.success, "{}", out.response.message);
     assert!((out.response.offset - 0.004).abs() < 1e-5);
     assert_eq!(out.response.stddev.len(), 3);
+    // The covariance in the contract's layout: the variances are the stddevs squared, the
+    // scale's and the tip radius's rows zero (the full model fits neither).
+    let c = crate::engine::calibrate::covariance_from_values(&out.response.covariance).unwrap();
+    for i in 0..3 {
+        assert_eq!(c[(i, i)].sqrt(), out.response.stddev[i]);
+    }
+    assert_eq!(c.rows(3, 2).norm(), 0.0);
+    assert!(c[(0, 1)] != 0.0 && c[(1, 2)] != 0.0, "correlations kept: {c}");
+    assert_eq!((out.response.tip_radius, out.response.tip_radius_stddev), (0.0, 0.0));
     let after = st.on_raw_scan(&plate_msg(2, &m), true).unwrap();
     assert!(after.contour.calibrated);
     assert_eq!(st.stats.calibrations_applied, 1);
@@ -86,11 +95,11 @@ fn a_failed_calibration_keeps_the_old_one() {
     let in_force = st.params.calibration;
     // A wrong plate size: the fit is refused, the calibration stays.
     st.params.plate.side = 0.05;
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 5, dry_run: false });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 5, dry_run: false, ring_scan_id: 0 });
     assert!(!out.response.success);
     assert!(out.response.message.contains("does not match the plate"), "{}", out.response.message);
     assert_eq!(st.params.calibration, in_force);
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 77, dry_run: false });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 77, dry_run: false, ring_scan_id: 0 });
     assert_eq!(out.response.message, "no calibration-plate scan with scan_id 77 (kept: 5)");
     assert_eq!(st.stats.calibrations_failed, 3);
 }
@@ -100,11 +109,11 @@ fn dry_runs_change_nothing_and_persisting_failures_are_reported() {
     let m = Mounting::new(0.01, 0.003, 0.001);
     let mut st = NodeState::new("/t".into(), Parameters::default());
     st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true, ring_scan_id: 0 });
     assert!(out.response.success && out.applied.is_none());
     assert!(!st.params.calibration_valid);
     st.params.params_file = "/nonexistent-dir/x/params.yaml".into();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
     assert!(!out.response.success);
     assert!(
         out.response.message.starts_with("calibration applied in memory but not persisted"),
@@ -138,7 +147,7 @@ fn an_encoder_scale_error_is_refused_by_full_and_corrected_with_full_scale() {
     let m = Mounting::new(0.02, 0.004, 0.001).with_scale(1.0 / 1.0025);
     let mut st = NodeState::new("/t".into(), Parameters::default());
     st.on_raw_scan(&plate_msg(3, &m), true).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
     assert!(!out.response.success);
     assert!(out.response.message.contains("encoder scale looks off"), "{}", out.response.message);
     assert!(!st.params.calibration_valid, "the failed fit applied nothing");
@@ -147,10 +156,16 @@ fn an_encoder_scale_error_is_refused_by_full_and_corrected_with_full_scale() {
     assert!(diag.status[0].message.contains("encoder scale looks off"), "{}", diag.status[0].message);
 
     st.params.set("model", &crate::params::ParamValue::String("full_scale".into())).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
     assert!(out.response.success, "{}", out.response.message);
     let r = &out.response;
     assert!((r.scale - m.scale).abs() < 5.0 * r.scale_stddev && r.scale_stddev > 0.0, "{r:?}");
+    // The whole covariance: the scale's row is there, and dL and the scale move together
+    // (a longer encoder reading or a larger zero error look alike at the plate's radius).
+    let c = crate::engine::calibrate::covariance_from_values(&r.covariance).unwrap();
+    assert_eq!(c[(3, 3)].sqrt(), r.scale_stddev);
+    assert!(c[(2, 3)].abs() / (c[(2, 2)] * c[(3, 3)]).sqrt() > 0.9, "{c}");
+    assert_eq!(c.row(4).norm(), 0.0, "no tip radius fitted");
     assert_eq!(st.params.calibration.scale, r.scale);
     assert_eq!(out.applied.unwrap().scale, r.scale);
 
@@ -191,14 +206,14 @@ fn applied_calibrations_are_recorded_naming_the_one_they_replaced() {
     assert!(!st.calibration_msg().valid);
     let m = Mounting::new(0.02, 0.004, 0.001);
     st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
-    let dry = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: true });
+    let dry = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: true, ring_scan_id: 0 });
     assert!(dry.response.success);
     assert!(!history.exists(), "a dry run is not recorded");
-    let first = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false });
+    let first = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 });
     assert!(first.response.success, "{}", first.response.message);
     assert!(!first.response.message.contains("moved"), "nothing to move from: {}", first.response.message);
     st.on_raw_scan(&plate_msg(2, &m), true).unwrap();
-    let second = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false });
+    let second = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false, ring_scan_id: 0 });
     assert!(second.response.success);
     assert!(
         second.response.message.contains("moved since the previous calibration: alpha0"),
@@ -216,10 +231,14 @@ fn applied_calibrations_are_recorded_naming_the_one_they_replaced() {
     assert_eq!(b.alpha0, second.response.alpha0);
     assert_eq!(b.stddev, second.response.stddev);
     assert_eq!(b.iterations, second.response.iterations);
+    assert_eq!((b.covariance.len(), b.tip_radius), (25, 0.0));
+    assert_eq!(b.covariance, second.response.covariance);
+    assert_eq!(st.params.covariance, b.covariance, "the covariance in force is a parameter");
     // The calibration message is the second, stamped with its record's ROS time (the
     // system time here: within the millisecond of its `time`).
     let msg = st.calibration_msg();
     assert!(msg.valid && msg.scan_id == 2 && msg.alpha0 == b.alpha0 && msg.stddev == b.stddev);
+    assert_eq!(msg.covariance, b.covariance);
     assert_eq!(msg.header.frame_id, "tracer_axis");
     assert_eq!(Some(msg.header.stamp.to_nanos()), b.ros_time.map(records::RosTime::to_nanos));
     let stamp = UNIX_EPOCH + Duration::from_nanos(msg.header.stamp.to_nanos() as u64);
@@ -230,6 +249,7 @@ fn applied_calibrations_are_recorded_naming_the_one_they_replaced() {
     let mut reloaded = Parameters::default();
     reloaded.apply_file(&file, "/cell1/tracer", "p.yaml").unwrap();
     assert_eq!(reloaded.history_file, params.history_file);
+    assert_eq!(reloaded.covariance, b.covariance, "persisted, read back to the bit");
     let mut again = NodeState::new("/cell1/tracer".into(), reloaded.clone());
     again.adopt_history(&h);
     assert_eq!(again.calibration_msg(), msg);
@@ -255,7 +275,7 @@ fn a_history_that_cannot_be_written_fails_the_call_and_persists_nothing() {
     };
     let mut st = NodeState::new("/t".into(), params);
     st.on_raw_scan(&plate_msg(1, &Mounting::new(0.01, 0.003, 0.001)), true).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 });
     assert!(!out.response.success);
     assert!(
         out.response.message.starts_with("calibration applied in memory but not persisted: cannot append to"),
@@ -278,7 +298,7 @@ fn overdue_and_drifted_calibrations_warn_on_diagnostics() {
     let m = Mounting::new(0.02, 0.004, 0.001);
     let mut st = NodeState::new("/t".into(), Parameters::default());
     st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
-    assert!(st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false }).response.success);
+    assert!(st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 }).response.success);
     let applied = st.in_force.applied_at;
     let at = |days: f64| Now::at(applied + Duration::from_secs_f64(days * 86_400.0));
     let d = st.diagnostics(at(40.0));
@@ -296,7 +316,7 @@ fn overdue_and_drifted_calibrations_warn_on_diagnostics() {
     // The tracer knocked: d moved by 0.1 mm, far beyond its few-µm uncertainty.
     let knocked = Mounting::new(0.02, 0.0041, 0.001);
     st.on_raw_scan(&plate_msg(2, &knocked), true).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false, ring_scan_id: 0 });
     assert!(out.response.success, "{}", out.response.message);
     assert!(out.response.message.contains("more than calibration.drift_warn_sigma = 10"), "{}", out.response.message);
     let d = st.diagnostics(at(0.0));
@@ -337,7 +357,9 @@ fn sim_time_stamps_and_records() {
     let wall = UNIX_EPOCH + Duration::from_secs(1_800_000_000);
     let sim = Time::from_nanos(5_003_250_000_000);
     assert!(
-        st.on_calibrate_at(&CalibrateRequest { scan_id: 1, dry_run: false }, Now { wall, ros: sim }).response.success
+        st.on_calibrate_at(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 }, Now { wall, ros: sim })
+            .response
+            .success
     );
     assert_eq!(st.calibration_msg().header.stamp, sim);
     let r = &records::file::read(&history).unwrap().records[0];
@@ -373,7 +395,7 @@ fn a_managed_node_holds_scans_until_active_and_reads_its_history_when_configured
     let m = Mounting::new(0.02, 0.004, 0.001);
     let mut first = NodeState::new("/m".into(), params.clone());
     first.on_raw_scan(&plate_msg(1, &m), true).unwrap();
-    assert!(first.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false }).response.success);
+    assert!(first.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 }).response.success);
     assert!(first.is_active() && first.calibrate_refused().is_none());
     let params = first.params.clone();
 

@@ -182,12 +182,18 @@ pub fn run(args: &Args) -> i32 {
 }
 
 /// The response as the `--json` object: the Calibrate response's fields in order,
-/// `scale` and `scale_stddev` only for a model that fits the scale (CONTRACT.md).
+/// `scale` and `scale_stddev` only for a model that fits the scale, `tip_radius` and
+/// `tip_radius_stddev` only for one that fits the tip radius (none yet), `covariance`
+/// always (CONTRACT.md).
 fn json_of(r: &Response, with_scale: bool) -> String {
     let mut v = serde_json::to_value(r).expect("a response serialises");
-    if !with_scale && let Some(o) = v.as_object_mut() {
-        o.remove("scale");
-        o.remove("scale_stddev");
+    if let Some(o) = v.as_object_mut() {
+        if !with_scale {
+            o.remove("scale");
+            o.remove("scale_stddev");
+        }
+        o.remove("tip_radius");
+        o.remove("tip_radius_stddev");
     }
     v.to_string()
 }

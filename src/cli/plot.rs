@@ -21,6 +21,9 @@ use crate::io::plot::{CalibrationReport, ContourPlot, Outline, ResidualPlot, Res
 ///   tracer_calib plot --input plate.csv --out plate_fit.svg
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
+// Its own argument group id: the flattened `calibrate` arguments' struct is also named
+// `Args`, and two groups of one id fail clap's check (in debug builds: a panic at start).
+#[group(id = "PlotArgs")]
 pub struct Args {
     #[command(flatten)]
     pub input: CalibrateArgs,

@@ -11,7 +11,12 @@
 //!    cannot make the set oscillate, and the loop ends;
 //! 4. `alpha0` is reported in `(-π/4, π/4]`: a square plate gives the same lengths for
 //!    `(alpha0 + π/2, d, dL, R₉₀ c)` ([`super::geometry::wrap_quarter_turn`]);
-//! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`;
+//! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`; the
+//!    tracer's part of it (the plate centre left out: the marginal covariance of a
+//!    Gaussian estimate is the sub-matrix) reported whole, in the fixed [`Covariance`]
+//!    layout, since the parameters correlate strongly (`dL` and the scale at 0.95): a
+//!    size computed from the standard uncertainties alone would be eight times too
+//!    uncertain;
 //! 6. **the encoder scale is checked** by the models that do not fit it (`full`,
 //!    `paper`): a score test of the scale in force, `k = k₀`. At the fitted parameters
 //!    `x̂` the encoder-scale model ([`super::model::full_scale`]) is linearised and one
@@ -108,6 +113,41 @@ impl ScaleEstimate {
     }
 }
 
+/// The covariance of the tracer's parameters in the contract's fixed layout,
+/// `[alpha0, offset, delta_l, scale, tip_radius]` (radians, metres, 1, metres): rows and
+/// columns of what a model does not fit are zero.
+pub type Covariance = SMatrix<f64, 5, 5>;
+
+/// Indices into [`Covariance`].
+pub mod layout {
+    pub const ALPHA0: usize = 0;
+    pub const OFFSET: usize = 1;
+    pub const DELTA_L: usize = 2;
+    pub const SCALE: usize = 3;
+    pub const TIP_RADIUS: usize = 4;
+    /// Entries of the row-major form messages and records carry.
+    pub const VALUES: usize = 25;
+}
+
+/// `cov` row-major: the 25 values of the Calibrate response, the `Calibration` message,
+/// the `calibration.covariance` parameter and the history's records.
+pub fn covariance_values(cov: &Covariance) -> Vec<f64> {
+    (0..5).flat_map(|i| (0..5).map(move |j| cov[(i, j)])).collect()
+}
+
+/// The 25 row-major values back as a [`Covariance`]; `None` unless there are 25, every
+/// one finite, the matrix symmetric (to rounding) with no negative variance.
+pub fn covariance_from_values(v: &[f64]) -> Option<Covariance> {
+    if v.len() != layout::VALUES || !v.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let c = Covariance::from_row_slice(v);
+    let symmetric = (0..5).all(|i| {
+        (0..i).all(|j| (c[(i, j)] - c[(j, i)]).abs() <= 1e-9 * (c[(i, i)] * c[(j, j)]).sqrt().max(f64::MIN_POSITIVE))
+    });
+    (symmetric && (0..5).all(|i| c[(i, i)] >= 0.0)).then_some(c)
+}
+
 /// A fitted calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Calibration {
@@ -119,8 +159,9 @@ pub struct Calibration {
     pub plate_center: Vector2<f64>,
     /// Standard uncertainty of `[alpha0, offset, delta_l]`.
     pub stddev: [f64; 3],
-    /// Covariance of `[alpha0, offset, delta_l]`.
-    pub covariance: SMatrix<f64, 3, 3>,
+    /// Covariance of the tracer's parameters ([`Covariance`]: the scale's row is zero
+    /// unless the model fits it, the tip radius's until a model fits it).
+    pub covariance: Covariance,
     /// Standard uncertainty of the encoder scale; 0 when the model does not fit it.
     pub scale_stddev: f64,
     /// The encoder scale the scan shows, by the score test of the models that do not
@@ -286,8 +327,8 @@ struct Fit {
     x: full::Params,
     /// The encoder scale (fitted, or 1 relative to the lengths fitted).
     scale: f64,
-    scale_stddev: f64,
-    covariance: SMatrix<f64, 3, 3>,
+    /// In the [`Covariance`] layout.
+    covariance: Covariance,
     /// Samples the fit used.
     used: Vec<bool>,
     /// Samples rejected as outliers.
@@ -333,12 +374,9 @@ fn finish(scan: &Scan, all: &FullModel, fit: Fit, opt: &Options) -> Result<Calib
     };
     let x = wrap(fit.x);
     let (mounting, plate_center) = full::unpack(&x);
-    let stddev = [0, 1, 2].map(|i| fit.covariance[(i, i)].max(0.0).sqrt());
-    if !(stddev.iter().all(|s| s.is_finite())
-        && x.iter().all(|v| v.is_finite())
-        && fit.scale.is_finite()
-        && fit.scale_stddev.is_finite())
-    {
+    let stddev = [layout::ALPHA0, layout::OFFSET, layout::DELTA_L].map(|i| fit.covariance[(i, i)].max(0.0).sqrt());
+    let scale_stddev = fit.covariance[(layout::SCALE, layout::SCALE)].max(0.0).sqrt();
+    if !(fit.covariance.iter().all(|s| s.is_finite()) && x.iter().all(|v| v.is_finite()) && fit.scale.is_finite()) {
         return Err(CalibrationError::Singular);
     }
     Ok(Calibration {
@@ -347,7 +385,7 @@ fn finish(scan: &Scan, all: &FullModel, fit: Fit, opt: &Options) -> Result<Calib
         plate_center,
         stddev,
         covariance: fit.covariance,
-        scale_stddev: fit.scale_stddev,
+        scale_stddev,
         scale_check,
         rms_residual: rms,
         iterations: fit.iterations,
@@ -497,20 +535,28 @@ fn fit_rounds<const P: usize, M: Problem<P> + Subset>(
 
 impl Fit {
     /// A fit of every sample from its rejection rounds, the model's own parameters
-    /// already turned into the full model's `x` and the scale.
+    /// already turned into the full model's `x` and the scale; `tracer[i]`: where the
+    /// model keeps [`Covariance`]'s parameter `i` (`None`: not fitted).
     fn from_rounds<const P: usize>(
         model: ModelKind,
         x: full::Params,
         scale: f64,
-        scale_stddev: f64,
+        tracer: [Option<usize>; 5],
         r: Rounds<P>,
     ) -> Fit {
+        let mut covariance = Covariance::zeros();
+        for (i, mi) in tracer.iter().enumerate() {
+            for (j, mj) in tracer.iter().enumerate() {
+                if let (Some(mi), Some(mj)) = (mi, mj) {
+                    covariance[(i, j)] = r.covariance[(*mi, *mj)];
+                }
+            }
+        }
         Fit {
             model,
             x,
             scale,
-            scale_stddev,
-            covariance: r.covariance.fixed_view::<3, 3>(0, 0).into_owned(),
+            covariance,
             rejected: r.active.iter().filter(|&&a| !a).count(),
             used: r.active,
             residuals: r.residuals.as_slice().to_vec(),
@@ -522,7 +568,8 @@ impl Fit {
 
 fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
     let r = fit_rounds(all, x0, opt)?;
-    Ok(Fit::from_rounds(ModelKind::Full, r.x, 1.0, 0.0, r))
+    let tracer = [Some(full::ALPHA0), Some(full::OFFSET), Some(full::DELTA_L), None, None];
+    Ok(Fit::from_rounds(ModelKind::Full, r.x, 1.0, tracer, r))
 }
 
 /// The encoder-scale model from the full model's start at `k = 1` (a start that is
@@ -530,8 +577,9 @@ fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, Cal
 fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
     let r = fit_rounds(&FullScaleModel::new(all.clone()), full_scale::from_full(&x0, 1.0), opt)?;
     let (x, scale) = full_scale::to_full(&r.x);
-    let scale_stddev = r.covariance[(full_scale::SCALE, full_scale::SCALE)].max(0.0).sqrt();
-    Ok(Fit::from_rounds(ModelKind::FullScale, x, scale, scale_stddev, r))
+    let tracer =
+        [Some(full_scale::ALPHA0), Some(full_scale::OFFSET), Some(full_scale::DELTA_L), Some(full_scale::SCALE), None];
+    Ok(Fit::from_rounds(ModelKind::FullScale, x, scale, tracer, r))
 }
 
 fn fit_paper(
@@ -584,12 +632,13 @@ fn fit_paper(
             let ss: f64 = residuals.iter().zip(&used).filter(|(_, u)| **u).map(|(r, _)| r * r).sum();
             let sigma2 = ss / (n_used.saturating_sub(5).max(1)) as f64;
             let ne = rep.normal.ok_or(CalibrationError::Singular)?;
-            let covariance = model.covariance(&ad, &ne, sigma2, scan.len()).ok_or(CalibrationError::Singular)?;
+            let ad_dl = model.covariance(&ad, &ne, sigma2, scan.len()).ok_or(CalibrationError::Singular)?;
+            let mut covariance = Covariance::zeros();
+            covariance.fixed_view_mut::<3, 3>(layout::ALPHA0, layout::ALPHA0).copy_from(&ad_dl);
             return Ok(Fit {
                 model: ModelKind::Paper,
                 x,
                 scale: 1.0,
-                scale_stddev: 0.0,
                 covariance,
                 rejected: active.iter().filter(|&&a| !a).count(),
                 used,

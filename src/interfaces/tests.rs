@@ -113,7 +113,7 @@ impl Sample for DiagnosticArray {
 }
 impl Sample for CalibrateRequest {
     fn sample() -> Self {
-        CalibrateRequest { scan_id: 77, dry_run: true }
+        CalibrateRequest { scan_id: 77, dry_run: true, ring_scan_id: 78 }
     }
 }
 impl Sample for CalibrateResponse {
@@ -130,6 +130,9 @@ impl Sample for CalibrateResponse {
             samples_used: 398,
             scale: 1.0025,
             scale_stddev: 2.1e-4,
+            tip_radius: 0.0,
+            tip_radius_stddev: 0.0,
+            covariance: (0..25).map(|i| if i % 6 == 0 { 1e-10 } else { 1e-12 }).collect(),
         }
     }
 }
@@ -147,6 +150,8 @@ impl Sample for Calibration {
             stddev: vec![1e-5, 2e-6, 3e-6, 2e-4],
             rms_residual: 4.5e-6,
             samples_used: 398,
+            tip_radius: 2.5e-4,
+            covariance: vec![1e-12; 25],
         }
     }
 }
@@ -196,10 +201,11 @@ fn round_trip_of_defaults_and_empty_sequences() {
 
 #[test]
 fn big_endian_input_is_decoded() {
-    // CalibrateRequest { scan_id: 0x01020304, dry_run: true } in big-endian CDR.
-    let bytes = [0x00, 0x00, 0x00, 0x00, 0x01, 0x02, 0x03, 0x04, 0x01];
+    // CalibrateRequest { scan_id: 0x01020304, dry_run: true, ring_scan_id: 5 } in
+    // big-endian CDR.
+    let bytes = [0x00, 0x00, 0x00, 0x00, 0x01, 0x02, 0x03, 0x04, 0x01, 0, 0, 0, 0, 0, 0, 5];
     let req: CalibrateRequest = from_cdr(&bytes).unwrap();
-    assert_eq!(req, CalibrateRequest { scan_id: 0x0102_0304, dry_run: true });
+    assert_eq!(req, CalibrateRequest { scan_id: 0x0102_0304, dry_run: true, ring_scan_id: 5 });
 }
 
 #[test]
@@ -210,12 +216,13 @@ fn bad_cdr_is_rejected() {
     // bool must be 0 or 1
     let bad_bool = [0x00, 0x01, 0x00, 0x00, 1, 0, 0, 0, 2];
     assert!(matches!(from_cdr::<CalibrateRequest>(&bad_bool), Err(CdrError::Codec(_))));
-    // padding to 4 is fine, a whole extra word is not
-    let padded = [0x00, 0x01, 0x00, 0x03, 1, 0, 0, 0, 1, 0, 0, 0];
-    assert_eq!(from_cdr::<CalibrateRequest>(&padded).unwrap(), CalibrateRequest { scan_id: 1, dry_run: true });
+    // padding to 4 is fine, a whole extra word is not: KeyValue { key: "k", value: "a" }
+    // is 14 bytes, padded to 16
+    let padded = [0x00, 0x01, 0x00, 0x02, 2, 0, 0, 0, b'k', 0, 0, 0, 2, 0, 0, 0, b'a', 0, 0, 0];
+    assert_eq!(from_cdr::<KeyValue>(&padded).unwrap(), KeyValue { key: "k".into(), value: "a".into() });
     let mut long = padded.to_vec();
     long.extend([0, 0, 0, 0]);
-    assert_eq!(from_cdr::<CalibrateRequest>(&long), Err(CdrError::TrailingBytes(7)));
+    assert_eq!(from_cdr::<KeyValue>(&long), Err(CdrError::TrailingBytes(6)));
 }
 
 // ---------------------------------------------------------------- byte-exact layout
@@ -268,6 +275,9 @@ fn calibrate_response_bytes_align_f64_after_the_header() {
         samples_used: 400,
         scale: 1.5,
         scale_stddev: 0.125,
+        tip_radius: 0.75,
+        tip_radius_stddev: 0.0625,
+        covariance: vec![2.0],
     };
     let mut expected = CDR_LE_HEADER.to_vec();
     expected.extend([0x01]); // [0] success
@@ -286,6 +296,11 @@ fn calibrate_response_bytes_align_f64_after_the_header() {
     expected.extend(400u32.to_le_bytes()); // [68] samples_used
     expected.extend(1.5f64.to_le_bytes()); // [72] scale
     expected.extend(0.125f64.to_le_bytes()); // [80] scale_stddev
+    expected.extend(0.75f64.to_le_bytes()); // [88] tip_radius
+    expected.extend(0.0625f64.to_le_bytes()); // [96] tip_radius_stddev
+    expected.extend(1u32.to_le_bytes()); // [104] covariance count
+    expected.extend([0, 0, 0, 0]); // [108] pad to 8
+    expected.extend(2.0f64.to_le_bytes()); // [112] covariance[0]
     assert_eq!(to_cdr(&resp).unwrap(), expected);
     assert_eq!(from_cdr::<CalibrateResponse>(&expected).unwrap(), resp);
 }
@@ -434,8 +449,9 @@ fn the_struct_check_catches_rust_side_drift() {
         #[serde(skip_serializing_if = "std::ops::Not::not")]
         dry_run: bool,
     }
+    // The request's first two fields, `scan_id` and `dry_run`.
     let fields = definition::fields(CalibrateRequest::DEFINITION.text(), "tracer_calib_msgs").unwrap();
-    let fields = &fields;
+    let fields = &fields[..2].to_vec();
     assert!(check_struct_against_fields(&Reordered { scan_id: 1, dry_run: true, extra: 2 }, fields).is_err());
     assert!(check_struct_against_fields(&Swapped { dry_run: true, scan_id: 1 }, fields).is_err());
     assert!(check_struct_against_fields(&Renamed { scan: 1, dry_run: true }, fields).is_err());

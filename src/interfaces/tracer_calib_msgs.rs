@@ -22,6 +22,9 @@ impl Default for CalibrateResponse {
             samples_used: 0,
             scale: 1.0,
             scale_stddev: 0.0,
+            tip_radius: 0.0,
+            tip_radius_stddev: 0.0,
+            covariance: Vec::new(),
         }
     }
 }

@@ -320,6 +320,11 @@ pub fn render(fqn: &str, params: &[(String, ParamValue)], comment: &str) -> Stri
     }
     out.push_str(&format!("{key}:\n  ros__parameters:\n"));
     for (name, value) in params {
+        // An empty list is left out: rcl's parser refuses an empty sequence (it cannot
+        // tell its type), and a parameter the file does not name keeps its default.
+        if value.is_empty_array() {
+            continue;
+        }
         out.push_str(&format!("    {name}: {}\n", value.to_yaml()));
     }
     out
@@ -456,6 +461,14 @@ mod tests {
             let back: Vec<_> = f.entries_for(fqn).map(|e| (e.name.clone(), e.value.clone())).collect();
             assert_eq!(back, params);
         }
+        // An empty list is left out (rcl refuses `[]`); a full one reads back.
+        let covariance = ("calibration.covariance".to_string(), ParamValue::DoubleArray(vec![1e-12, -2.5e-13]));
+        let empty = ("other.list".to_string(), ParamValue::DoubleArray(Vec::new()));
+        let text = render("/t", &[covariance.clone(), empty], "");
+        assert!(!text.contains("other.list"), "{text}");
+        let back: Vec<_> =
+            parse(&text, "t").unwrap().entries_for("/t").map(|e| (e.name.clone(), e.value.clone())).collect();
+        assert_eq!(back, [covariance]);
         let dir = std::env::temp_dir().join(format!("tracer_calib_params_{}", std::process::id()));
         fs::create_dir_all(&dir).unwrap();
         let path = dir.join("p.yaml");

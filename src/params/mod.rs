@@ -11,7 +11,7 @@ pub mod value;
 pub use file::{ParamsFile, ParamsFileError};
 pub use value::ParamValue;
 
-use crate::engine::calibrate::Options as CalibrationOptions;
+use crate::engine::calibrate::{Options as CalibrationOptions, covariance_from_values, layout};
 use crate::engine::{ModelKind, Mounting, PlateSpec};
 
 /// The contract's parameter names.
@@ -21,6 +21,7 @@ pub mod names {
     pub const DELTA_L: &str = "calibration.delta_l";
     pub const SCALE: &str = "calibration.scale";
     pub const VALID: &str = "calibration.valid";
+    pub const COVARIANCE: &str = "calibration.covariance";
     pub const PLATE_SIDE: &str = "plate.side";
     pub const CORNER_RADIUS: &str = "plate.corner_radius";
     pub const METERS_PER_COUNT: &str = "encoder.meters_per_count";
@@ -34,12 +35,13 @@ pub mod names {
     pub const USE_SIM_TIME: &str = "use_sim_time";
     pub const MANAGED: &str = "managed";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 17] = [
+    pub const ALL: [&str; 18] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
         SCALE,
         VALID,
+        COVARIANCE,
         PLATE_SIDE,
         CORNER_RADIUS,
         METERS_PER_COUNT,
@@ -55,7 +57,7 @@ pub mod names {
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
-    pub const CALIBRATION_IN_FORCE: [&str; 5] = [ALPHA0, OFFSET, DELTA_L, SCALE, VALID];
+    pub const CALIBRATION_IN_FORCE: [&str; 6] = [ALPHA0, OFFSET, DELTA_L, SCALE, VALID, COVARIANCE];
 }
 
 /// Largest `resample_points` accepted.
@@ -67,6 +69,9 @@ pub struct Parameters {
     /// The calibration in force (meaningful when `calibration_valid`).
     pub calibration: Mounting,
     pub calibration_valid: bool,
+    /// The covariance of the calibration in force: empty (unknown), or the 25 values of
+    /// [`crate::engine::calibrate::Covariance`], row-major.
+    pub covariance: Vec<f64>,
     pub plate: PlateSpec,
     pub meters_per_count: f64,
     pub model: ModelKind,
@@ -93,6 +98,7 @@ impl Default for Parameters {
         Parameters {
             calibration: Mounting::IDEAL,
             calibration_valid: false,
+            covariance: Vec::new(),
             plate: PlateSpec::default(),
             meters_per_count: 1.0e-6,
             model: ModelKind::Full,
@@ -123,6 +129,7 @@ impl Parameters {
             names::DELTA_L => Double(self.calibration.delta_l),
             names::SCALE => Double(self.calibration.scale),
             names::VALID => Bool(self.calibration_valid),
+            names::COVARIANCE => DoubleArray(self.covariance.clone()),
             names::PLATE_SIDE => Double(self.plate.side),
             names::CORNER_RADIUS => Double(self.plate.corner_radius),
             names::METERS_PER_COUNT => Double(self.meters_per_count),
@@ -167,12 +174,32 @@ impl Parameters {
             ParamValue::String(s) => Ok(s.clone()),
             v => Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
         };
+        // `[]` (what `ros2 param dump` writes for it) has no element type: any empty list
+        // is the empty covariance; whole numbers are doubles, as for a double parameter.
+        let covariance = |v: &ParamValue| match v {
+            v if v.is_empty_array() => Ok(Vec::new()),
+            ParamValue::IntegerArray(c) => {
+                let c: Vec<f64> = c.iter().map(|&i| i as f64).collect();
+                covariance_from_values(&c).map(|_| c.clone()).ok_or_else(|| {
+                    format!("expected {} values of a symmetric matrix with no negative variance", layout::VALUES)
+                })
+            }
+            ParamValue::DoubleArray(c) => covariance_from_values(c).map(|_| c.clone()).ok_or_else(|| {
+                format!(
+                    "expected {} finite values, a symmetric matrix with no negative variance, got {} values",
+                    layout::VALUES,
+                    c.len()
+                )
+            }),
+            v => Err(format!("expected a double array, got {} '{}'", v.type_name(), v)),
+        };
         match name {
             names::ALPHA0 => next.calibration.alpha0 = double(value)?,
             names::OFFSET => next.calibration.offset = double(value)?,
             names::DELTA_L => next.calibration.delta_l = double(value)?,
             names::SCALE => next.calibration.scale = double(value)?,
             names::VALID => next.calibration_valid = boolean(value)?,
+            names::COVARIANCE => next.covariance = covariance(value)?,
             names::PLATE_SIDE => next.plate.side = double(value)?,
             names::CORNER_RADIUS => next.plate.corner_radius = double(value)?,
             names::METERS_PER_COUNT => next.meters_per_count = double(value)?,
@@ -238,7 +265,8 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 17);
+        assert_eq!(list.len(), 18);
+        assert_eq!(p.get("calibration.covariance"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("use_sim_time"), Some(ParamValue::Bool(false)));
         assert_eq!(p.get("managed"), Some(ParamValue::Bool(false)));
         assert_eq!(p.get("history_file"), Some(ParamValue::String(String::new())));
@@ -272,6 +300,21 @@ mod tests {
         assert!(p.set("calibration.max_age_days", &ParamValue::Double(-1.0)).unwrap_err().contains("at least 0"));
         assert!(p.set("calibration.drift_warn_sigma", &ParamValue::Double(f64::NAN)).unwrap_err().contains("finite"));
         assert!(p.set("history_file", &ParamValue::Integer(3)).unwrap_err().contains("expected a string"));
+        let cov = |v: Vec<f64>| p.clone().set("calibration.covariance", &ParamValue::DoubleArray(v));
+        assert!(cov(vec![1e-12; 24]).unwrap_err().contains("expected 25 finite values"));
+        let mut asymmetric = vec![0.0; 25];
+        (asymmetric[0], asymmetric[1], asymmetric[6]) = (1e-8, 1e-9, 1e-8);
+        assert!(cov(asymmetric).unwrap_err().contains("symmetric"));
+        let mut negative = vec![0.0; 25];
+        negative[6] = -1e-12;
+        assert!(cov(negative).is_err());
+        assert!(cov(Vec::new()).is_ok() && cov(vec![1e-12; 25]).is_ok());
+        let mut q = p.clone();
+        q.set("calibration.covariance", &ParamValue::DoubleArray(vec![1e-12; 25])).unwrap();
+        q.set("calibration.covariance", &ParamValue::StringArray(Vec::new())).unwrap();
+        assert!(q.covariance.is_empty(), "`[]` in a file is the empty covariance");
+        q.set("calibration.covariance", &ParamValue::IntegerArray(vec![0; 25])).unwrap();
+        assert_eq!(q.covariance, vec![0.0; 25]);
         assert_eq!(p, Parameters::default(), "failed sets change nothing");
         p.set("plate.side", &ParamValue::Integer(1)).unwrap();
         assert_eq!(p.plate.side, 1.0);

@@ -91,7 +91,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 17] = [
+pub const SPECS: [Spec; 18] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -99,6 +99,8 @@ pub const SPECS: [Spec; 17] = [
     Spec::new(names::SCALE, "calibration in force: encoder scale k; true length = counts x encoder.meters_per_count x k")
         .bound(Bound::Float { from: 0.5, to: 2.0 }),
     Spec::new(names::VALID, "true once a calibration is in force (applied by /calibrate or set here); false: scans are corrected with an ideal mounting"),
+    Spec::new(names::COVARIANCE, "calibration in force: its covariance, 25 values row-major over [alpha0 (rad), offset (m), delta_l (m), scale, tip_radius (m)], zero rows for what the model did not fit; set by /calibrate; empty = unknown")
+        .constraints("empty, or 25 finite values of a symmetric matrix with no negative variance"),
     Spec::new(names::PLATE_SIDE, "side of the square calibration plate (m)")
         .bound(Bound::Positive)
         .constraints("positive (greater than 0) and more than twice plate.corner_radius"),

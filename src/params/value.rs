@@ -125,6 +125,17 @@ impl ParamValue {
         }
     }
 
+    /// An array with no element (of any element type).
+    pub fn is_empty_array(&self) -> bool {
+        match self {
+            ParamValue::BoolArray(v) => v.is_empty(),
+            ParamValue::IntegerArray(v) => v.is_empty(),
+            ParamValue::DoubleArray(v) => v.is_empty(),
+            ParamValue::StringArray(v) => v.is_empty(),
+            _ => false,
+        }
+    }
+
     /// The ROS parameter type name, as rclcpp prints it (`bool`, `integer`, `double`, `string`,
     /// `bool_array`, ...).
     pub fn type_name(&self) -> &'static str {

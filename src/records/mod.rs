@@ -25,6 +25,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
 
+use crate::engine::calibrate::{covariance_from_values, layout};
 use crate::engine::geometry::Mounting;
 
 /// One applied calibration, as a line of the history file.
@@ -52,6 +53,15 @@ pub struct Record {
     pub rms_residual: f64,
     pub samples_used: u32,
     pub iterations: u32,
+    /// The tip radius in force, metres (0 unless modelled). Absent (0) in records written
+    /// before it existed.
+    #[serde(default)]
+    pub tip_radius: f64,
+    /// The covariance of `[alpha0, offset, delta_l, scale, tip_radius]`, 25 values
+    /// row-major ([`crate::engine::calibrate::Covariance`]). Absent (empty) in records
+    /// written before it existed.
+    #[serde(default)]
+    pub covariance: Vec<f64>,
     /// The calibration this one replaced; `None` (`null`) if there was none.
     pub previous: Option<Previous>,
     /// The node's ROS time when it was applied (simulated time under `use_sim_time`;
@@ -119,12 +129,19 @@ impl Record {
     /// A record with a non-finite number or a stddev of the wrong length is not one
     /// the node writes.
     fn check(&self) -> Result<(), String> {
-        let numbers = [self.alpha0, self.offset, self.delta_l, self.scale, self.rms_residual];
+        let numbers = [self.alpha0, self.offset, self.delta_l, self.scale, self.rms_residual, self.tip_radius];
         if !numbers.iter().chain(&self.stddev).all(|v| v.is_finite()) {
             return Err("a number is not finite".into());
         }
         if !(self.stddev.is_empty() || (3..=4).contains(&self.stddev.len())) {
             return Err(format!("stddev has {} entries, expected 3 or 4", self.stddev.len()));
+        }
+        if !self.covariance.is_empty() && covariance_from_values(&self.covariance).is_none() {
+            return Err(format!(
+                "covariance is not {} finite values of a symmetric matrix with no negative variance ({} values)",
+                layout::VALUES,
+                self.covariance.len()
+            ));
         }
         if self.applied_at().is_none() {
             return Err(format!("time '{}' is not a UTC time (YYYY-MM-DDTHH:MM:SS[.fff]Z)", self.time));
@@ -361,6 +378,8 @@ impl Record {
             rms_residual: 5e-6,
             samples_used: 400,
             iterations: 7,
+            tip_radius: 0.0,
+            covariance: Vec::new(),
             previous: None,
             ros_time: None,
         }
@@ -430,6 +449,8 @@ mod tests {
                 "rms_residual",
                 "samples_used",
                 "iterations",
+                "tip_radius",
+                "covariance",
                 "previous"
             ]
         );
@@ -438,6 +459,21 @@ mod tests {
         let h = History::parse(&format!("{}\n{line}\n", first.to_line()), "h.jsonl");
         assert_eq!(h.records, [first, r]);
         assert!(h.skipped.is_empty());
+    }
+
+    #[test]
+    fn records_before_the_covariance_read_and_a_bad_covariance_is_skipped() {
+        let mut v: serde_json::Value = serde_json::from_str(&Record::example().to_line()).unwrap();
+        let o = v.as_object_mut().unwrap();
+        o.remove("tip_radius");
+        o.remove("covariance");
+        let old = v.to_string();
+        let mut bad = Record::example();
+        bad.covariance = vec![1e-12; 24];
+        let h = History::parse(&format!("{old}\n{}\n", bad.to_line()), "h.jsonl");
+        assert_eq!(h.records, [Record::example()]);
+        assert_eq!(h.skipped.len(), 1);
+        assert!(h.skipped[0].contains("covariance is not 25 finite values"), "{}", h.skipped[0]);
     }
 
     #[test]

@@ -119,13 +119,14 @@ pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) 
 
 /// Mirror a calibration `/calibrate` applied into the ROS parameters (already persisted:
 /// the set action sees equal values and writes nothing).
-pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting) {
+pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, covariance: &[f64]) {
     for (name, value) in [
         (names::ALPHA0, RosValue::Double(m.alpha0)),
         (names::OFFSET, RosValue::Double(m.offset)),
         (names::DELTA_L, RosValue::Double(m.delta_l)),
         (names::SCALE, RosValue::Double(m.scale)),
         (names::VALID, RosValue::Boolean(true)),
+        (names::COVARIANCE, RosValue::DoubleArray(covariance.to_vec())),
     ] {
         if let Err(err) = e.set_parameter(name, value) {
             error!("cannot mirror {name} into the ROS parameters: {err}");
