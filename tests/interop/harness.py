@@ -335,7 +335,7 @@ import json, rclpy
 from rclpy.node import Node
 rclpy.init(args=['--ros-args', '--params-file', {path!r}])
 n = Node({node_name!r}, namespace={namespace!r}, automatically_declare_parameters_from_overrides=True)
-print(json.dumps({{p.name: p.value for p in n._parameters.values()}}))
+print(json.dumps({{p.name: p.value for p in n._parameters.values()}}, default=list))
 n.destroy_node()
 rclpy.shutdown()
 """

@@ -554,6 +554,16 @@ def test_encoder_scale(peer):
         assert abs(r.offset - TRUTH["offset"]) < 5 * r.stddev[1], r
         got = peer.param(lambda: pc.get_parameters(["calibration.scale"])).values[0].double_value
         assert got == r.scale, got
+        # The whole covariance (issue 30), row-major over [alpha0, offset, delta_l, scale,
+        # tip_radius]: the scale's variance is its stddev squared, dL and the scale move
+        # together, no tip radius is fitted; the parameter holds it too.
+        cov = list(r.covariance)
+        assert len(cov) == 25, cov
+        assert abs(cov[18] ** 0.5 - r.scale_stddev) <= 1e-12 * r.scale_stddev, (cov[18], r.scale_stddev)
+        assert abs(cov[13]) / (cov[12] * cov[18]) ** 0.5 > 0.9, cov
+        assert cov[20:] == [0.0] * 5 and r.tip_radius == 0.0 and r.tip_radius_stddev == 0.0, r
+        got = peer.param(lambda: pc.get_parameters(["calibration.covariance"])).values[0].double_array_value
+        assert list(got) == cov, got
 
         lens = simulate("lens_k", "ellipse", noise=0.0, seed=22, scale=k)
         c = peer.send_scan(pub, raw_scan(31, RawScan.TARGET_LENS, *lens), contours)
@@ -564,6 +574,7 @@ def test_encoder_scale(peer):
     assert took < 1.0, f"the node took {took:.2f} s to shut down"
     back = read_back_with_rclpy(persisted, "tracer_calibrator", "/")
     assert back["calibration.scale"] == r.scale and back["model"] == "full_scale", back
+    assert list(back["calibration.covariance"]) == cov, back
 
 
 def tests(peer):
