@@ -223,7 +223,7 @@ def publish_scan(topic, scan_id, target, scan, echo, launch, timeout=15):
     seconds from the start of `ros2 topic pub` until then. The publisher stays up to
     `timeout` s after publishing (--keep-alive; stopped as soon as the contour is seen):
     a reliable sample that a node's reader matches late is still delivered then (a
-    brand-new publisher's first scan can reach the node seconds late: notes/ros2-peer.md)."""
+    brand-new publisher's first scan can reach the node seconds late: docs/ros2-peer.md)."""
     t0 = time.monotonic()
     with open(os.path.join(WORK, f"pub_{scan_id}.out"), "w") as out:
         pub = subprocess.Popen(["ros2", "topic", "pub", "--once", "--keep-alive", str(timeout), "--max-wait-time-secs", "20",
@@ -816,7 +816,11 @@ def generate_launch_description():
         wait_for(lambda: "TRACER IS ACTIVE" in launch.output(), 30, "launch's handler of the transition to active",
                  [launch])
         to_active = time.monotonic() - t0
-        assert ros2("lifecycle", "get", "--no-daemon", "/lc/tracer").stdout.strip() == "active [3]"
+        # A fresh `ros2` process looks for the node for half a second (its DirectNode's
+        # spin): on a loaded machine that can end before discovery does, "Node not found",
+        # as `ros2 node list` may miss a node (node_listed polls it too).
+        wait_for(lambda: ros2("lifecycle", "get", "--no-daemon", "/lc/tracer", ok=False).stdout.strip() == "active [3]",
+                 20, "`ros2 lifecycle get /lc/tracer` to say active [3]", [launch])
         took = launch.interrupt()
     return f"(started to active: {to_active:.1f} s; Ctrl-C: {took:.2f} s)"
 
@@ -863,7 +867,7 @@ def main():
     if failed == 0:
         shutil.rmtree(WORK, ignore_errors=True)
     sys.stdout.flush()
-    os._exit(0 if failed == 0 else 1)  # rclpy's shutdown can hang (notes/ros2-peer.md)
+    os._exit(0 if failed == 0 else 1)  # rclpy's shutdown can hang (docs/ros2-peer.md)
 
 
 if __name__ == "__main__":

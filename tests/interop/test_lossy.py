@@ -450,9 +450,10 @@ def describe(r):
 
 
 # What is still open under 25 % loss (issue 29; BENCHMARKS.md, "A lossy network"): said as
-# "OPEN: ..." in the test's line, not asserted. On Zenoh the node lost 8 of 100 contours in
-# 1 of 4 runs (TCP through the router), the stock node none.
-OPEN = {("zenoh", 25): "contours"}
+# "OPEN: ..." in the test's line, not asserted. On Zenoh (TCP through the router, a quarter of
+# its segments dropped) the node lost 8 of 100 contours in 1 of 4 runs, the stock node none;
+# and in 1 test-command run one of 3 parameter requests went unanswered for 15 s.
+OPEN = {("zenoh", 25): {"contours", "calls"}}
 
 
 VARIANTS = {"": "", "delay": f", delayed {DELAY_MS} ± {JITTER_MS} ms", "mtu1500": ", MTU 1500"}
@@ -473,10 +474,10 @@ def test_lossy(envs, rmw, loss, variant=""):
     unanswered = node["calls"].count(None) + node["param_calls"].count(None)
     said = []
     if lost_node > allowed:
-        assert OPEN.get((rmw, loss)) == "contours", f"the node lost {lost_node} contours, the stock node {lost_stock}"
+        assert "contours" in OPEN.get((rmw, loss), ()), f"the node lost {lost_node} contours, the stock node {lost_stock}"
         said.append(f"OPEN: the node lost {lost_node} contours, the stock node {lost_stock}")
     if unanswered:
-        assert OPEN.get((rmw, loss)) == "calls", (
+        assert "calls" in OPEN.get((rmw, loss), ()), (
             f"calls unanswered within {CALL_WAIT} s: /calibrate {node['calls']}, parameters {node['param_calls']}"
         )
         said.append(f"OPEN: {unanswered} call(s) unanswered within {CALL_WAIT} s")
