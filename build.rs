@@ -111,9 +111,23 @@ fn field_ident(name: &str) -> String {
     if KEYWORDS.contains(&name) { format!("r#{name}") } else { name.to_string() }
 }
 
+/// The comments of a `.msg` file as doc lines. They are plain text, not Markdown: brackets
+/// and asterisks (`radii[k]`, `2*pi*k`) are escaped, and a bare URL made a link, so that
+/// rustdoc shows them as written (and `cargo doc -D warnings` passes).
 fn doc(out: &mut String, indent: &str, lines: &[&str]) {
     for line in lines {
-        writeln!(out, "{indent}#[doc = {:?}]", format!(" {line}")).unwrap();
+        let text: Vec<String> = line
+            .split(' ')
+            .map(|word| {
+                let url = word.trim_end_matches(['.', ',', ')', ';', ':']);
+                if url.starts_with("http://") || url.starts_with("https://") {
+                    format!("<{url}>{}", &word[url.len()..])
+                } else {
+                    word.replace('[', "\\[").replace(']', "\\]").replace('*', "\\*")
+                }
+            })
+            .collect();
+        writeln!(out, "{indent}#[doc = {:?}]", format!(" {}", text.join(" "))).unwrap();
     }
 }
 

@@ -6,7 +6,7 @@
 //! ```
 //!
 //! The scan: 45 mm plate, alpha0 = 2°, d = 5 mm, dL = 2 mm, c = (0.8, -0.5) mm,
-//! σ = 0.01 mm. The LM fits start 1° (and 0.5 mm) off, as in `notes/model.md`.
+//! σ = 0.01 mm. The LM fits start 1° (and 0.5 mm) off, as in `docs/model.md`.
 
 use criterion::{Criterion, black_box, criterion_group, criterion_main};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};

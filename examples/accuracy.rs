@@ -4,7 +4,7 @@
 //! cargo run --release --example accuracy -- [TRIALS]      (default 2000)
 //! ```
 //!
-//! Truth as in `notes/model.md`: alpha0 = 2°, d = 5 mm, dL = 2 mm, plate 45 mm with
+//! Truth as in `docs/model.md`: alpha0 = 2°, d = 5 mm, dL = 2 mm, plate 45 mm with
 //! 3 mm corners centred at (0.8, -0.5) mm, 400 steps. Three parts:
 //!
 //! 1. For encoder noise σ = 0.1, 0.01 and 0.001 mm, the RMS error of alpha0, d, dL (and

@@ -4,6 +4,9 @@
 # `tracer_calib demo` (see --help), e.g. --seed 7 --plot fit.svg.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cargo build --release --bins --quiet
+# Cargo's own progress line shows what is being built: a first build compiles several hundred
+# crates (5-10 minutes on 2 cores; README.md), later ones reuse them (seconds).
+echo "demo.sh: building tracer_calib and tracer_calib_node (release)..." >&2
+cargo build --release --bins
 . scripts/target_dir.sh
 exec "$TRACER_RELEASE_DIR/tracer_calib" demo "$@"

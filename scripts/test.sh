@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The test command (README, .ci/run). One release build, reused by every step:
+#   0. formatting (cargo fmt --check);
 #   1. the Rust tests (unit, engine, node over DDS), inside a private network namespace;
 #      then the vendored rustdds' own unit tests, with our patches' (scripts/test_vendored.sh);
+#      then clippy and rustdoc, warnings as errors;
 #   2. the real ROS 2 peer, once per distribution (Kilted, and Jazzy, the LTS): rclpy with
 #      Fast DDS from PyPI wheels and the message package built by rosidl
 #      (tests/interop/setup.sh installs both), against the node; then this repository
@@ -10,7 +12,8 @@
 #      command line and `ros2 launch` (tests/interop/run.sh); for Jazzy also with peers on
 #      Cyclone DDS (secure and not) and, on Zenoh, the node under
 #      RMW_IMPLEMENTATION=rmw_zenoh_cpp with rmw_zenoh_cpp peers through rmw_zenohd
-#      (the stock peers built from ../shared/ros2-src/ into ~/.cache/tracer_calib/).
+#      (the stock peers built from ../shared/ros2-src/, docs/ros2-sources.md, into
+#      ~/.cache/tracer_calib/).
 # The release build has the cargo feature `security` (SROS2; needs libssl-dev and
 # pkg-config, installed first if missing): with security off it behaves as the default
 # build, and test_security.py tests it secure.
@@ -28,11 +31,16 @@ part() {
 # shellcheck source=tests/interop/lib.sh
 . tests/interop/lib.sh
 part "build dependencies" apt_install_missing test.sh target/build_deps.log libssl-dev pkg-config
+part "format" cargo fmt --check
 part "cargo build" cargo build --release --locked --features security --bins
 part "cargo test build" cargo test --release --locked --features security --no-run
 # The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags
 # to read the bags we write. Needs the package registries, so outside the namespace.
 part "ROS setup (kilted, jazzy)" tests/interop/setup.sh
-part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline --features security
+# --include-ignored: a plain `cargo test` (a Rust toolchain alone) ignores, saying why, the
+# few tests that need what setup.sh installs (rosbags, rosidl's type hashes); here they run.
+part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline --features security -- --include-ignored
 part "rustdds unit tests" bash scripts/test_vendored.sh
+part "clippy" cargo clippy --locked --offline --all-targets --features security -- -D warnings
+part "docs" env RUSTDOCFLAGS="-D warnings" cargo doc --locked --offline --no-deps --document-private-items --features security
 part "interop (kilted, jazzy)" bash tests/interop/run.sh

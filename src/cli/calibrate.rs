@@ -66,7 +66,7 @@ impl clap::ValueEnum for ModelKind {
     }
 }
 
-/// The Calibrate response (CONTRACT.md): its fields, in its order, are the JSON output.
+/// The Calibrate response (docs/CONTRACT.md): its fields, in its order, are the JSON output.
 pub type Response = CalibrateResponse;
 
 fn failure(message: impl Into<String>) -> Response {
@@ -184,7 +184,7 @@ pub fn run(args: &Args) -> i32 {
 /// The response as the `--json` object: the Calibrate response's fields in order,
 /// `scale` and `scale_stddev` only for a model that fits the scale, `tip_radius` and
 /// `tip_radius_stddev` only for one that fits the tip radius (none yet), `covariance`
-/// always (CONTRACT.md).
+/// always (docs/CONTRACT.md).
 fn json_of(r: &Response, with_scale: bool) -> String {
     let mut v = serde_json::to_value(r).expect("a response serialises");
     if let Some(o) = v.as_object_mut() {

@@ -31,7 +31,7 @@ pub enum Command {
     History(history::Args),
 }
 
-/// Exit statuses of the tool (CONTRACT.md).
+/// Exit statuses of the tool (docs/CONTRACT.md).
 pub mod exit {
     pub const OK: i32 = 0;
     pub const FIT_FAILED: i32 = 1;

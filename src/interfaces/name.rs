@@ -20,7 +20,7 @@ impl InterfaceKind {
         }
     }
 
-    /// `msg` or `srv` (what [`crate::interfaces::ros_message!`] is given).
+    /// `msg` or `srv` (what `ros_message!` is given).
     ///
     /// # Panics
     ///

@@ -1,4 +1,4 @@
-//! `tracer_calib_msgs`, the node's own interface package (CONTRACT.md). The structs are
+//! `tracer_calib_msgs`, the node's own interface package (docs/CONTRACT.md). The structs are
 //! generated (`build.rs`) from the files in `msg/` that colcon builds the package from: each
 //! type's `.msg` / `.srv` file is its one declaration.
 

@@ -1,6 +1,6 @@
 //! `~/get_type_description` (type_description_interfaces/srv/GetTypeDescription, REP-2016):
 //! the answer, as rcl gives it (`rcl_node_type_description_service_handle_request`, which
-//! rclcpp's and rclpy's nodes serve), from [`type_hash::describe`] and the texts in
+//! rclcpp's and rclpy's nodes serve), from [`super::type_hash::describe`] and the texts in
 //! [`KNOWN`].
 //!
 //! - The request's `type_hash` must be `RIHS01_` and 64 hex digits, else

@@ -411,6 +411,7 @@ mod tests {
     /// Every hash equals the one rosidl generated for the same type (the `type_hashes` of its
     /// `.json`; `tests/interop/setup.sh` installs them, as `scripts/test.sh` runs it first).
     #[test]
+    #[ignore = "needs rosidl's .json files (tests/interop/setup.sh); scripts/test.sh runs it"]
     fn hashes_equal_rosidls() {
         let mut names: Vec<InterfaceName> = KNOWN.iter().map(|(n, _)| *n).collect();
         names.push(InterfaceName::srv("tracer_calib_msgs", "Calibrate"));

@@ -1,6 +1,6 @@
 //! The node's parameters: names, types, defaults, validation, and the params file.
 //!
-//! The names and defaults are the contract's (`CONTRACT.md`); every parameter is
+//! The names and defaults are the contract's (`docs/CONTRACT.md`); every parameter is
 //! persisted. [`Parameters`] is the typed view the node and the offline tool share;
 //! [`file`](mod@file) reads and writes ROS 2 parameter files; [`value`] is the untyped value.
 

@@ -1,5 +1,5 @@
 //! Calibration records: the history file a lab's quality system keeps of every applied
-//! calibration (CONTRACT.md, "Calibration records"), and how far a calibration moved from
+//! calibration (docs/CONTRACT.md, "Calibration records"), and how far a calibration moved from
 //! the one before.
 //!
 //! One JSON object a line (JSON Lines), appended and `fsync`ed for every calibration the

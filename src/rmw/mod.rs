@@ -1,7 +1,7 @@
 //! The middleware: how a process of ours (the node, `tracer_calib replay`, the demo) joins a
 //! ROS 2 graph, as a stock node's rmw does.
 //!
-//! - [`env`]: the ROS environment (`ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE`,
+//! - [`env`](mod@env): the ROS environment (`ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE`,
 //!   `ROS_STATIC_PEERS`, `ROS_LOCALHOST_ONLY`), read as rcl reads it;
 //! - [`security`]: the SROS2 enclave (`ROS_SECURITY_*`, `--enclave`), found as rcl finds it;
 //! - [`implementation`]: `RMW_IMPLEMENTATION`, which of the two middlewares below;

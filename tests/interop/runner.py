@@ -52,7 +52,7 @@ def run_tests_and_exit(script, tests, argv, label, summary, work, log_dir=None, 
     of them, a `test_` prefix is dropped), run as `run_tests` does; an unknown name exits 2
     listing the tests there are. `at_end()`, if given, runs after them (what the tests
     shared, stopped). `work` (the script's scratch folder) is removed when all passed.
-    Exits 0 or 1 without rclpy's shutdown, which can hang (notes/ros2-peer.md)."""
+    Exits 0 or 1 without rclpy's shutdown, which can hang (docs/ros2-peer.md)."""
     only = [a.removeprefix("test_") for a in argv if a != summary]
     unknown = sorted(set(only) - {name for name, _ in tests})
     if unknown:

@@ -317,7 +317,7 @@ def main():
 
         shutil.rmtree(h.WORK, ignore_errors=True)
     sys.stdout.flush()
-    # rclpy's shutdown can hang (notes/ros2-peer.md): leave without it.
+    # rclpy's shutdown can hang (docs/ros2-peer.md): leave without it.
     os._exit(0 if failed == 0 else 1)
 
 

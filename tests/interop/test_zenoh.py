@@ -7,7 +7,7 @@ Run by tests/interop/run.sh inside a private network namespace, with
 target/ros/jazzy/env.sh and then target/ros/jazzy/zenoh_env.sh sourced: this process's
 rclpy is on rmw_zenoh_cpp (checked first). The router is started here, on
 tcp/127.0.0.1:7447 only; every peer is a subprocess under `timeout -s KILL` (rclpy's
-shutdown on rmw_zenoh can hang for 10 s: ../shared/notes/ros2-peer.md).
+shutdown on rmw_zenoh can hang for 10 s: docs/ros2-peer.md).
 
 - zenoh_stock_pair: the router, a stock rclpy talker (std_msgs/String on /zenoh_chatter,
   and a std_srvs/Trigger service /zenoh_trigger) and a stock rclpy listener: the listener
@@ -110,7 +110,7 @@ print("ready", flush=True)
 while not stop.is_set():
     rclpy.spin_once(n, timeout_sec=0.05)
 # rclpy's shutdown on rmw_zenoh sometimes fails after 10 s ("Failed to close the session",
-# notes/ros2-peer.md): said, not fatal.
+# docs/ros2-peer.md): said, not fatal.
 try:
     n.destroy_node()
     rclpy.shutdown()
@@ -155,7 +155,7 @@ print(json.dumps({"rmw": get_rmw_implementation_identifier(), "got": got[:want],
                   "answer": answer}), flush=True)
 sys.stdin.readline()
 # rclpy's shutdown on rmw_zenoh sometimes fails after 10 s ("Failed to close the session",
-# notes/ros2-peer.md): said, not fatal.
+# docs/ros2-peer.md): said, not fatal.
 try:
     n.destroy_node()
     rclpy.shutdown()
@@ -174,7 +174,7 @@ def peer(name, script, *args):
 
 
 # rmw_zenoh_cpp 0.2.10's known failure as a process leaves, after its work is done
-# (notes/ros2-peer.md: zenoh-c's "close operation timed out!", 10 s, exit 1).
+# (docs/ros2-peer.md: zenoh-c's "close operation timed out!", 10 s, exit 1).
 CLOSE_TIMEOUT = "Failed to close the session"
 
 

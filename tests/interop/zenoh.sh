@@ -7,7 +7,7 @@
 #
 # Sources (../shared/ros2-src/, or $TRACER_ROS2_SRC): rmw_zenoh.tar.gz (rmw_zenoh_cpp
 # 0.2.10, Jazzy's release), zenoh-c.tar.gz and zenoh-cpp.tar.gz (the commits it pins). The
-# recipe is ../shared/notes/ros2-peer.md, "A stock rmw_zenoh peer":
+# recipe is docs/ros2-peer.md, "A stock rmw_zenoh peer":
 #   - zenoh-c (Rust, cargo through its CMake) with the published zenoh 1.8.0 crates from the
 #     Rust registry instead of zenoh's git main (`cargo update -w`, also for the
 #     opaque-types crate its build.rs builds offline), thin LTO off (codegen units 16), the

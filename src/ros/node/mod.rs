@@ -18,6 +18,10 @@
 //! the cell's validation. Each loop reads the [`Wire`] and the [`Shared`] state and
 //! nothing else: the middleware is chosen here, in one place.
 
+// The map above names the private parts of the shell; they resolve in the documentation of
+// the private items (`cargo doc --document-private-items`, as the test command builds it).
+#![allow(rustdoc::private_intra_doc_links)]
+
 mod calibrate;
 mod calibration;
 mod config;
@@ -52,7 +56,7 @@ use graph::QosReports;
 pub use rate_limit::RateLimit;
 use wire::Wire;
 
-/// The node's default name (CONTRACT.md).
+/// The node's default name (docs/CONTRACT.md).
 pub const DEFAULT_NODE_NAME: &str = "tracer_calibrator";
 
 /// What the loops share besides the entities.
