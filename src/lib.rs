@@ -14,7 +14,7 @@
 //! - [`ros`]: the node shell (`tracer_calib_node`); [`cli`]: the offline tool
 //!   (`tracer_calib`). Neither uses the other.
 //!
-//! Conventions (see the README): SI units (metres, radians), the rail turns
+//! Conventions (docs/engine.md): SI units (metres, radians), the rail turns
 //! counter-clockwise, `P = (k rho - dL) u + d v`.
 
 pub mod cell;

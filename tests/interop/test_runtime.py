@@ -16,7 +16,7 @@ peer environment (target/ros/DISTRO/env.sh). Prints one line per test.
 - describe: every parameter described (description, ranges as rcl_interfaces has them,
   read_only), with `ros2 param describe` too where tests/interop/ros2cli.sh installed it;
   a set outside a range or of a read-only parameter refused with rclcpp's reason;
-  the README's `-p qos_overrides./raw_scan.subscription.reliability:=best_effort` starts
+  docs/node.md's `-p qos_overrides./raw_scan.subscription.reliability:=best_effort` starts
   the node.
 - lifecycle: `-p managed:=true`: the full walk with `ros2 lifecycle` (nodes, get, list,
   set) and with the services themselves (a transition by label alone, one by id, one the

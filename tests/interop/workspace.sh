@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds this repository as a ROS 2 colcon workspace, the way an integrator does
-# (README, "In a ROS 2 workspace"), for one ROS 2 distribution, and checks what it installs:
+# (README, "In a cell, quickly"; docs/workspace.md), for one ROS 2 distribution, and checks what it installs:
 #
 #   target/tools/colcon/              colcon + colcon-ros-cargo (+ the cargo-ament-build wheel)
 #                                     from PyPI, pinned by requirements-colcon.lock
