@@ -15,8 +15,8 @@
 //!    tracer's part of it (the plate centre left out: the marginal covariance of a
 //!    Gaussian estimate is the sub-matrix) reported whole, in the fixed [`Covariance`]
 //!    layout, since the parameters correlate strongly (`dL` and the scale at 0.95): a
-//!    size computed from the standard uncertainties alone would be eight times too
-//!    uncertain;
+//!    numerical study of the model found a circumference's uncertainty eight times too
+//!    large when computed from the standard uncertainties alone;
 //! 6. **the encoder scale is checked** by the models that do not fit it (`full`,
 //!    `paper`): a score test of the scale in force, `k = k₀`. At the fitted parameters
 //!    `x̂` the encoder-scale model ([`super::model::full_scale`]) is linearised and one
