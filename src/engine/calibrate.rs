@@ -135,17 +135,25 @@ pub fn covariance_values(cov: &Covariance) -> Vec<f64> {
     (0..5).flat_map(|i| (0..5).map(move |j| cov[(i, j)])).collect()
 }
 
-/// The 25 row-major values back as a [`Covariance`]; `None` unless there are 25, every
-/// one finite, the matrix symmetric (to rounding) with no negative variance.
-pub fn covariance_from_values(v: &[f64]) -> Option<Covariance> {
+/// The 25 row-major values back as a [`Covariance`], if there are 25, every one finite,
+/// the matrix symmetric (to rounding) with no negative variance; else what they are not,
+/// in the words the parameter, the params file and the history report.
+pub fn covariance_from_values(v: &[f64]) -> Result<Covariance, String> {
+    let refused = || {
+        Err(format!(
+            "expected {} finite values of a symmetric matrix with no negative variance, got {} values",
+            layout::VALUES,
+            v.len()
+        ))
+    };
     if v.len() != layout::VALUES || !v.iter().all(|x| x.is_finite()) {
-        return None;
+        return refused();
     }
     let c = Covariance::from_row_slice(v);
     let symmetric = (0..5).all(|i| {
         (0..i).all(|j| (c[(i, j)] - c[(j, i)]).abs() <= 1e-9 * (c[(i, i)] * c[(j, j)]).sqrt().max(f64::MIN_POSITIVE))
     });
-    (symmetric && (0..5).all(|i| c[(i, i)] >= 0.0)).then_some(c)
+    if symmetric && (0..5).all(|i| c[(i, i)] >= 0.0) { Ok(c) } else { refused() }
 }
 
 /// A fitted calibration.

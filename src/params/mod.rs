@@ -11,7 +11,7 @@ pub mod value;
 pub use file::{ParamsFile, ParamsFileError};
 pub use value::ParamValue;
 
-use crate::engine::calibrate::{Options as CalibrationOptions, covariance_from_values, layout};
+use crate::engine::calibrate::{Options as CalibrationOptions, covariance_from_values};
 use crate::engine::{ModelKind, Mounting, PlateSpec};
 
 /// The contract's parameter names.
@@ -176,22 +176,14 @@ impl Parameters {
         };
         // `[]` (what `ros2 param dump` writes for it) has no element type: any empty list
         // is the empty covariance; whole numbers are doubles, as for a double parameter.
-        let covariance = |v: &ParamValue| match v {
-            v if v.is_empty_array() => Ok(Vec::new()),
-            ParamValue::IntegerArray(c) => {
-                let c: Vec<f64> = c.iter().map(|&i| i as f64).collect();
-                covariance_from_values(&c).map(|_| c.clone()).ok_or_else(|| {
-                    format!("expected {} values of a symmetric matrix with no negative variance", layout::VALUES)
-                })
-            }
-            ParamValue::DoubleArray(c) => covariance_from_values(c).map(|_| c.clone()).ok_or_else(|| {
-                format!(
-                    "expected {} finite values, a symmetric matrix with no negative variance, got {} values",
-                    layout::VALUES,
-                    c.len()
-                )
-            }),
-            v => Err(format!("expected a double array, got {} '{}'", v.type_name(), v)),
+        let covariance = |v: &ParamValue| {
+            let c: Vec<f64> = match v {
+                v if v.is_empty_array() => return Ok(Vec::new()),
+                ParamValue::IntegerArray(c) => c.iter().map(|&i| i as f64).collect(),
+                ParamValue::DoubleArray(c) => c.clone(),
+                v => return Err(format!("expected a double array, got {} '{}'", v.type_name(), v)),
+            };
+            covariance_from_values(&c).map(|_| c)
         };
         match name {
             names::ALPHA0 => next.calibration.alpha0 = double(value)?,

@@ -200,21 +200,10 @@ for d in $DISTROS; do
         t0=$(now_ms)
         if "$HERE/cyclone.sh" "$d" && "$HERE/sros2.sh" "$d"; then
             echo "run.sh: $d: test_security.py (secure node, ROS 2 $d rclpy on Cyclone DDS with security)"
-            rc=0
+            # test_security.py runs each test in a process of its own and reruns one whose
+            # rclpy peer segfaulted (Cyclone DDS 0.10.2; eclipse-cyclonedds/cyclonedds#1548).
             TRACER_CALIB_NODE_SECURE="$TRACER_CALIB_NODE" peer_run netns.sh test_security.py "$d" cyclone_env.sh \
-                ${security[@]+"${security[@]}"} || rc=$?
-            if [ "$rc" -eq 139 ]; then
-                # SIGSEGV of the test process, that is of its in-process rclpy peer: Debian's
-                # Cyclone DDS 0.10.2 security plugins crash now and then in the timer of a
-                # failed handshake (eclipse-cyclonedds/cyclonedds#1548, "Crash in fibheap.c"),
-                # which foreign_ca_peer_refused makes on purpose. The stock peer's, not the
-                # node's (which runs in its own process): said, and the script run once more.
-                echo "run.sh: $d: test_security.py: the rclpy peer on Cyclone DDS crashed (SIGSEGV; eclipse-cyclonedds/cyclonedds#1548): run again"
-                rc=0
-                TRACER_CALIB_NODE_SECURE="$TRACER_CALIB_NODE" peer_run netns.sh test_security.py "$d" cyclone_env.sh \
-                    ${security[@]+"${security[@]}"} || rc=$?
-            fi
-            [ "$rc" -eq 0 ] || failed+=("$d:test_security")
+                ${security[@]+"${security[@]}"} || failed+=("$d:test_security")
             echo "run.sh: $d: test_security.py $(took "$t0")"
         else
             failed+=("$d:security_setup")

@@ -106,6 +106,13 @@ table inet tracer_loss {{
     subprocess.run(["nft", "-f", "-"], input=rules, text=True, check=True)
 
 
+def stop_capture():
+    """End the LOSSY_PCAP capture, if there is one."""
+    if CAPTURE:
+        CAPTURE.terminate()
+        CAPTURE.wait()
+
+
 def apply_delay():
     """In this namespace: tests/interop/netdelay.py (NFQUEUE queue 0, run by
     TRACER_NETDELAY_PYTHON) holds every UDP datagram lo sends for DELAY_MS ± JITTER_MS.
@@ -321,9 +328,7 @@ def scenario_main(server, loss, variant=""):
     result["udp_received"], result["udp_dropped"] = loss_counters()
     if delay:
         result["udp_delayed"], result["udp_reordered"] = stop_delay(delay)
-    if CAPTURE:
-        CAPTURE.terminate()
-        CAPTURE.wait()
+    stop_capture()
     print(json.dumps(result), flush=True)
 
 
@@ -350,8 +355,7 @@ def cells_main(loss):
             for name in os.listdir(h.WORK):
                 if name.startswith("cell") and name.endswith(".log"):
                     shutil.copy(os.path.join(h.WORK, name), os.environ["LOSSY_PCAP"] + "." + name)
-            CAPTURE.terminate()
-            CAPTURE.wait()
+            stop_capture()
     shutil.rmtree(h.WORK, ignore_errors=True)
     out["udp_received"], out["udp_dropped"] = loss_counters()
     print(json.dumps(out), flush=True)
