@@ -3,7 +3,7 @@
 //! that cannot be recorded, leaves the calibration in force as it was on disk.
 
 use super::{InForce, NodeState, Now};
-use crate::engine::calibrate::{Calibration, calibrate, covariance_values};
+use crate::engine::calibrate::{Calibration, Ring, calibrate_with_ring, covariance_values};
 use crate::engine::geometry::Mounting;
 use crate::interfaces::{CalibrateRequest, CalibrateResponse};
 use crate::records::{self, Previous, Record};
@@ -49,12 +49,50 @@ impl NodeState {
             return fail(self, message);
         };
         let scan_id = plate.scan_id;
-        let cal = match calibrate(&plate.scan, &self.params.plate, &self.params.calibration_options()) {
+        // The tip models fit the tip's radius from a ring-gauge scan too.
+        let model = self.params.model;
+        let ring = if model.fits_tip() {
+            let Some(spec) = self.params.ring() else {
+                return fail(
+                    self,
+                    format!(
+                        "model {model} needs the ring gauge's diameter: set ring.diameter (m, its certificate's value)"
+                    ),
+                );
+            };
+            let id = req.ring_scan_id;
+            let kept = if id == 0 { self.rings.back() } else { self.rings.iter().find(|r| r.scan_id == id) };
+            let Some(kept) = kept else {
+                let have: Vec<String> = self.rings.iter().map(|r| r.scan_id.to_string()).collect();
+                let message = if have.is_empty() {
+                    format!(
+                        "model {model} needs a ring-gauge scan and none was received yet (publish a RawScan with target TARGET_RING_GAUGE)"
+                    )
+                } else {
+                    format!("no ring-gauge scan with scan_id {id} (kept: {})", have.join(", "))
+                };
+                return fail(self, message);
+            };
+            Some((kept.scan_id, Ring { scan: &kept.scan, spec }))
+        } else {
+            None
+        };
+        let fitted = calibrate_with_ring(
+            &plate.scan,
+            ring.as_ref().map(|(_, r)| *r),
+            &self.params.plate,
+            &self.params.calibration_options(),
+        );
+        let scans = match &ring {
+            Some((ring_id, _)) => format!("scans {scan_id} and {ring_id} (ring gauge)"),
+            None => format!("scan {scan_id}"),
+        };
+        let cal = match fitted {
             Ok(cal) => cal,
-            Err(e) => return fail(self, format!("calibration failed on scan {scan_id}: {e}")),
+            Err(e) => return fail(self, format!("calibration failed on {scans}: {e}")),
         };
         self.stats.last_fit_rms = Some(cal.rms_residual);
-        let mut response = response_for(&cal, format!("scan {scan_id}: {}", cal.summary()));
+        let mut response = response_for(&cal, format!("{scans}: {}", cal.summary()));
         let mut stddev = cal.stddev.to_vec();
         if cal.model.fits_scale() {
             stddev.push(cal.scale_stddev);
@@ -91,7 +129,7 @@ impl NodeState {
             rms_residual: cal.rms_residual,
             samples_used: cal.samples_used as u32,
             iterations: cal.iterations as u32,
-            tip_radius: 0.0,
+            tip_radius: cal.tip_radius,
             covariance: response.covariance.clone(),
             previous: previous.map(Previous::from),
             ros_time: Some(records::RosTime::from_nanos(now.ros.to_nanos())),
@@ -99,6 +137,7 @@ impl NodeState {
         self.params.calibration = cal.mounting;
         self.params.calibration_valid = true;
         self.params.covariance = response.covariance.clone();
+        self.params.tip_radius = cal.tip_radius;
         // The time the record gives, to the millisecond: what a restart reads back.
         self.in_force = InForce {
             applied_at: record.applied_at().unwrap_or(now.wall),
@@ -125,9 +164,9 @@ impl NodeState {
 
 /// The Calibrate response of a successful fit (the node's, and the offline tool's JSON):
 /// `scale` and `scale_stddev` are the fitted ones, or 1 and 0 for a model that does not
-/// fit the scale; `covariance` the whole covariance, in the contract's layout; no model
-/// fits the tip radius yet, so `tip_radius` is 0 (no tip modelled) and so is its
-/// uncertainty.
+/// fit the scale; `tip_radius` the one in force after the fit (fitted by the tip models,
+/// else the known one) with its uncertainty (0 unless fitted); `covariance` the whole
+/// covariance, in the contract's layout.
 pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
     let (scale, scale_stddev) =
         if cal.model.fits_scale() { (cal.mounting.scale, cal.scale_stddev) } else { (1.0, 0.0) };
@@ -143,8 +182,8 @@ pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
         samples_used: cal.samples_used as u32,
         scale,
         scale_stddev,
-        tip_radius: 0.0,
-        tip_radius_stddev: 0.0,
+        tip_radius: cal.tip_radius,
+        tip_radius_stddev: cal.tip_radius_stddev,
         covariance: covariance_values(&cal.covariance),
     }
 }

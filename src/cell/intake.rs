@@ -14,8 +14,8 @@ pub const MAX_STEPS_PER_REV: u32 = 1 << 20;
 /// The checks of a raw scan that need no pass over its samples: the target, and sizes
 /// within the limits.
 pub fn check_limits(msg: &RawScan) -> Result<(), String> {
-    if msg.target > RawScan::TARGET_LENS {
-        return Err(format!("target {} is not one of TARGET_UNKNOWN..TARGET_LENS (0..3)", msg.target));
+    if msg.target > RawScan::TARGET_RING_GAUGE {
+        return Err(format!("target {} is not one of TARGET_UNKNOWN..TARGET_RING_GAUGE (0..4)", msg.target));
     }
     if msg.steps_per_revolution > MAX_STEPS_PER_REV {
         return Err(format!(

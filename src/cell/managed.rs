@@ -90,8 +90,12 @@ impl NodeState {
             State::CLEANINGUP => {
                 self.forget_configuration(now);
                 self.plates.clear();
+                self.rings.clear();
             }
-            State::SHUTTINGDOWN => self.plates.clear(),
+            State::SHUTTINGDOWN => {
+                self.plates.clear();
+                self.rings.clear();
+            }
             _ => {}
         }
         CallbackReturn::Success

@@ -90,7 +90,9 @@ pub struct NodeState {
     /// A managed node's life cycle (`managed: true`); `None`: unmanaged, always active.
     pub lifecycle: Option<lifecycle::Lifecycle>,
     corrector: Option<Corrector>,
-    plates: VecDeque<scans::PlateScan>,
+    plates: VecDeque<scans::KeptScan>,
+    /// Ring-gauge scans kept for the tip models.
+    rings: VecDeque<scans::KeptScan>,
 }
 
 impl NodeState {
@@ -113,6 +115,7 @@ impl NodeState {
             lifecycle: None,
             corrector: None,
             plates: VecDeque::new(),
+            rings: VecDeque::new(),
         }
     }
 
@@ -152,7 +155,7 @@ impl NodeState {
             stddev: self.in_force.stddev.clone(),
             rms_residual: self.in_force.rms_residual,
             samples_used: self.in_force.samples_used,
-            tip_radius: 0.0,
+            tip_radius: p.tip_radius,
             covariance: if p.calibration_valid { p.covariance.clone() } else { Vec::new() },
         }
     }

@@ -2,20 +2,23 @@
 //! (and a `PolygonStamped` for RViz), the plate scans kept for `/calibrate`.
 
 use super::{NodeState, intake};
+use nalgebra::Vector2;
+
 use crate::engine::correct::{Corrector, PolarContour, default_max_gap};
 use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
+use crate::engine::stylus::{Traced, touched_surface};
 use crate::interfaces::{Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan};
 
 /// Largest coordinate of a corrected point, metres: what a `Point32` of the polygon holds.
 /// (Any contour of a real tracer is a few centimetres.)
 pub const MAX_COORDINATE: f64 = f32::MAX as f64;
-/// Calibration-plate scans kept for `/calibrate`.
+/// Calibration-plate scans kept for `/calibrate`, and as many ring-gauge scans.
 pub const PLATE_SCANS_KEPT: usize = 16;
 
-/// A plate scan kept for calibration.
+/// A plate or ring-gauge scan kept for calibration.
 #[derive(Debug, Clone)]
-pub(super) struct PlateScan {
+pub(super) struct KeptScan {
     pub(super) scan_id: u32,
     pub(super) scan: Scan,
 }
@@ -39,19 +42,21 @@ impl NodeState {
     /// scan).
     pub fn on_raw_scan(&mut self, msg: &RawScan, with_polygon: bool) -> Result<Corrected, String> {
         self.stats.scans_received += 1;
-        // A plate scan is kept as an engine scan (for /calibrate); any other is only
-        // checked. Either way its samples are checked once.
-        let checked = if msg.target == RawScan::TARGET_CALIBRATION_PLATE {
+        // A plate or ring-gauge scan is kept as an engine scan (for /calibrate); any other
+        // is only checked. Either way its samples are checked once.
+        let kept = matches!(msg.target, RawScan::TARGET_CALIBRATION_PLATE | RawScan::TARGET_RING_GAUGE);
+        let checked = if kept {
             intake::to_scan(msg, self.params.meters_per_count).map(Some)
         } else {
             intake::check(msg, self.params.meters_per_count).map(|()| None)
         };
         if let Some(scan) = checked.map_err(|e| self.reject(msg, e))? {
-            self.plates.retain(|p| p.scan_id != msg.scan_id);
-            if self.plates.len() == PLATE_SCANS_KEPT {
-                self.plates.pop_front();
+            let keep = if msg.target == RawScan::TARGET_RING_GAUGE { &mut self.rings } else { &mut self.plates };
+            keep.retain(|p| p.scan_id != msg.scan_id);
+            if keep.len() == PLATE_SCANS_KEPT {
+                keep.pop_front();
             }
-            self.plates.push_back(PlateScan { scan_id: msg.scan_id, scan });
+            keep.push_back(KeptScan { scan_id: msg.scan_id, scan });
         }
         let calibration = self.params.calibration_in_force();
         let mounting = calibration.unwrap_or(Mounting::IDEAL);
@@ -68,7 +73,7 @@ impl NodeState {
         // a radius (sqrt(x² + y²)) can hold: refuse the scan rather than publish inf/NaN.
         // (A plate scan is kept above all the same: it is what a recalibration needs.)
         let mut out_of_range = None;
-        corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, |p| {
+        let mut emit = |p: Vector2<f64>| {
             if out_of_range.is_none() && !(p.x.abs() <= MAX_COORDINATE && p.y.abs() <= MAX_COORDINATE) {
                 out_of_range = Some((points.len(), p));
             }
@@ -76,7 +81,22 @@ impl NodeState {
             if let Some(polar) = polar.as_mut() {
                 polar.push(p);
             }
-        });
+        };
+        let tip = self.params.tip_radius;
+        if tip == 0.0 {
+            corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, emit);
+        } else {
+            // The tip's centre first, then the surface it touched (engine::stylus).
+            let mut path = Vec::with_capacity(n);
+            corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, |p| path.push(p));
+            let traced = match msg.target {
+                RawScan::TARGET_FRAME | RawScan::TARGET_RING_GAUGE => Traced::Inside,
+                _ => Traced::Outside,
+            };
+            let closed = goes_round(&msg.step, steps_per_rev);
+            touched_surface(&mut path, tip, traced, closed);
+            path.into_iter().for_each(&mut emit);
+        }
         if let Some((i, p)) = out_of_range {
             let e = format!(
                 "sample {i}: the corrected point ({}, {}) m is out of range (check encoder.meters_per_count and the calibration)",
@@ -105,4 +125,13 @@ impl NodeState {
         self.stats.contours_published += 1;
         Ok(Corrected { contour, polygon })
     }
+}
+
+/// Are the first and last samples of a scan neighbours round the turn (within the
+/// largest gap a scan that goes all the way round may have)?
+fn goes_round(steps: &[u32], steps_per_rev: u32) -> bool {
+    let (Some(&first), Some(&last)) = (steps.first(), steps.last()) else { return false };
+    let n = steps_per_rev.max(1);
+    let gap = (u64::from(first) + u64::from(n) - u64::from(last)) % u64::from(n);
+    steps.len() > 2 && gap as f64 * std::f64::consts::TAU / f64::from(n) <= default_max_gap(n)
 }

@@ -453,3 +453,90 @@ fn peers_refused_authentication_are_reported_only_when_secure() {
     assert_eq!(d.status[0].level, DiagnosticStatus::WARN);
     assert!(d.status[0].message.contains("2 peer(s) refused authentication"), "{}", d.status[0].message);
 }
+
+/// A scan of `shape` by a tracer with mounting `m` and a tip of radius `tip`, as the
+/// driver would publish it, with the surface it touched.
+fn traced_msg(
+    scan_id: u32,
+    target: u8,
+    shape: &impl crate::engine::shape::Shape,
+    m: &Mounting,
+    tip: f64,
+) -> (RawScan, Vec<Vector2<f64>>) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(u64::from(scan_id));
+    let inside = matches!(target, RawScan::TARGET_FRAME | RawScan::TARGET_RING_GAUGE);
+    let opt = SimOptions { noise: 2e-6, tip_radius: tip, inside, ..SimOptions::default() };
+    let sim = simulate(shape, m, &opt, &mut rng).unwrap();
+    let msg = RawScan {
+        header: Header::default(),
+        scan_id,
+        target,
+        steps_per_revolution: 400,
+        step: sim.scan.samples().iter().map(|s| s.step).collect(),
+        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+    };
+    (msg, sim.truth)
+}
+
+fn ring_gauge() -> crate::engine::shape::Ellipse {
+    crate::engine::shape::Ellipse { center: Vector2::new(-0.0004, 0.0002), a: 0.020, b: 0.020, angle: 0.0 }
+}
+
+/// `full_tip` through the cell: the most recent ring-gauge scan (or the one named)
+/// with the plate; the tip radius fitted, in force, in the response, the record and the
+/// `Calibration` message; frames and lenses then corrected to the surface the tip touched.
+#[test]
+fn the_tip_is_fitted_from_a_ring_gauge_and_contours_are_of_the_touched_surface() {
+    let m = Mounting::new(0.02, 0.004, 0.001);
+    let tip = 0.0005;
+    let mut p = Parameters { model: crate::engine::ModelKind::FullTip, ..Parameters::default() };
+    let mut st = NodeState::new("/cell1/tracer".into(), p.clone());
+    let plate = PlateSpec::default().at(Vector2::new(0.0005, -0.0003));
+    st.on_raw_scan(&traced_msg(1, RawScan::TARGET_CALIBRATION_PLATE, &plate, &m, tip).0, false).unwrap();
+    let req = CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 };
+    // No ring.diameter, then no ring-gauge scan: refused, naming what is missing.
+    let out = st.on_calibrate(&req);
+    assert!(!out.response.success && out.response.message.contains("ring.diameter"), "{}", out.response.message);
+    p.ring_diameter = 0.040;
+    st.params.ring_diameter = 0.040;
+    let out = st.on_calibrate(&req);
+    assert!(!out.response.success && out.response.message.contains("TARGET_RING_GAUGE"), "{}", out.response.message);
+    assert!(!st.params.calibration_valid);
+    // A ring-gauge scan, and a second one of a wrong ring (a plate) named by ring_scan_id.
+    st.on_raw_scan(&traced_msg(2, RawScan::TARGET_RING_GAUGE, &ring_gauge(), &m, tip).0, false).unwrap();
+    st.on_raw_scan(&traced_msg(3, RawScan::TARGET_RING_GAUGE, &plate, &m, tip).0, false).unwrap();
+    let out = st.on_calibrate(&CalibrateRequest { ring_scan_id: 3, ..req });
+    assert!(!out.response.success && out.response.message.contains("ring"), "{}", out.response.message);
+    assert!(!st.params.calibration_valid, "a failed fit applies nothing");
+    let out = st.on_calibrate(&CalibrateRequest { ring_scan_id: 2, ..req });
+    let r = &out.response;
+    assert!(r.success, "{}", r.message);
+    assert!(r.message.contains("scans 1 and 2 (ring gauge)"), "{}", r.message);
+    assert!(
+        (r.tip_radius - tip).abs() < 4.0 * r.tip_radius_stddev + 1e-7,
+        "{} ± {}",
+        r.tip_radius,
+        r.tip_radius_stddev
+    );
+    assert!(r.tip_radius_stddev > 0.0 && r.tip_radius_stddev < 5e-6);
+    let c = crate::engine::calibrate::covariance_from_values(&r.covariance).unwrap();
+    assert_eq!(c[(4, 4)].sqrt(), r.tip_radius_stddev);
+    assert!((r.delta_l - m.delta_l).abs() < 1e-5, "dL {} for {}", r.delta_l, m.delta_l);
+    assert_eq!(st.params.tip_radius, r.tip_radius);
+    assert_eq!(st.calibration_msg().tip_radius, r.tip_radius);
+    // A frame and a lens, traced with the tip: their contours are of the touched surface.
+    let frame = crate::engine::shape::RoundedRect {
+        center: Vector2::new(0.001, 0.0),
+        half_w: 0.025,
+        half_h: 0.015,
+        radius: 0.008,
+    };
+    let lens = crate::engine::shape::Ellipse { center: Vector2::new(0.0, 0.001), a: 0.026, b: 0.017, angle: 0.3 };
+    let (frame_msg, frame_truth) = traced_msg(4, RawScan::TARGET_FRAME, &frame, &m, tip);
+    let (lens_msg, lens_truth) = traced_msg(5, RawScan::TARGET_LENS, &lens, &m, tip);
+    for (msg, truth) in [(frame_msg, frame_truth), (lens_msg, lens_truth)] {
+        let c = st.on_raw_scan(&msg, false).unwrap().contour;
+        let worst = c.points.iter().zip(&truth).map(|(p, t)| (Vector2::new(p.x, p.y) - t).norm()).fold(0.0, f64::max);
+        assert!(worst < 30e-6, "target {}: a point {:.1} µm from the surface touched", msg.target, worst * 1e6);
+    }
+}

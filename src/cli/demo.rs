@@ -19,9 +19,10 @@ use ros2_client::dds::ServiceMapping;
 use ros2_client::{Name, NodeName, NodeOptions, QosProfile, qos::*};
 
 use super::exit;
-use crate::engine::calibrate::{Options, calibrate};
+use crate::engine::calibrate::{Options, Ring, calibrate_with_ring};
 use crate::engine::correct::correct;
 use crate::engine::geometry::Mounting;
+use crate::engine::model::tip::RingSpec;
 use crate::engine::model::{ModelKind, PlateSpec};
 use crate::engine::shape::{Ellipse, RoundedRect, Shape};
 use crate::engine::simulate::{SimOptions, SimScan, simulate};
@@ -66,13 +67,26 @@ struct Cell {
     truth: Mounting,
     plate: PlateSpec,
     plate_center: Vector2<f64>,
+    /// Radius of the probe's ball tip, metres.
+    tip: f64,
+    /// The ring gauge's certified inner diameter, metres.
+    ring_diameter: f64,
     rng: StdRng,
     noise: f64,
 }
 
 impl Cell {
-    fn scan(&mut self, shape: &impl Shape, spikes: usize) -> Result<SimScan, String> {
-        let opt = SimOptions { noise: self.noise, quantum: 1e-6, start_step: 57, spikes, ..SimOptions::default() };
+    /// A turn round `shape`, traced from inside (a frame, the ring gauge) or outside.
+    fn scan(&mut self, shape: &impl Shape, spikes: usize, inside: bool) -> Result<SimScan, String> {
+        let opt = SimOptions {
+            noise: self.noise,
+            quantum: 1e-6,
+            start_step: 57,
+            spikes,
+            tip_radius: self.tip,
+            inside,
+            ..SimOptions::default()
+        };
         simulate(shape, &self.truth, &opt, &mut self.rng).map_err(|e| e.to_string())
     }
 }
@@ -150,15 +164,18 @@ fn demo(args: &Args) -> Result<(), String> {
         truth: Mounting::new(1.7f64.to_radians(), 4.2e-3, 1.3e-3),
         plate: PlateSpec::default(),
         plate_center: Vector2::new(0.6e-3, -0.4e-3),
+        tip: 0.4e-3,
+        ring_diameter: 40e-3,
         rng: StdRng::seed_from_u64(args.seed),
         noise: args.noise,
     };
     let t = cell.truth;
     println!(
-        "Simulated tracer: alpha0 = {:.3}°, d = {:.3} mm, dL = {:.3} mm; 400 steps a turn, encoder noise {:.3} mm, 1 µm counts.",
+        "Simulated tracer: alpha0 = {:.3}°, d = {:.3} mm, dL = {:.3} mm, a ball tip of radius {:.2} mm; 400 steps a turn, encoder noise {:.3} mm, 1 µm counts.",
         t.alpha0.to_degrees(),
         t.offset * 1e3,
         t.delta_l * 1e3,
+        cell.tip * 1e3,
         args.noise * 1e3
     );
     let node_bin = match &args.node {
@@ -174,6 +191,8 @@ fn demo(args: &Args) -> Result<(), String> {
     let node = Command::new(&node_bin)
         .args(["--ros-args", "-p"])
         .arg(format!("params_file:={}", params_path.display()))
+        .args(["-p", "model:=full_tip", "-p"])
+        .arg(format!("ring.diameter:={}", cell.ring_diameter))
         .env("ROS_DOMAIN_ID", args.domain_id.to_string())
         .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         .stdin(Stdio::null())
@@ -219,10 +238,17 @@ fn demo(args: &Args) -> Result<(), String> {
     let plate_shape = cell.plate.at(cell.plate_center);
     let lens = Ellipse { center: Vector2::new(0.5e-3, -0.3e-3), a: 25e-3, b: 15e-3, angle: 0.1 };
     let frame = RoundedRect { center: Vector2::new(-0.4e-3, 0.2e-3), half_w: 26e-3, half_h: 16e-3, radius: 8e-3 };
-    let lens_before = cell.scan(&lens, 0)?;
-    let plate_scan = cell.scan(&plate_shape, 2)?;
-    let lens_after = cell.scan(&lens, 0)?;
-    let frame_after = cell.scan(&frame, 0)?;
+    let ring = Ellipse {
+        center: Vector2::new(-0.3e-3, 0.5e-3),
+        a: cell.ring_diameter / 2.0,
+        b: cell.ring_diameter / 2.0,
+        angle: 0.0,
+    };
+    let lens_before = cell.scan(&lens, 0, false)?;
+    let plate_scan = cell.scan(&plate_shape, 2, false)?;
+    let ring_scan = cell.scan(&ring, 0, true)?;
+    let lens_after = cell.scan(&lens, 0, false)?;
+    let frame_after = cell.scan(&frame, 0, true)?;
 
     let outcome = smol::block_on(async {
         let mut stream = std::pin::pin!(contours.async_stream());
@@ -257,7 +283,11 @@ fn demo(args: &Args) -> Result<(), String> {
             rms_error(&before, &lens_before.truth) * 1e3
         );
         exchange(raw_msg(2, RawScan::TARGET_CALIBRATION_PLATE, &plate_scan)).await?;
-        println!("2. Calibration plate traced (scan 2, two dust spikes on it).");
+        exchange(raw_msg(3, RawScan::TARGET_RING_GAUGE, &ring_scan)).await?;
+        println!(
+            "2. Calibration plate traced (scan 2, two dust spikes on it), then the ring gauge, Ø {:.0} mm (scan 3).",
+            cell.ring_diameter * 1e3
+        );
         let response = within(
             10,
             "calibrate response",
@@ -268,22 +298,23 @@ fn demo(args: &Args) -> Result<(), String> {
         if !response.success {
             return Err(format!("calibrate failed: {}", response.message));
         }
-        println!("3. ros2 service call /calibrate tracer_calib_msgs/srv/Calibrate \"{{}}\":");
+        println!("3. ros2 service call /calibrate tracer_calib_msgs/srv/Calibrate \"{{}}\" (model full_tip):");
         println!("   {}", response.message);
         println!("{:>14} {:>12} {:>22}", "", "truth", "fit ± standard unc.");
         for (name, truth, fit, sd, scale, unit) in [
             ("alpha0", t.alpha0, response.alpha0, response.stddev[0], 180.0 / std::f64::consts::PI, "°"),
             ("offset d", t.offset, response.offset, response.stddev[1], 1e3, " mm"),
             ("delta_l dL", t.delta_l, response.delta_l, response.stddev[2], 1e3, " mm"),
+            ("tip radius", cell.tip, response.tip_radius, response.tip_radius_stddev, 1e3, " mm"),
         ] {
             println!("{name:>14} {:>10.4}{unit:<3} {:>10.4} ± {:.4}{unit}", truth * scale, fit * scale, sd * scale);
         }
-        let lens_c = exchange(raw_msg(3, RawScan::TARGET_LENS, &lens_after)).await?;
-        let frame_c = exchange(raw_msg(4, RawScan::TARGET_FRAME, &frame_after)).await?;
-        Ok::<_, String>((before, lens_c, frame_c))
+        let lens_c = exchange(raw_msg(4, RawScan::TARGET_LENS, &lens_after)).await?;
+        let frame_c = exchange(raw_msg(5, RawScan::TARGET_FRAME, &frame_after)).await?;
+        Ok::<_, String>((before, lens_c, frame_c, response.tip_radius))
     });
-    let (before, lens_c, frame_c) = outcome?;
-    println!("4. Scans after calibration, RMS distance to where the probe really was:");
+    let (before, lens_c, frame_c, tip) = outcome?;
+    println!("4. Scans after calibration, RMS distance to the surface the tip touched:");
     println!("{:>38} {:>12} {:>14} {:>18}", "", "raw [mm]", "corrected [mm]", "radii max [mm]");
     let raw_frame = correct(&frame_after.scan, &Mounting::IDEAL);
     let raw_frame_rms = (raw_frame.iter().zip(&frame_after.truth).map(|(p, q)| (p - q).norm_squared()).sum::<f64>()
@@ -307,7 +338,8 @@ fn demo(args: &Args) -> Result<(), String> {
             radii_error(contour, shape) * 1e3
         );
     }
-    println!("   (corrected errors are the encoder noise; radii: the 400 equal-angle radii of Contour.radii)");
+    println!("   (raw: the tip's centre, uncorrected; corrected errors are the encoder noise; radii: the 400");
+    println!("   equal-angle radii of Contour.radii)");
     println!("5. The node persisted its parameters to {}", params_path.display());
     println!(
         "   and recorded the calibration in {} (tracer_calib history --input FILE)",
@@ -319,19 +351,22 @@ fn demo(args: &Args) -> Result<(), String> {
     drop(node);
     println!("   and stopped on SIGTERM in {:.0} ms.", stop.elapsed().as_secs_f64() * 1e3);
 
-    // The same plate scan with every model, offline.
+    // The same scans with every model, offline: the tip models with the ring gauge, the
+    // others told the tip radius the node fitted.
     println!();
-    println!("The plate scan fitted offline with every model:");
-    let mut full_cal = None;
+    println!("The plate scan fitted offline with every model (the others told the fitted tip radius):");
+    let ring_gauge = Ring { scan: &ring_scan.scan, spec: RingSpec { diameter: cell.ring_diameter } };
+    let mut tip_cal = None;
     for model in ModelKind::ALL {
-        let cal = calibrate(&plate_scan.scan, &cell.plate, &Options { model, ..Options::default() })
-            .map_err(|e| e.to_string())?;
+        let opt = Options { model, tip_radius: if model.fits_tip() { 0.0 } else { tip }, ..Options::default() };
+        let cal =
+            calibrate_with_ring(&plate_scan.scan, Some(ring_gauge), &cell.plate, &opt).map_err(|e| e.to_string())?;
         println!("   {}", cal.summary());
-        if model == ModelKind::Full {
-            full_cal = Some(cal);
+        if model == ModelKind::FullTip {
+            tip_cal = Some(cal);
         }
     }
-    let cal = full_cal.expect("the full model ran");
+    let cal = tip_cal.expect("the full_tip model ran");
     super::plot::write_calibration_plot(&args.plot, &plate_scan.scan, &cell.plate, &cal)?;
     println!("Picture of the fit: {}", args.plot.display());
     Ok(())

@@ -76,7 +76,9 @@ fn plate_outline(plate: &PlateSpec, center: Vector2<f64>) -> Vec<Vector2<f64>> {
 /// Write the SVG picture of a calibration of `scan`.
 pub fn write_calibration_plot(path: &Path, scan: &Scan, plate: &PlateSpec, cal: &Calibration) -> Result<(), String> {
     let raw = correct(scan, &Mounting::IDEAL);
-    let corrected = correct(scan, &cal.mounting);
+    // The surface the tip touched (engine::stylus), which is the plate's.
+    let mut corrected = correct(scan, &cal.mounting);
+    crate::engine::stylus::touched_surface(&mut corrected, cal.tip_radius, crate::engine::Traced::Outside, true);
     let outline = plate_outline(plate, cal.plate_center);
     let residuals: Vec<ResidualSample> = scan
         .samples()

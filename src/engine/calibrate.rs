@@ -37,11 +37,13 @@ use nalgebra::{DVector, SMatrix, SVector, Vector2};
 use std::borrow::Cow;
 use std::fmt;
 
+use super::correct::correct;
 use super::geometry::{Mounting, rotate_quarter_turns, wrap_quarter_turn};
 use super::lm::{self, Problem, Termination};
 use super::model::full::{self, FullModel};
 use super::model::full_scale::{self, FullScaleModel};
 use super::model::paper::{self, PaperModel};
+use super::model::tip::{self, RingSpec, TipModel, TipScaleModel};
 use super::model::{ModelKind, PlateSpec};
 use super::scan::Scan;
 use super::start::initial_guess;
@@ -73,6 +75,16 @@ pub struct Options {
     pub max_scale_sigma: f64,
     /// ... and off by more than this fraction (1e-4: 2.5 µm on a 25 mm radius).
     pub scale_tolerance: f64,
+    /// The stylus tip's radius in force, metres (`stylus.tip_radius`): the models that do
+    /// not fit it see the plate grown by it ([`super::model::tip`]).
+    pub tip_radius: f64,
+    /// A fit that rejects more than this fraction of a scan's samples as outliers is
+    /// refused: dust and bounces spike a few samples, a scan that does not match the
+    /// model spikes many.
+    pub max_rejected_fraction: f64,
+    /// A tip model's fitted radius is refused above this (metres): no stylus of a
+    /// tracer is that large, and a ring gauge of the wrong diameter can make it so.
+    pub max_tip_radius: f64,
 }
 
 impl Default for Options {
@@ -88,6 +100,9 @@ impl Default for Options {
             scale: 1.0,
             max_scale_sigma: 5.0,
             scale_tolerance: 1e-4,
+            max_rejected_fraction: 0.25,
+            tip_radius: 0.0,
+            max_tip_radius: 2e-3,
         }
     }
 }
@@ -172,6 +187,13 @@ pub struct Calibration {
     pub covariance: Covariance,
     /// Standard uncertainty of the encoder scale; 0 when the model does not fit it.
     pub scale_stddev: f64,
+    /// The stylus tip's radius, metres: fitted by the tip models, else the one in force
+    /// ([`Options::tip_radius`]).
+    pub tip_radius: f64,
+    /// Its standard uncertainty; 0 when the model does not fit it.
+    pub tip_radius_stddev: f64,
+    /// What a tip model fitted to the ring-gauge scan; `None` for the other models.
+    pub ring: Option<RingFit>,
     /// The encoder scale the scan shows, by the score test of the models that do not
     /// fit it (module docs); `None` for `full_scale`.
     pub scale_check: Option<ScaleEstimate>,
@@ -195,6 +217,11 @@ impl Calibration {
         } else {
             String::new()
         };
+        let tip = if self.model.fits_tip() {
+            format!(", tip radius = {:.4} ± {:.4} mm", self.tip_radius * 1e3, self.tip_radius_stddev * 1e3)
+        } else {
+            String::new()
+        };
         let check = match self.scale_check {
             Some(e) => format!(
                 ", scale check: {:+.0} ± {:.0} ppm",
@@ -204,7 +231,7 @@ impl Calibration {
             None => String::new(),
         };
         format!(
-            "{} model: alpha0 = {:.4}° ± {:.4}°, d = {:.4} ± {:.4} mm, dL = {:.4} ± {:.4} mm{scale}, rms residual {:.4} mm, {} samples used, {} rejected, {} iterations{check}",
+            "{} model: alpha0 = {:.4}° ± {:.4}°, d = {:.4} ± {:.4} mm, dL = {:.4} ± {:.4} mm{scale}{tip}, rms residual {:.4} mm, {} samples used, {} rejected, {} iterations{check}",
             self.model,
             self.mounting.alpha0.to_degrees(),
             self.stddev[0].to_degrees(),
@@ -218,6 +245,17 @@ impl Calibration {
             self.iterations
         )
     }
+}
+
+/// The ring-gauge scan's part of a tip model's fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RingFit {
+    /// The ring's fitted centre, metres (in the frame where `alpha0` is as reported).
+    pub center: Vector2<f64>,
+    /// RMS of the residuals of the ring samples used, metres.
+    pub rms_residual: f64,
+    /// Residual of every ring sample, in scan order, and whether the fit used it.
+    pub residuals: Vec<(f64, bool)>,
 }
 
 /// Why a calibration failed.
@@ -249,6 +287,30 @@ pub enum CalibrationError {
         k0: f64,
     },
     InvalidScale(f64),
+    /// More than [`Options::max_rejected_fraction`] of a scan's samples were outliers.
+    TooManyOutliers {
+        rejected: usize,
+        samples: usize,
+        /// Which scan: "plate" or "ring-gauge".
+        scan: &'static str,
+    },
+    /// A tip model was asked for without a ring-gauge scan, or the ring is invalid.
+    Ring(String),
+    /// The tip radius in force is not a length a stylus can have.
+    InvalidTipRadius(f64),
+    /// The ring-gauge scan does not fit the ring (rms residual above the limit, or
+    /// systematic residuals: `noise` is what neighbouring samples show).
+    RingMismatch {
+        rms: f64,
+        noise: Option<f64>,
+        diameter: f64,
+    },
+    /// The fitted tip radius is not one a stylus can have.
+    TipRadiusImplausible {
+        radius: f64,
+        stddev: f64,
+        diameter: f64,
+    },
 }
 
 impl fmt::Display for CalibrationError {
@@ -294,14 +356,68 @@ impl fmt::Display for CalibrationError {
                 )
             }
             Self::InvalidScale(k) => write!(f, "the encoder scale in force must be a positive number, got {k}"),
+            Self::TooManyOutliers { rejected, samples, scan } => write!(
+                f,
+                "{rejected} of the {samples} samples of the {scan} scan do not fit the model: it does not look like the {}",
+                if *scan == "plate" {
+                    "calibration plate (check plate.side, plate.corner_radius, encoder.meters_per_count, and that the plate is seated)"
+                } else {
+                    "ring gauge (check ring.diameter, and that the scan is of the ring gauge)"
+                }
+            ),
+            Self::Ring(why) => write!(f, "{why}"),
+            Self::InvalidTipRadius(r) => {
+                write!(f, "the stylus tip radius in force must be a length of at least 0 m, got {r}")
+            }
+            Self::RingMismatch { rms, noise, diameter } => {
+                let why = match noise {
+                    Some(n) => format!(
+                        "rms residual {:.4} mm where neighbouring samples scatter by {:.4} mm",
+                        rms * 1e3,
+                        n * 1e3
+                    ),
+                    None => format!("rms residual {:.4} mm", rms * 1e3),
+                };
+                write!(
+                    f,
+                    "the ring-gauge scan does not fit a ring of {:.4} mm ({why}): check ring.diameter, and that the scan is of the ring gauge, traced from inside",
+                    diameter * 1e3
+                )
+            }
+            Self::TipRadiusImplausible { radius, stddev, diameter } => write!(
+                f,
+                "the fitted tip radius {:.4} ± {:.4} mm is not one a stylus has: the ring gauge's diameter ({:.4} mm, ring.diameter) or the plate's size does not fit the scans",
+                radius * 1e3,
+                stddev * 1e3,
+                diameter * 1e3
+            ),
         }
     }
 }
 
 impl std::error::Error for CalibrationError {}
 
-/// Fit the mounting errors to a scan of the calibration plate.
+/// Fit the mounting errors to a scan of the calibration plate, with a model that needs
+/// no ring-gauge scan ([`calibrate_with_ring`] for the tip models).
 pub fn calibrate(scan: &Scan, plate: &PlateSpec, opt: &Options) -> Result<Calibration, CalibrationError> {
+    calibrate_with_ring(scan, None, plate, opt)
+}
+
+/// A ring-gauge scan and the ring's certified size: what the tip models fit `ρ` from.
+#[derive(Debug, Clone, Copy)]
+pub struct Ring<'a> {
+    pub scan: &'a Scan,
+    pub spec: RingSpec,
+}
+
+/// Fit the mounting errors to a scan of the calibration plate and, for the tip models
+/// (`full_tip`, `full_scale_tip`), a scan of the ring gauge (ignored by the others).
+pub fn calibrate_with_ring(
+    scan: &Scan,
+    ring: Option<Ring>,
+    plate: &PlateSpec,
+    opt: &Options,
+) -> Result<Calibration, CalibrationError> {
     plate.validate().map_err(CalibrationError::InvalidPlate)?;
     let need = opt.min_samples.max(6);
     if scan.len() < need {
@@ -310,23 +426,48 @@ pub fn calibrate(scan: &Scan, plate: &PlateSpec, opt: &Options) -> Result<Calibr
     if !(opt.scale.is_finite() && opt.scale > 0.0) {
         return Err(CalibrationError::InvalidScale(opt.scale));
     }
+    if !(opt.tip_radius.is_finite() && opt.tip_radius >= 0.0) {
+        return Err(CalibrationError::InvalidTipRadius(opt.tip_radius));
+    }
     // The models that do not fit the scale see true lengths, k₀ rho; full_scale sees
     // the encoder's own.
     let known_scale = if opt.model.fits_scale() { 1.0 } else { opt.scale };
-    let scan: Cow<Scan> = if known_scale == 1.0 {
-        Cow::Borrowed(scan)
-    } else {
-        Cow::Owned(scan.scaled(known_scale).map_err(|e| CalibrationError::Model(e.to_string()))?)
+    let scaled = |scan: &Scan| -> Result<Scan, CalibrationError> {
+        scan.scaled(known_scale).map_err(|e| CalibrationError::Model(e.to_string()))
     };
-    let all = FullModel::from_scan(plate, &scan);
-    let start = initial_guess(&all, plate).ok_or(CalibrationError::NoStart)?;
+    let scan: Cow<Scan> = if known_scale == 1.0 { Cow::Borrowed(scan) } else { Cow::Owned(scaled(scan)?) };
+    if opt.model.fits_tip() {
+        let ring = ring.ok_or_else(|| {
+            CalibrationError::Ring(format!(
+                "model {} fits the tip radius from a ring-gauge scan and none was given: trace the ring gauge (target TARGET_RING_GAUGE) and set ring.diameter",
+                opt.model
+            ))
+        })?;
+        ring.spec.validate().map_err(CalibrationError::Ring)?;
+        if ring.scan.len() < need {
+            return Err(CalibrationError::Ring(format!(
+                "the ring-gauge scan has {} samples, at least {need} needed",
+                ring.scan.len()
+            )));
+        }
+        let ring_scan = if known_scale == 1.0 { Cow::Borrowed(ring.scan) } else { Cow::Owned(scaled(ring.scan)?) };
+        let fit = fit_tip(&scan, &ring_scan, &ring.spec, plate, opt)?;
+        let fit = Fit { scale: fit.scale * known_scale, ..fit };
+        let grown = plate.grown(fit.tip_radius);
+        return finish(&scan, &FullModel::from_scan(&grown, &scan), fit, Some((&ring_scan, &ring.spec)), opt);
+    }
+    // The centre of a tip of radius ρ traces the plate grown by ρ.
+    let grown = plate.grown(opt.tip_radius);
+    let all = FullModel::from_scan(&grown, &scan);
+    let start = initial_guess(&all, &grown).ok_or(CalibrationError::NoStart)?;
     let fit = match opt.model {
         ModelKind::Full => fit_full(&all, start.x, opt)?,
-        ModelKind::Paper => fit_paper(&scan, plate, &all, wrap(start.x), opt)?,
+        ModelKind::Paper => fit_paper(&scan, &grown, &all, wrap(start.x), opt)?,
         ModelKind::FullScale => fit_full_scale(&all, start.x, opt)?,
+        ModelKind::FullTip | ModelKind::FullScaleTip => unreachable!("fitted above"),
     };
-    let fit = Fit { scale: fit.scale * known_scale, ..fit };
-    finish(&scan, &all, fit, opt)
+    let fit = Fit { scale: fit.scale * known_scale, tip_radius: opt.tip_radius, ..fit };
+    finish(&scan, &all, fit, None, opt)
 }
 
 /// What a model's fit hands to [`finish`].
@@ -344,12 +485,27 @@ struct Fit {
     residuals: Vec<f64>,
     iterations: usize,
     termination: Termination,
+    /// The tip radius, fitted or in force.
+    tip_radius: f64,
+    /// A tip model's ring: its centre (as fitted, before [`wrap`]), residuals and which
+    /// samples it used.
+    ring: Option<(Vector2<f64>, Vec<f64>, Vec<bool>)>,
 }
 
-fn finish(scan: &Scan, all: &FullModel, fit: Fit, opt: &Options) -> Result<Calibration, CalibrationError> {
+fn finish(
+    scan: &Scan,
+    all: &FullModel,
+    fit: Fit,
+    ring: Option<(&Scan, &RingSpec)>,
+    opt: &Options,
+) -> Result<Calibration, CalibrationError> {
     let used = fit.used.iter().filter(|&&a| a).count();
     if used < opt.min_samples {
         return Err(CalibrationError::TooFewSamples { got: used, need: opt.min_samples });
+    }
+    let too_many = |rejected: usize, samples: usize| rejected as f64 > opt.max_rejected_fraction * samples as f64;
+    if too_many(fit.rejected, scan.len()) {
+        return Err(CalibrationError::TooManyOutliers { rejected: fit.rejected, samples: scan.len(), scan: "plate" });
     }
     let ss: f64 = fit.residuals.iter().zip(&fit.used).filter(|(_, a)| **a).map(|(r, _)| r * r).sum();
     let rms = (ss / used as f64).sqrt();
@@ -380,10 +536,53 @@ fn finish(scan: &Scan, all: &FullModel, fit: Fit, opt: &Options) -> Result<Calib
         }
         Some(estimate)
     };
+    let stddev_of = |i: usize| fit.covariance[(i, i)].max(0.0).sqrt();
+    let tip_radius_stddev = stddev_of(layout::TIP_RADIUS);
+    let ring_fit = match (fit.ring, ring) {
+        (Some((center, residuals, used)), Some((ring_scan, spec))) => {
+            let n_used = used.iter().filter(|&&u| u).count();
+            if too_many(used.len() - n_used, used.len()) {
+                return Err(CalibrationError::TooManyOutliers {
+                    rejected: used.len() - n_used,
+                    samples: used.len(),
+                    scan: "ring-gauge",
+                });
+            }
+            let ss: f64 = residuals.iter().zip(&used).filter(|(_, u)| **u).map(|(r, _)| r * r).sum();
+            let rms = (ss / n_used.max(1) as f64).sqrt();
+            let diameter = spec.diameter;
+            if rms.is_nan() || rms > opt.max_rms_residual {
+                return Err(CalibrationError::RingMismatch { rms, noise: None, diameter });
+            }
+            if let Some(noise) = neighbour_noise(ring_scan, &residuals, &used)
+                && rms > opt.systematic_floor
+                && rms > opt.max_lack_of_fit * noise
+            {
+                return Err(CalibrationError::RingMismatch { rms, noise: Some(noise), diameter });
+            }
+            let tip = fit.tip_radius;
+            // A tip radius that is negative beyond its uncertainty, or larger than any
+            // stylus: the ring's diameter (or the plate's size) does not fit the scans.
+            if !(tip >= -(3.0 * tip_radius_stddev + 1e-6) && tip <= opt.max_tip_radius && tip < diameter / 4.0) {
+                return Err(CalibrationError::TipRadiusImplausible {
+                    radius: tip,
+                    stddev: tip_radius_stddev,
+                    diameter,
+                });
+            }
+            let (_, quarter_turns) = wrap_quarter_turn(fit.x[full::ALPHA0]);
+            Some(RingFit {
+                center: rotate_quarter_turns(center, quarter_turns),
+                rms_residual: rms,
+                residuals: residuals.into_iter().zip(used).collect(),
+            })
+        }
+        _ => None,
+    };
     let x = wrap(fit.x);
     let (mounting, plate_center) = full::unpack(&x);
-    let stddev = [layout::ALPHA0, layout::OFFSET, layout::DELTA_L].map(|i| fit.covariance[(i, i)].max(0.0).sqrt());
-    let scale_stddev = fit.covariance[(layout::SCALE, layout::SCALE)].max(0.0).sqrt();
+    let stddev = [layout::ALPHA0, layout::OFFSET, layout::DELTA_L].map(stddev_of);
+    let scale_stddev = stddev_of(layout::SCALE);
     if !(fit.covariance.iter().all(|s| s.is_finite()) && x.iter().all(|v| v.is_finite()) && fit.scale.is_finite()) {
         return Err(CalibrationError::Singular);
     }
@@ -394,6 +593,9 @@ fn finish(scan: &Scan, all: &FullModel, fit: Fit, opt: &Options) -> Result<Calib
         stddev,
         covariance: fit.covariance,
         scale_stddev,
+        tip_radius: fit.tip_radius,
+        tip_radius_stddev,
+        ring: ring_fit,
         scale_check,
         rms_residual: rms,
         iterations: fit.iterations,
@@ -493,6 +695,18 @@ impl Subset for FullScaleModel {
     }
 }
 
+impl Subset for TipModel {
+    fn subset(&self, keep: impl FnMut(usize) -> bool) -> Self {
+        self.retain(keep)
+    }
+}
+
+impl Subset for TipScaleModel {
+    fn subset(&self, keep: impl FnMut(usize) -> bool) -> Self {
+        TipScaleModel::new(self.tip().retain(keep))
+    }
+}
+
 /// What the rejection rounds of a model fitted to every sample found.
 struct Rounds<const P: usize> {
     x: SVector<f64, P>,
@@ -570,6 +784,8 @@ impl Fit {
             residuals: r.residuals.as_slice().to_vec(),
             iterations: r.iterations,
             termination: r.termination,
+            tip_radius: 0.0,
+            ring: None,
         }
     }
 }
@@ -588,6 +804,59 @@ fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fi
     let tracer =
         [Some(full_scale::ALPHA0), Some(full_scale::OFFSET), Some(full_scale::DELTA_L), Some(full_scale::SCALE), None];
     Ok(Fit::from_rounds(ModelKind::FullScale, x, scale, tracer, r))
+}
+
+/// `full_tip` and `full_scale_tip` ([`super::model::tip`]). The start: the full model
+/// fitted to the plate with the tip radius in force `ρ₀` gives the mounting with the
+/// tip's error in `dL` (`dL' ≈ dL + ρ - ρ₀`); through it the ring's samples lie on a
+/// circle about its centre (their centroid) of radius `R ≈ D/2 - ρ - (ρ - ρ₀)`, so
+/// `ρ ≈ (D/2 - R + ρ₀)/2`, and `dL = dL' - (ρ - ρ₀)`.
+fn fit_tip(
+    scan: &Scan,
+    ring_scan: &Scan,
+    ring: &RingSpec,
+    plate: &PlateSpec,
+    opt: &Options,
+) -> Result<Fit, CalibrationError> {
+    let tip0 = opt.tip_radius;
+    let grown = plate.grown(tip0);
+    let plate_only = FullModel::from_scan(&grown, scan);
+    let start = initial_guess(&plate_only, &grown).ok_or(CalibrationError::NoStart)?;
+    let first = fit_rounds(&plate_only, start.x, opt)?;
+    let (mounting, _) = full::unpack(&first.x);
+    let points = correct(ring_scan, &mounting);
+    let centroid = points.iter().sum::<Vector2<f64>>() / points.len() as f64;
+    let radius = points.iter().map(|p| (p - centroid).norm()).sum::<f64>() / points.len() as f64;
+    let tip = (ring.diameter / 2.0 - radius + tip0) / 2.0;
+    let mut x0 = tip::from_full(&first.x, tip, centroid);
+    x0[tip::DELTA_L] -= tip - tip0;
+    let model = TipModel::from_scans(FullModel::from_scan(plate, scan), ring, ring_scan);
+    let n = scan.len();
+    let (x, scale, mut fit) = if opt.model.fits_scale() {
+        let r = fit_rounds(&TipScaleModel::new(model), tip::with_scale(&x0, 1.0), opt)?;
+        let (x, k) = tip::without_scale(&r.x);
+        let at = |i: usize| if i < tip::SCALE { i } else { i + 1 };
+        let tracer = [
+            Some(at(tip::ALPHA0)),
+            Some(at(tip::OFFSET)),
+            Some(at(tip::DELTA_L)),
+            Some(tip::SCALE),
+            Some(at(tip::TIP_RADIUS)),
+        ];
+        let (x5, _, _) = tip::to_full(&x);
+        (x, k, Fit::from_rounds(ModelKind::FullScaleTip, x5, k, tracer, r))
+    } else {
+        let r = fit_rounds(&model, x0, opt)?;
+        let tracer = [Some(tip::ALPHA0), Some(tip::OFFSET), Some(tip::DELTA_L), None, Some(tip::TIP_RADIUS)];
+        let (x5, _, _) = tip::to_full(&r.x);
+        (r.x, 1.0, Fit::from_rounds(ModelKind::FullTip, x5, 1.0, tracer, r))
+    };
+    let (_, tip_radius, ring_center) = tip::to_full(&x);
+    let ring_residuals = fit.residuals.split_off(n);
+    let ring_used = fit.used.split_off(n);
+    fit.rejected = fit.used.iter().filter(|&&u| !u).count();
+    fit.iterations += first.iterations;
+    Ok(Fit { scale, tip_radius, ring: Some((ring_center, ring_residuals, ring_used)), ..fit })
 }
 
 fn fit_paper(
@@ -653,6 +922,8 @@ fn fit_paper(
                 residuals,
                 iterations,
                 termination: rep.termination,
+                tip_radius: 0.0,
+                ring: None,
             });
         }
         active = next;

@@ -7,11 +7,14 @@
 //!    leaves them;
 //! 3. [`scan`] — a validated revolution of samples;
 //! 4. [`model`] — the plate models as least-squares problems: [`model::full`] (every
-//!    sample) and [`model::paper`] (the seed paper's reduced model);
+//!    sample), [`model::full_scale`] (and the encoder scale), [`model::tip`] (and the
+//!    stylus tip's radius, from a ring-gauge scan) and [`model::paper`] (the seed
+//!    paper's reduced model);
 //! 5. [`lm`] — the Levenberg-Marquardt solver, with covariance;
 //! 6. [`start`] — a start that converges from any mounting error in range;
 //! 7. [`calibrate`](mod@calibrate) — start, fit, outlier rejection, uncertainty: a [`Calibration`];
-//! 8. [`correct`](mod@correct) — every sample to its true point, and equal-angle resampling.
+//! 8. [`correct`](mod@correct) — every sample to the tip's centre, and equal-angle resampling;
+//! 9. [`stylus`] — from the tip's centre to the surface it touched.
 //!
 //! [`simulate`] makes scans of known shapes with known errors for tests and tools.
 
@@ -24,9 +27,12 @@ pub mod scan;
 pub mod shape;
 pub mod simulate;
 pub mod start;
+pub mod stylus;
 
-pub use calibrate::{Calibration, CalibrationError, Options, calibrate};
+pub use calibrate::{Calibration, CalibrationError, Options, Ring, calibrate, calibrate_with_ring};
 pub use correct::{Corrector, PolarContour, correct, resample_radii};
 pub use geometry::Mounting;
+pub use model::tip::RingSpec;
 pub use model::{ModelKind, PlateSpec};
 pub use scan::{Sample, Scan, ScanError};
+pub use stylus::{Traced, touched_surface};

@@ -33,6 +33,12 @@ pub struct SimOptions {
     pub spikes: usize,
     /// Height of a spike, metres (positive: the probe reads longer).
     pub spike_height: f64,
+    /// Radius of the probe's contact tip, metres (0: a point): the encoder reads where
+    /// the tip's centre is ([`tip_exit`]).
+    pub tip_radius: f64,
+    /// The shape is traced from inside (a frame, a ring gauge), the tip touching it
+    /// from within; else from outside (a plate, a lens).
+    pub inside: bool,
 }
 
 impl Default for SimOptions {
@@ -45,6 +51,8 @@ impl Default for SimOptions {
             missing: 0.0,
             spikes: 0,
             spike_height: 0.5e-3,
+            tip_radius: 0.0,
+            inside: false,
         }
     }
 }
@@ -82,6 +90,42 @@ impl std::fmt::Display for SimError {
 
 impl std::error::Error for SimError {}
 
+/// Where the centre of a tip of radius `tip` stops on the rail ray `origin + t u` when
+/// it touches `shape` (from inside if `inside`): `(t, the point touched)`.
+///
+/// The centre follows the contour offset by `s = ±tip` along its outward normal (`+`
+/// from outside). From a surface point `X` with normal `N` the offset contour's tangent
+/// line is `N·(Y - X) = s`; the ray meets it at `t = (N·(X - origin) + s)/(N·u)`. The
+/// next `X` is where the ray from `origin` through `origin + t u - s N` leaves the shape.
+/// Exact at once on a flat, a few rounds on a curve (to 1e-15 m).
+pub fn tip_exit(
+    shape: &impl Shape,
+    origin: Vector2<f64>,
+    u: Vector2<f64>,
+    tip: f64,
+    inside: bool,
+) -> Option<(f64, Vector2<f64>)> {
+    let mut hit = shape.exit(origin, u)?;
+    let mut touched = origin + u * hit.t;
+    if tip == 0.0 {
+        return Some((hit.t, touched));
+    }
+    let s = if inside { -tip } else { tip };
+    let mut t = hit.t + s / hit.normal.dot(&u);
+    for _ in 0..100 {
+        let dir = (origin + u * t - hit.normal * s - origin).try_normalize(0.0)?;
+        hit = shape.exit(origin, dir)?;
+        touched = origin + dir * hit.t;
+        let next = (hit.normal.dot(&(touched - origin)) + s) / hit.normal.dot(&u);
+        let done = (next - t).abs() <= 1e-15;
+        t = next;
+        if done {
+            break;
+        }
+    }
+    t.is_finite().then_some((t, touched))
+}
+
 /// Simulate one revolution of a tracer with mounting `m` around `shape`.
 pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut impl Rng) -> Result<SimScan, SimError> {
     let n = opt.steps_per_rev;
@@ -101,13 +145,14 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
         }
         let (u, v) = rail_frame(rail_angle(m.alpha0, step, n));
         let origin = v * m.offset;
-        let hit = shape.exit(origin, u).ok_or(SimError::RayMissesShape { step })?;
-        let mut rho = (hit.t + m.delta_l) / m.scale + noise.sample(rng);
+        let (t, touched) =
+            tip_exit(shape, origin, u, opt.tip_radius, opt.inside).ok_or(SimError::RayMissesShape { step })?;
+        let mut rho = (t + m.delta_l) / m.scale + noise.sample(rng);
         if opt.quantum > 0.0 {
             rho = (rho / opt.quantum).round() * opt.quantum;
         }
         samples.push(Sample { step, rho });
-        truth.push(origin + u * hit.t);
+        truth.push(touched);
     }
     let mut spiked = vec![false; samples.len()];
     for i in sample_indices(rng, samples.len(), opt.spikes.min(samples.len())) {

@@ -573,6 +573,7 @@ fn constants_match_their_associated_consts() {
         ("TARGET_CALIBRATION_PLATE", RawScan::TARGET_CALIBRATION_PLATE),
         ("TARGET_FRAME", RawScan::TARGET_FRAME),
         ("TARGET_LENS", RawScan::TARGET_LENS),
+        ("TARGET_RING_GAUGE", RawScan::TARGET_RING_GAUGE),
     ]
     .map(|(n, v)| (n.to_string(), v))
     .to_vec();

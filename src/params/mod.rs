@@ -12,7 +12,7 @@ pub use file::{ParamsFile, ParamsFileError};
 pub use value::ParamValue;
 
 use crate::engine::calibrate::{Options as CalibrationOptions, covariance_from_values};
-use crate::engine::{ModelKind, Mounting, PlateSpec};
+use crate::engine::{ModelKind, Mounting, PlateSpec, RingSpec};
 
 /// The contract's parameter names.
 pub mod names {
@@ -22,8 +22,10 @@ pub mod names {
     pub const SCALE: &str = "calibration.scale";
     pub const VALID: &str = "calibration.valid";
     pub const COVARIANCE: &str = "calibration.covariance";
+    pub const TIP_RADIUS: &str = "stylus.tip_radius";
     pub const PLATE_SIDE: &str = "plate.side";
     pub const CORNER_RADIUS: &str = "plate.corner_radius";
+    pub const RING_DIAMETER: &str = "ring.diameter";
     pub const METERS_PER_COUNT: &str = "encoder.meters_per_count";
     pub const MODEL: &str = "model";
     pub const OUTPUT_FRAME_ID: &str = "output_frame_id";
@@ -35,15 +37,17 @@ pub mod names {
     pub const USE_SIM_TIME: &str = "use_sim_time";
     pub const MANAGED: &str = "managed";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 18] = [
+    pub const ALL: [&str; 20] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
         SCALE,
         VALID,
         COVARIANCE,
+        TIP_RADIUS,
         PLATE_SIDE,
         CORNER_RADIUS,
+        RING_DIAMETER,
         METERS_PER_COUNT,
         MODEL,
         OUTPUT_FRAME_ID,
@@ -57,7 +61,7 @@ pub mod names {
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
-    pub const CALIBRATION_IN_FORCE: [&str; 6] = [ALPHA0, OFFSET, DELTA_L, SCALE, VALID, COVARIANCE];
+    pub const CALIBRATION_IN_FORCE: [&str; 7] = [ALPHA0, OFFSET, DELTA_L, SCALE, VALID, COVARIANCE, TIP_RADIUS];
 }
 
 /// Largest `resample_points` accepted.
@@ -72,7 +76,11 @@ pub struct Parameters {
     /// The covariance of the calibration in force: empty (unknown), or the 25 values of
     /// [`crate::engine::calibrate::Covariance`], row-major.
     pub covariance: Vec<f64>,
+    /// The stylus tip's radius in force, metres (fitted by the tip models, else known).
+    pub tip_radius: f64,
     pub plate: PlateSpec,
+    /// The ring gauge's certified inner diameter, metres; 0 = none.
+    pub ring_diameter: f64,
     pub meters_per_count: f64,
     pub model: ModelKind,
     pub output_frame_id: String,
@@ -99,7 +107,9 @@ impl Default for Parameters {
             calibration: Mounting::IDEAL,
             calibration_valid: false,
             covariance: Vec::new(),
+            tip_radius: 0.0,
             plate: PlateSpec::default(),
+            ring_diameter: 0.0,
             meters_per_count: 1.0e-6,
             model: ModelKind::Full,
             output_frame_id: "tracer_axis".into(),
@@ -130,8 +140,10 @@ impl Parameters {
             names::SCALE => Double(self.calibration.scale),
             names::VALID => Bool(self.calibration_valid),
             names::COVARIANCE => DoubleArray(self.covariance.clone()),
+            names::TIP_RADIUS => Double(self.tip_radius),
             names::PLATE_SIDE => Double(self.plate.side),
             names::CORNER_RADIUS => Double(self.plate.corner_radius),
+            names::RING_DIAMETER => Double(self.ring_diameter),
             names::METERS_PER_COUNT => Double(self.meters_per_count),
             names::MODEL => String(self.model.as_str().into()),
             names::OUTPUT_FRAME_ID => String(self.output_frame_id.clone()),
@@ -192,8 +204,10 @@ impl Parameters {
             names::SCALE => next.calibration.scale = double(value)?,
             names::VALID => next.calibration_valid = boolean(value)?,
             names::COVARIANCE => next.covariance = covariance(value)?,
+            names::TIP_RADIUS => next.tip_radius = double(value)?,
             names::PLATE_SIDE => next.plate.side = double(value)?,
             names::CORNER_RADIUS => next.plate.corner_radius = double(value)?,
+            names::RING_DIAMETER => next.ring_diameter = double(value)?,
             names::METERS_PER_COUNT => next.meters_per_count = double(value)?,
             names::MODEL => {
                 next.model = string(value)
@@ -243,9 +257,19 @@ impl Parameters {
     }
 
     /// How a calibration is fitted with these parameters: the model, and the encoder
-    /// scale in force (for the models that do not fit it).
+    /// scale and tip radius in force (for the models that do not fit them).
     pub fn calibration_options(&self) -> CalibrationOptions {
-        CalibrationOptions { model: self.model, scale: self.calibration.scale, ..CalibrationOptions::default() }
+        CalibrationOptions {
+            model: self.model,
+            scale: self.calibration.scale,
+            tip_radius: self.tip_radius,
+            ..CalibrationOptions::default()
+        }
+    }
+
+    /// The ring gauge, if `ring.diameter` names one.
+    pub fn ring(&self) -> Option<RingSpec> {
+        (self.ring_diameter > 0.0).then_some(RingSpec { diameter: self.ring_diameter })
     }
 }
 
@@ -257,7 +281,7 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 18);
+        assert_eq!(list.len(), 20);
         assert_eq!(p.get("calibration.covariance"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("use_sim_time"), Some(ParamValue::Bool(false)));
         assert_eq!(p.get("managed"), Some(ParamValue::Bool(false)));
@@ -283,7 +307,7 @@ mod tests {
         );
         assert_eq!(
             p.set("model", &ParamValue::String("magic".into())).unwrap_err(),
-            "unknown model 'magic': expected 'full', 'paper' or 'full_scale'"
+            "unknown model 'magic': expected 'full', 'paper', 'full_scale', 'full_tip' or 'full_scale_tip'"
         );
         assert!(p.set("resample_points", &ParamValue::Integer(-1)).unwrap_err().contains("between 0"));
         assert!(p.set("plate.corner_radius", &ParamValue::Double(0.03)).is_err());

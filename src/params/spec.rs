@@ -91,7 +91,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 18] = [
+pub const SPECS: [Spec; 20] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -101,14 +101,18 @@ pub const SPECS: [Spec; 18] = [
     Spec::new(names::VALID, "true once a calibration is in force (applied by /calibrate or set here); false: scans are corrected with an ideal mounting"),
     Spec::new(names::COVARIANCE, "calibration in force: its covariance, 25 values row-major over [alpha0 (rad), offset (m), delta_l (m), scale, tip_radius (m)], zero rows for what the model did not fit; set by /calibrate; empty = unknown")
         .constraints("empty, or 25 finite values of a symmetric matrix with no negative variance"),
+    Spec::new(names::TIP_RADIUS, "radius of the probe's contact tip (m): contours are of the surface the tip touched; fitted by the models full_tip and full_scale_tip, else known")
+        .bound(Bound::Float { from: 0.0, to: 0.005 }),
     Spec::new(names::PLATE_SIDE, "side of the square calibration plate (m)")
         .bound(Bound::Positive)
         .constraints("positive (greater than 0) and more than twice plate.corner_radius"),
     Spec::new(names::CORNER_RADIUS, "corner radius of the calibration plate (m)")
         .constraints("at least 0 and less than half of plate.side"),
+    Spec::new(names::RING_DIAMETER, "certified inner diameter of the ring gauge (m), traced from inside for the models full_tip and full_scale_tip; 0 = none")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
     Spec::new(names::METERS_PER_COUNT, "encoder resolution (m per count)").bound(Bound::Positive),
-    Spec::new(names::MODEL, "fitting model: full, paper (the seed paper's reduced model) or full_scale (full + encoder scale)")
-        .constraints("one of: full, paper, full_scale"),
+    Spec::new(names::MODEL, "fitting model: full, paper (the seed paper's reduced model), full_scale (full + encoder scale), full_tip (full + tip radius, from a plate and a ring-gauge scan) or full_scale_tip")
+        .constraints("one of: full, paper, full_scale, full_tip, full_scale_tip"),
     Spec::new(names::OUTPUT_FRAME_ID, "frame_id of the published contours and polygons"),
     Spec::new(names::RESAMPLE_POINTS, "size of Contour.radii (equal angle steps); 0 = no resampling")
         .bound(Bound::Integer { from: 0, to: super::MAX_RESAMPLE_POINTS }),

@@ -89,7 +89,8 @@ done
 # (node_suite.py, test_graph.py), through WRAPPER (netns.sh or two_hosts.sh).
 # peer_run WRAPPER SCRIPT DISTRO RMW_ENV [ARG...]: python SCRIPT under WRAPPER (netns.sh,
 # two_hosts.sh) in the peer's environment (target/ros/DISTRO/env.sh), and with RMW_ENV
-# (cyclone_env.sh, zenoh_env.sh; empty: Fast DDS) sourced after it.
+# (cyclone_env.sh, zenoh_env.sh; empty: Fast DDS) sourced after it. The script is killed
+# after SUITE_LIMIT seconds (600 unless set for it: a hang fails, it does not stop CI).
 peer_run() {
     local wrapper=$1 script=$2 d=$3 rmw_env=$4
     shift 4
@@ -97,9 +98,10 @@ peer_run() {
     "$HERE/$wrapper" bash -c '
         . "$1/target/ros/$2/env.sh"
         [ -z "$3" ] || . "$1/target/ros/$2/$3"
-        shift 3
-        exec timeout -s KILL 600 python "$0" "$@"
-    ' "$HERE/$script" "$ROOT" "$d" "$rmw_env" "$@"
+        limit=$4
+        shift 4
+        exec timeout -s KILL "$limit" python "$0" "$@"
+    ' "$HERE/$script" "$ROOT" "$d" "$rmw_env" "${SUITE_LIMIT:-600}" "$@"
 }
 failed=()
 all=$(( $# == 0 ))
@@ -160,7 +162,8 @@ for d in $DISTROS; do
         if [ "$d" = jazzy ] && ! "$HERE/zenoh.sh" "$d"; then
             failed+=("$d:zenoh_setup")
         fi
-        suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
+        # 13 scenarios of 30-60 s, each bounded at 300 s by test_lossy.py itself.
+        SUITE_LIMIT=1200 suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
             ${lossy[@]+"${lossy[@]}"}
     fi
     if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then

@@ -157,11 +157,31 @@ impl FullModel {
     /// [`rho_gradient`].
     #[inline]
     pub fn for_each_prediction(&self, x: &Params, mut f: impl FnMut(&TableSample, f64, &Params)) -> bool {
+        self.for_each_grown_prediction(x, 0.0, |s, q, j, _| f(s, q, j))
+    }
+
+    /// [`Self::for_each_prediction`] of the plate grown by `g` all round (side `S + 2g`,
+    /// corners `r + g`: the contour the centre of a tip of radius `g` follows when it
+    /// traces the plate from outside, [`super::tip`]); `f` also gets `∂q/∂g = 1/(N·u)`
+    /// (the contour moves by `dg` along its normal, `N·dX = dg`).
+    #[inline]
+    pub fn for_each_grown_prediction(
+        &self,
+        x: &Params,
+        g: f64,
+        mut f: impl FnMut(&TableSample, f64, &Params, f64),
+    ) -> bool {
         let cs_alpha = (x[ALPHA0].cos(), x[ALPHA0].sin());
         let (d, dl) = (x[OFFSET], x[DELTA_L]);
         let c = Vector2::new(x[CX], x[CY]);
-        let (hw, hh) = (self.plate.half_w, self.plate.half_h);
-        let (inner_w, inner_h) = (hw - self.plate.radius, hh - self.plate.radius);
+        let plate = RoundedRect {
+            half_w: self.plate.half_w + g,
+            half_h: self.plate.half_h + g,
+            radius: self.plate.radius + g,
+            ..self.plate
+        };
+        let (hw, hh) = (plate.half_w, plate.half_h);
+        let (inner_w, inner_h) = (hw - plate.radius, hh - plate.radius);
         for s in &self.samples {
             let (ca, sa) = rotate((s.cos_phi, s.sin_phi), cs_alpha);
             let u = Vector2::new(ca, sa);
@@ -176,7 +196,7 @@ impl FullModel {
                 let t = wx * inv;
                 if (p.y + t * sa).abs() <= inner_h && t > 0.0 {
                     let j = Params::from([-sx * (t * v.x - d * ca) * inv, -sx * v.x * inv, 1.0, sx * inv, 0.0]);
-                    f(s, t + dl, &j);
+                    f(s, t + dl, &j, inv);
                     continue;
                 }
             } else {
@@ -184,13 +204,13 @@ impl FullModel {
                 let t = wy * inv;
                 if (p.x + t * ca).abs() <= inner_w && t > 0.0 {
                     let j = Params::from([-sy * (t * v.y - d * sa) * inv, -sy * v.y * inv, 1.0, 0.0, sy * inv]);
-                    f(s, t + dl, &j);
+                    f(s, t + dl, &j, inv);
                     continue;
                 }
             }
-            match self.plate.exit_local(p, u) {
+            match plate.exit_local(p, u) {
                 Some(hit) if hit.t > 0.0 => match rho_gradient(&hit, u, v, d) {
-                    Some(j) => f(s, hit.t + dl, &j),
+                    Some(j) => f(s, hit.t + dl, &j, 1.0 / hit.normal.dot(&u)),
                     None => return false,
                 },
                 _ => return false,

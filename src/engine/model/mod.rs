@@ -10,11 +10,15 @@
 //!   `[alpha0, d]`; `dL` then follows in closed form. Exact on noise-free flat samples,
 //!   but ill-conditioned: kept to reproduce the paper, not as the default.
 //!
+//! - [`tip`]: `full_tip` and `full_scale_tip`, a plate scan and a ring-gauge scan
+//!   fitted together for the stylus tip's radius `ρ` too.
+//!
 //! Each is a [`crate::engine::lm::Problem`].
 
 pub mod full;
 pub mod full_scale;
 pub mod paper;
+pub mod tip;
 
 use nalgebra::Vector2;
 use std::fmt;
@@ -52,6 +56,12 @@ impl PlateSpec {
         Ok(())
     }
 
+    /// The plate grown by `g` all round: side `S + 2g`, corners `r + g` (the contour the
+    /// centre of a tip of radius `g` follows round it, [`tip`]).
+    pub fn grown(&self, g: f64) -> PlateSpec {
+        PlateSpec { side: self.side + 2.0 * g, corner_radius: self.corner_radius + g }
+    }
+
     /// The plate placed with its centre at `center`.
     pub fn at(&self, center: Vector2<f64>) -> RoundedRect {
         RoundedRect::plate(self.side, self.corner_radius, center)
@@ -68,15 +78,27 @@ pub enum ModelKind {
     /// The full model and the encoder scale.
     #[serde(rename = "full_scale")]
     FullScale,
+    /// The full model and the tip radius, from a plate and a ring-gauge scan.
+    #[serde(rename = "full_tip")]
+    FullTip,
+    /// The full model, the encoder scale and the tip radius.
+    #[serde(rename = "full_scale_tip")]
+    FullScaleTip,
 }
 
 impl ModelKind {
     /// Every model, in the order the documentation names them.
-    pub const ALL: [ModelKind; 3] = [ModelKind::Full, ModelKind::Paper, ModelKind::FullScale];
+    pub const ALL: [ModelKind; 5] =
+        [ModelKind::Full, ModelKind::Paper, ModelKind::FullScale, ModelKind::FullTip, ModelKind::FullScaleTip];
 
     /// Does this model fit the encoder scale?
     pub fn fits_scale(self) -> bool {
-        self == ModelKind::FullScale
+        matches!(self, ModelKind::FullScale | ModelKind::FullScaleTip)
+    }
+
+    /// Does this model fit the stylus tip's radius (from a ring-gauge scan)?
+    pub fn fits_tip(self) -> bool {
+        matches!(self, ModelKind::FullTip | ModelKind::FullScaleTip)
     }
 
     pub fn as_str(self) -> &'static str {
@@ -84,6 +106,8 @@ impl ModelKind {
             ModelKind::Full => "full",
             ModelKind::Paper => "paper",
             ModelKind::FullScale => "full_scale",
+            ModelKind::FullTip => "full_tip",
+            ModelKind::FullScaleTip => "full_scale_tip",
         }
     }
 }
@@ -101,7 +125,11 @@ impl std::str::FromStr for ModelKind {
             "full" => Ok(ModelKind::Full),
             "paper" => Ok(ModelKind::Paper),
             "full_scale" => Ok(ModelKind::FullScale),
-            _ => Err(format!("unknown model '{s}': expected 'full', 'paper' or 'full_scale'")),
+            "full_tip" => Ok(ModelKind::FullTip),
+            "full_scale_tip" => Ok(ModelKind::FullScaleTip),
+            _ => Err(format!(
+                "unknown model '{s}': expected 'full', 'paper', 'full_scale', 'full_tip' or 'full_scale_tip'"
+            )),
         }
     }
 }

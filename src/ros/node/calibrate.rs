@@ -38,7 +38,7 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
             }
         };
         if let Some(m) = &outcome.applied {
-            parameters::mirror_calibration(e, m, &outcome.response.covariance);
+            parameters::mirror_calibration(e, m, &outcome.response.covariance, outcome.response.tip_radius);
             let _ = shared.calibration_changed.try_send(());
         }
         let r = &outcome.response;

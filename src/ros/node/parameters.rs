@@ -109,7 +109,7 @@ pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) 
             if names::CALIBRATION_IN_FORCE.contains(&name) {
                 st.calibration_set_by_parameters(super::now_on(&action_clock));
             }
-            if name.starts_with("calibration.") {
+            if name.starts_with("calibration.") || names::CALIBRATION_IN_FORCE.contains(&name) {
                 let _ = action_changed.try_send(());
             }
             info!("parameter {name} = {v}");
@@ -119,7 +119,7 @@ pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) 
 
 /// Mirror a calibration `/calibrate` applied into the ROS parameters (already persisted:
 /// the set action sees equal values and writes nothing).
-pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, covariance: &[f64]) {
+pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, covariance: &[f64], tip_radius: f64) {
     for (name, value) in [
         (names::ALPHA0, RosValue::Double(m.alpha0)),
         (names::OFFSET, RosValue::Double(m.offset)),
@@ -127,6 +127,7 @@ pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, covariance:
         (names::SCALE, RosValue::Double(m.scale)),
         (names::VALID, RosValue::Boolean(true)),
         (names::COVARIANCE, RosValue::DoubleArray(covariance.to_vec())),
+        (names::TIP_RADIUS, RosValue::Double(tip_radius)),
     ] {
         if let Err(err) = e.set_parameter(name, value) {
             error!("cannot mirror {name} into the ROS parameters: {err}");
