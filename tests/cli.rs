@@ -422,3 +422,83 @@ fn correct_applies_the_encoder_scale() {
     let ignored = radius_at_0(&serde_json::json!(1.0), "scaled_ignored");
     assert!((ignored - 0.0258).abs() > 1e-4, "{ignored}");
 }
+
+/// The tip models from the command line: a bag of a plate, a ring gauge and a frame
+/// traced with a 0.5 mm tip; `calibrate --model full_tip` finds the ring in the same bag
+/// (or in `--ring`), says what is missing when the ring's diameter or scan is not
+/// given; the JSON has the tip only for the tip models; `correct` with the fitted tip in
+/// the params file gives the frame's surface.
+#[test]
+fn the_tip_models_take_a_ring_gauge() {
+    let bag = temp("tip_cell.mcap");
+    let sim = |shape: &str, out: &Path| {
+        let o = tool(&[
+            "simulate",
+            "--shape",
+            shape,
+            "--tip-radius",
+            "0.0005",
+            "--noise",
+            "2e-6",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    let o = tool(&[
+        "simulate",
+        "--shape",
+        "plate",
+        "--shape",
+        "ring",
+        "--shape",
+        "rect",
+        "--tip-radius",
+        "0.0005",
+        "--noise",
+        "2e-6",
+        "--out",
+        bag.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fit = |extra: &[&str]| {
+        let mut args = vec!["calibrate", "--json"];
+        args.extend_from_slice(extra);
+        tool(&args)
+    };
+    let b = bag.to_str().unwrap();
+    let o = fit(&["--input", b, "--model", "full_tip", "--ring-diameter", "0.04"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = json(&o);
+    let (tip, sd) = (v["tip_radius"].as_f64().unwrap(), v["tip_radius_stddev"].as_f64().unwrap());
+    assert!((tip - 0.0005).abs() < 4.0 * sd + 1e-7 && sd > 0.0, "tip {tip} ± {sd}");
+    assert_eq!(v["covariance"].as_array().unwrap().len(), 25);
+    // CSV scans: the plate as --input, the ring as --ring.
+    let (plate_csv, ring_csv) = (temp("tip_plate.csv"), temp("tip_ring.csv"));
+    sim("plate", &plate_csv);
+    sim("ring", &ring_csv);
+    let (p, r) = (plate_csv.to_str().unwrap(), ring_csv.to_str().unwrap());
+    let o = fit(&["--input", p, "--model", "full_scale_tip", "--ring", r, "--ring-diameter", "0.04"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = json(&o);
+    assert!((v["tip_radius"].as_f64().unwrap() - 0.0005).abs() < 5e-6, "{v}");
+    assert!(v.get("scale").is_some());
+    // What is missing is named, exit 2.
+    for (extra, want) in [
+        (vec!["--input", p, "--model", "full_tip", "--ring", r], "--ring-diameter"),
+        (vec!["--input", p, "--model", "full_tip", "--ring-diameter", "0.04"], "--ring PATH"),
+        (vec!["--input", p, "--model", "full_tip", "--ring", p, "--ring-diameter", "-1"], "ring-diameter"),
+    ] {
+        let o = fit(&extra);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", stderr(&o));
+        assert!(json(&o)["message"].as_str().unwrap().contains(want), "{extra:?}: {}", stderr(&o));
+    }
+    // The plate given as the ring: the fit fails (exit 1), naming the ring.
+    let o = fit(&["--input", p, "--model", "full_tip", "--ring", p, "--ring-diameter", "0.04"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(json(&o)["message"].as_str().unwrap().contains("ring"), "{}", stderr(&o));
+    // The other models: the tip told, no tip fields in the JSON.
+    let o = fit(&["--input", p, "--tip-radius", "0.0005"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(json(&o).get("tip_radius").is_none());
+}

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use super::exit;
 use crate::cell::{intake, response_for};
-use crate::engine::calibrate::{Options, calibrate};
+use crate::engine::calibrate::{Options, Ring, calibrate_with_ring};
 use crate::engine::model::ModelKind;
 use crate::engine::scan::Scan;
 use crate::interfaces::{CalibrateResponse, RawScan};
@@ -12,10 +12,13 @@ use crate::io::bag::Bag;
 use crate::io::csv;
 use crate::params::{Parameters, ParamsFile, file as params_file};
 
-/// Fit alpha0, d and dL to a scan of the calibration plate.
+/// Fit alpha0, d and dL to a scan of the calibration plate (and the stylus tip's radius
+/// to it and a ring-gauge scan, with --model full_tip or full_scale_tip).
 ///
-/// Example:
+/// Examples:
 ///   tracer_calib calibrate --input plate.csv --plate-side 0.045 --corner-radius 0.003 --json
+///   tracer_calib calibrate --input plate.csv --model full_tip --ring ring.csv --ring-diameter 0.04
+///   tracer_calib calibrate --input cell.mcap --model full_tip --ring-diameter 0.04
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -37,9 +40,24 @@ pub struct Args {
     #[arg(long, value_name = "FQN")]
     pub node: Option<String>,
     /// Fitting model: 'full' (every sample, the default), 'paper' (the seed paper's
-    /// reduced model) or 'full_scale' (full, and the encoder scale).
+    /// reduced model), 'full_scale' (full, and the encoder scale), 'full_tip' (full, and
+    /// the stylus tip's radius from a ring-gauge scan) or 'full_scale_tip' (both).
     #[arg(long)]
     pub model: Option<ModelKind>,
+    /// The ring-gauge scan of the tip models: a CSV file as --input, or a bag (its
+    /// latest ring-gauge scan, or --ring-scan-id). Default: the --input bag.
+    #[arg(long, value_name = "PATH")]
+    pub ring: Option<PathBuf>,
+    /// Which ring-gauge scan of the --ring bag; 0 = the latest.
+    #[arg(long, default_value_t = 0)]
+    pub ring_scan_id: u32,
+    /// Certified inner diameter of the ring gauge, metres (ring.diameter).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub ring_diameter: Option<f64>,
+    /// The stylus tip's radius, metres (stylus.tip_radius): known, for the models that do
+    /// not fit it.
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub tip_radius: Option<f64>,
     /// Steps per revolution of a CSV scan.
     #[arg(long, default_value_t = 400)]
     pub steps_per_rev: u32,
@@ -90,6 +108,8 @@ pub fn settings(args: &Args) -> Result<Parameters, String> {
     set("plate.side", args.plate_side)?;
     set("plate.corner_radius", args.corner_radius)?;
     set("encoder.meters_per_count", args.meters_per_count)?;
+    set("ring.diameter", args.ring_diameter)?;
+    set("stylus.tip_radius", args.tip_radius)?;
     if let Some(m) = args.model {
         p.model = m;
     }
@@ -100,6 +120,8 @@ fn flag(name: &str) -> &'static str {
     match name {
         "plate.side" => "plate-side",
         "plate.corner_radius" => "corner-radius",
+        "ring.diameter" => "ring-diameter",
+        "stylus.tip_radius" => "tip-radius",
         _ => "meters-per-count",
     }
 }
@@ -114,9 +136,34 @@ pub fn default_section(file: &ParamsFile) -> String {
 
 /// Read the plate scan named by the arguments.
 pub fn load_scan(args: &Args, p: &Parameters) -> Result<Scan, String> {
-    let path = &args.input;
+    read_scan(&args.input, args, args.scan_id, RawScan::TARGET_CALIBRATION_PLATE, p)
+}
+
+/// Read the ring-gauge scan a tip model needs (`--ring`, else the `--input` bag), or
+/// `None` for the other models.
+pub fn load_ring(args: &Args, p: &Parameters) -> Result<Option<Scan>, String> {
+    if !p.model.fits_tip() {
+        return Ok(None);
+    }
+    if p.ring().is_none() {
+        return Err(format!(
+            "model {} needs the ring gauge's diameter: --ring-diameter M (or ring.diameter in --params)",
+            p.model
+        ));
+    }
+    let path = match &args.ring {
+        Some(path) => path,
+        None if is_bag(&args.input) => &args.input,
+        None => return Err(format!("model {} needs a ring-gauge scan: --ring PATH (a CSV file or a bag)", p.model)),
+    };
+    read_scan(path, args, args.ring_scan_id, RawScan::TARGET_RING_GAUGE, p).map(Some)
+}
+
+/// The scan of `target` at `path`: a CSV file's revolution, or the bag's scan
+/// `scan_id` (0 = its latest of that target).
+fn read_scan(path: &Path, args: &Args, scan_id: u32, target: u8, p: &Parameters) -> Result<Scan, String> {
     let scan = if is_bag(path) {
-        let msg = plate_scan_from_bag(path, &args.topic, args.scan_id)?;
+        let msg = scan_from_bag(path, &args.topic, scan_id, target)?;
         intake::to_scan(&msg, p.meters_per_count)
             .map_err(|e| format!("{}: scan {} on {}: {e}", path.display(), msg.scan_id, args.topic))?
     } else {
@@ -127,12 +174,17 @@ pub fn load_scan(args: &Args, p: &Parameters) -> Result<Scan, String> {
     let need = Options::default().min_samples;
     if scan.len() < need {
         return Err(format!(
-            "{}: too few samples: {} (a plate scan needs at least {need})",
+            "{}: too few samples: {} (a {} scan needs at least {need})",
             path.display(),
-            scan.len()
+            scan.len(),
+            if target == RawScan::TARGET_RING_GAUGE { "ring-gauge" } else { "plate" }
         ));
     }
     Ok(scan)
+}
+
+fn target_name(target: u8) -> &'static str {
+    if target == RawScan::TARGET_RING_GAUGE { "ring-gauge" } else { "calibration-plate" }
 }
 
 /// Is `path` a rosbag2 bag (a directory, `.mcap` or `.db3`) rather than a CSV file?
@@ -142,25 +194,31 @@ pub fn is_bag(path: &Path) -> bool {
 
 /// The calibration-plate scan `scan_id` (0 = the latest plate scan) on `topic` of a bag.
 pub fn plate_scan_from_bag(path: &Path, topic: &str, scan_id: u32) -> Result<RawScan, String> {
+    scan_from_bag(path, topic, scan_id, RawScan::TARGET_CALIBRATION_PLATE)
+}
+
+/// The scan `scan_id` of `target` (0 = the latest of that target) on `topic` of a bag.
+pub fn scan_from_bag(path: &Path, topic: &str, scan_id: u32, target: u8) -> Result<RawScan, String> {
     let bag = Bag::open(path).map_err(|e| e.to_string())?;
     let scans = bag.read::<RawScan>(topic).map_err(|e| e.to_string())?;
     let shown = path.display();
+    let what = target_name(target);
     if scan_id == 0 {
-        let mut plates = scans.into_iter().filter(|(_, m)| m.target == RawScan::TARGET_CALIBRATION_PLATE);
-        plates.next_back().map(|(_, m)| m).ok_or_else(|| {
-            format!("{shown}: no calibration-plate scan (target {}) on {topic}", RawScan::TARGET_CALIBRATION_PLATE)
-        })
+        let mut of_target = scans.into_iter().filter(|(_, m)| m.target == target);
+        of_target
+            .next_back()
+            .map(|(_, m)| m)
+            .ok_or_else(|| format!("{shown}: no {what} scan (target {target}) on {topic}"))
     } else {
         let (_, msg) = scans
             .into_iter()
             .rev()
             .find(|(_, m)| m.scan_id == scan_id)
             .ok_or_else(|| format!("{shown}: no scan with scan_id {scan_id} on {topic}"))?;
-        if msg.target != RawScan::TARGET_CALIBRATION_PLATE {
+        if msg.target != target {
             return Err(format!(
-                "{shown}: scan {scan_id} on {topic} has target {}, not a calibration-plate scan ({})",
-                msg.target,
-                RawScan::TARGET_CALIBRATION_PLATE
+                "{shown}: scan {scan_id} on {topic} has target {}, not a {what} scan ({target})",
+                msg.target
             ));
         }
         Ok(msg)
@@ -168,39 +226,46 @@ pub fn plate_scan_from_bag(path: &Path, topic: &str, scan_id: u32) -> Result<Raw
 }
 
 pub fn run(args: &Args) -> i32 {
-    let outcome = settings(args).and_then(|p| load_scan(args, &p).map(|scan| (p, scan)));
-    let (p, scan) = match outcome {
+    let model = args.model.unwrap_or_default();
+    let outcome = settings(args).and_then(|p| {
+        let scan = load_scan(args, &p)?;
+        let ring = load_ring(args, &p)?;
+        Ok((p, scan, ring))
+    });
+    let (p, scan, ring) = match outcome {
         Ok(v) => v,
-        Err(e) => return report(args, &failure(e), args.model.is_some_and(ModelKind::fits_scale), exit::BAD_INPUT),
+        Err(e) => return report(args, &failure(e), model, exit::BAD_INPUT),
     };
     let opts = p.calibration_options();
-    let with_scale = p.model.fits_scale();
-    match calibrate(&scan, &p.plate, &opts) {
-        Ok(cal) => report(args, &response_for(&cal, cal.summary()), with_scale, exit::OK),
-        Err(e) => report(args, &failure(format!("calibration failed: {e}")), with_scale, exit::FIT_FAILED),
+    let ring = ring.as_ref().zip(p.ring()).map(|(scan, spec)| Ring { scan, spec });
+    match calibrate_with_ring(&scan, ring, &p.plate, &opts) {
+        Ok(cal) => report(args, &response_for(&cal, cal.summary()), p.model, exit::OK),
+        Err(e) => report(args, &failure(format!("calibration failed: {e}")), p.model, exit::FIT_FAILED),
     }
 }
 
 /// The response as the `--json` object: the Calibrate response's fields in order,
 /// `scale` and `scale_stddev` only for a model that fits the scale, `tip_radius` and
-/// `tip_radius_stddev` only for one that fits the tip radius (none yet), `covariance`
-/// always (docs/CONTRACT.md).
-fn json_of(r: &Response, with_scale: bool) -> String {
+/// `tip_radius_stddev` only for one that fits the tip radius, `covariance` always
+/// (docs/CONTRACT.md).
+fn json_of(r: &Response, model: ModelKind) -> String {
     let mut v = serde_json::to_value(r).expect("a response serialises");
     if let Some(o) = v.as_object_mut() {
-        if !with_scale {
-            o.remove("scale");
-            o.remove("scale_stddev");
+        if !model.fits_scale() {
+            o.shift_remove("scale");
+            o.shift_remove("scale_stddev");
         }
-        o.remove("tip_radius");
-        o.remove("tip_radius_stddev");
+        if !model.fits_tip() {
+            o.shift_remove("tip_radius");
+            o.shift_remove("tip_radius_stddev");
+        }
     }
     v.to_string()
 }
 
-fn report(args: &Args, r: &Response, with_scale: bool, status: i32) -> i32 {
+fn report(args: &Args, r: &Response, model: ModelKind, status: i32) -> i32 {
     if args.json {
-        println!("{}", json_of(r, with_scale));
+        println!("{}", json_of(r, model));
     }
     if status == exit::OK {
         if !args.json {
@@ -209,6 +274,9 @@ fn report(args: &Args, r: &Response, with_scale: bool, status: i32) -> i32 {
                 "alpha0 = {:.9} rad, offset = {:.9} m, delta_l = {:.9} m, stddev = [{:.3e}, {:.3e}, {:.3e}], scale = {:.7} ± {:.1e}",
                 r.alpha0, r.offset, r.delta_l, r.stddev[0], r.stddev[1], r.stddev[2], r.scale, r.scale_stddev
             );
+            if model.fits_tip() {
+                println!("tip_radius = {:.9} m ± {:.1e}", r.tip_radius, r.tip_radius_stddev);
+            }
         }
     } else {
         eprintln!("tracer_calib calibrate: {}", r.message);

@@ -22,8 +22,11 @@ pub enum ShapeKind {
     Plate,
     /// An ellipse (--width, --height), a lens outline.
     Ellipse,
-    /// A rounded rectangle (--width, --height, --corner-radius), a frame outline.
+    /// A rounded rectangle (--width, --height, --corner-radius), a frame outline, traced
+    /// from inside.
     Rect,
+    /// A ring gauge (--ring-diameter), traced from inside.
+    Ring,
 }
 
 /// Simulate revolutions of a miscalibrated tracer around known shapes, into a CSV file
@@ -38,7 +41,8 @@ pub enum ShapeKind {
 #[command(verbatim_doc_comment)]
 pub struct Args {
     /// The shape traced (repeatable: a bag gets one scan per shape, in order). Targets:
-    /// plate = TARGET_CALIBRATION_PLATE, ellipse = TARGET_LENS, rect = TARGET_FRAME.
+    /// plate = TARGET_CALIBRATION_PLATE, ellipse = TARGET_LENS, rect = TARGET_FRAME,
+    /// ring = TARGET_RING_GAUGE.
     #[arg(long = "shape", value_enum, default_values_t = [ShapeKind::Plate])]
     pub shapes: Vec<ShapeKind>,
     /// Repeat the sequence of shapes this many times (bags only).
@@ -78,6 +82,12 @@ pub struct Args {
     /// Height of the ellipse or rectangle, metres.
     #[arg(long, default_value_t = 0.030)]
     pub height: f64,
+    /// Inner diameter of the ring gauge, metres.
+    #[arg(long, default_value_t = 0.040)]
+    pub ring_diameter: f64,
+    /// Radius of the probe's ball tip, metres: the encoder reads where its centre is.
+    #[arg(long, default_value_t = 0.0)]
+    pub tip_radius: f64,
     /// Encoder noise (standard deviation), metres.
     #[arg(long, default_value_t = 0.0)]
     pub noise: f64,
@@ -152,6 +162,7 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
                 ShapeKind::Plate => RawScan::TARGET_CALIBRATION_PLATE,
                 ShapeKind::Ellipse => RawScan::TARGET_LENS,
                 ShapeKind::Rect => RawScan::TARGET_FRAME,
+                ShapeKind::Ring => RawScan::TARGET_RING_GAUGE,
             },
             steps_per_revolution: a.steps_per_rev,
             step: rev.step,
@@ -173,8 +184,13 @@ fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, 
         start_step: a.start_step,
         missing: a.missing,
         spikes: a.spikes,
+        tip_radius: a.tip_radius,
+        inside: matches!(kind, ShapeKind::Rect | ShapeKind::Ring),
         ..SimOptions::default()
     };
+    if !(a.tip_radius.is_finite() && a.tip_radius >= 0.0) {
+        return Err(format!("--tip-radius must be a length of at least 0 m, got {}", a.tip_radius));
+    }
     let sim = match kind {
         ShapeKind::Plate => {
             let plate = PlateSpec { side: a.plate_side, corner_radius: a.corner_radius };
@@ -183,6 +199,13 @@ fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, 
         }
         ShapeKind::Ellipse => {
             simulate(&Ellipse { center, a: a.width / 2.0, b: a.height / 2.0, angle: 0.0 }, &m, &opt, rng)
+        }
+        ShapeKind::Ring => {
+            let r = a.ring_diameter / 2.0;
+            if !(r.is_finite() && r > a.tip_radius) {
+                return Err(format!("--ring-diameter must be larger than the tip's diameter, got {}", a.ring_diameter));
+            }
+            simulate(&Ellipse { center, a: r, b: r, angle: 0.0 }, &m, &opt, rng)
         }
         ShapeKind::Rect => simulate(
             &RoundedRect { center, half_w: a.width / 2.0, half_h: a.height / 2.0, radius: a.corner_radius },

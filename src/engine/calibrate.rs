@@ -337,7 +337,7 @@ impl fmt::Display for CalibrationError {
             ),
             Self::SystematicResidual { rms, noise } => write!(
                 f,
-                "the residuals are systematic (rms {:.4} mm where neighbouring samples scatter by {:.4} mm): the scan does not match the plate (check plate.side, plate.corner_radius, encoder.meters_per_count)",
+                "the residuals are systematic (rms {:.4} mm where neighbouring samples scatter by {:.4} mm): the scan does not match the plate (check plate.side, plate.corner_radius, encoder.meters_per_count, and stylus.tip_radius: a tip of a tenth of a millimetre or more shows in the corners, and the models full_tip and full_scale_tip fit it from a ring gauge)",
                 rms * 1e3,
                 noise * 1e3
             ),
