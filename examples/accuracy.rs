@@ -18,19 +18,29 @@
 //! 3. The scale check of the models that do not fit k: how often a correct tracer fails
 //!    it (false alarms) and how often a wrong scale (0.05, 0.1, 0.25 %) is caught, for
 //!    σ from 1 to 100 µm (half the trials a cell).
+//! 4. A tracer with a ball tip of radius ρ = 0 .. 1 mm, fitted with full_tip and
+//!    full_scale_tip from the plate and a Ø 40 mm ring gauge (a quarter of the trials a
+//!    row): the RMS error of ρ and dL next to their bound (the tip models' own Jacobian
+//!    at the truth), the mean reported uncertainty of ρ, and the error of the
+//!    circumference of a 50×30 mm frame (8 mm corners) traced from inside with the same
+//!    tip (noise-free) and corrected to the surface the tip touched.
 
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use tracer_calib::engine::calibrate::{CalibrationError, Options, calibrate};
+use tracer_calib::engine::calibrate::{CalibrationError, Options, Ring, calibrate, calibrate_with_ring};
 use tracer_calib::engine::correct::correct;
+use tracer_calib::engine::correct::resample_radii;
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::lm::normal_equations;
 use tracer_calib::engine::model::full::{self, FullModel, TableSample};
 use tracer_calib::engine::model::full_scale::{self, FullScaleModel};
+use tracer_calib::engine::model::tip::{self, RingSpec, TipModel, TipScaleModel};
 use tracer_calib::engine::model::{ModelKind, PlateSpec};
 use tracer_calib::engine::shape::Ellipse;
+use tracer_calib::engine::shape::RoundedRect;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib::engine::stylus::{Traced, touched_surface};
 
 #[derive(Default)]
 struct Tally {
@@ -152,7 +162,7 @@ fn main() {
     println!("1. A tracer with a true encoder scale (k = 1)");
     header();
     for sigma in [100e-6, 10e-6, 1e-6] {
-        for kind in ModelKind::ALL {
+        for kind in ModelKind::ALL.into_iter().filter(|k| !k.fits_tip()) {
             let t = bench.run(kind, sigma, 1.0, trials, 7 + (sigma * 1e9) as u64);
             row(sigma, kind.as_str(), &t, &bench.crlb_unit(kind).map(|c| c * sigma));
         }
@@ -201,6 +211,116 @@ fn main() {
             println!();
         }
     }
+    println!();
+
+    println!("4. A tracer with a ball tip of radius ρ, from the plate and a Ø 40 mm ring gauge");
+    println!("   (errors RMS in µm, {} trials a row; circ.: a 50x30 mm frame traced from inside)", trials.max(4) / 4);
+    tip_part(&bench, trials);
+}
+
+/// Part 4: the stylus tip (module docs).
+fn tip_part(bench: &Bench, trials: usize) {
+    let ring = RingSpec { diameter: 0.040 };
+    let ring_shape = Ellipse { center: Vector2::new(-0.0006, 0.0004), a: 0.020, b: 0.020, angle: 0.0 };
+    let frame = RoundedRect { center: Vector2::new(0.001, -0.0005), half_w: 0.025, half_h: 0.015, radius: 0.008 };
+    println!(
+        "{:>9}  {:<15} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>12} {:>10} {:>7}",
+        "noise",
+        "model",
+        "ρ mm",
+        "ρ err µm",
+        "bound",
+        "reported",
+        "dL err",
+        "bound",
+        "circ. err µm",
+        "circ. bias",
+        "failed"
+    );
+    for sigma in [10e-6, 1e-6] {
+        for kind in [ModelKind::FullTip, ModelKind::FullScaleTip] {
+            for rho in [0.0, 0.25e-3, 0.5e-3, 1e-3] {
+                let sim = |shape: &dyn Fn(&SimOptions, &mut StdRng) -> tracer_calib::engine::simulate::SimScan,
+                           noise: f64,
+                           inside: bool,
+                           rng: &mut StdRng| {
+                    shape(&SimOptions { noise, tip_radius: rho, inside, ..SimOptions::default() }, rng)
+                };
+                let plate = |o: &SimOptions, r: &mut StdRng| {
+                    simulate(&bench.plate.at(bench.center), &bench.truth, o, r).unwrap()
+                };
+                let gauge = |o: &SimOptions, r: &mut StdRng| simulate(&ring_shape, &bench.truth, o, r).unwrap();
+                let framed = |o: &SimOptions, r: &mut StdRng| simulate(&frame, &bench.truth, o, r).unwrap();
+                let mut rng = StdRng::seed_from_u64(4000 + (rho * 1e6) as u64 + (sigma * 1e9) as u64);
+                // The bound: σ² (JᵀJ)⁻¹ of the tip model at the truth.
+                let (p0, g0) = (sim(&plate, 0.0, false, &mut rng), sim(&gauge, 0.0, true, &mut rng));
+                let model = TipModel::from_scans(FullModel::from_scan(&bench.plate, &p0.scan), &ring, &g0.scan);
+                let x = tip::from_full(&full::params(&bench.truth, bench.center), rho, ring_shape.center);
+                let (b_rho, b_dl) = if kind.fits_scale() {
+                    let inv = normal_equations(&TipScaleModel::new(model), &tip::with_scale(&x, 1.0))
+                        .unwrap()
+                        .jtj
+                        .try_inverse()
+                        .unwrap();
+                    (inv[(tip::TIP_RADIUS, tip::TIP_RADIUS)].sqrt(), inv[(tip::DELTA_L, tip::DELTA_L)].sqrt())
+                } else {
+                    let inv = normal_equations(&model, &x).unwrap().jtj.try_inverse().unwrap();
+                    (inv[(tip::TIP_RADIUS, tip::TIP_RADIUS)].sqrt(), inv[(tip::DELTA_L, tip::DELTA_L)].sqrt())
+                };
+                let traced = sim(&framed, 0.0, true, &mut rng);
+                let true_circ = circumference(&traced.truth);
+                let (mut sq_rho, mut sq_dl, mut reported, mut sq_circ, mut sum_circ, mut n, mut failed) =
+                    (0.0, 0.0, 0.0, 0.0, 0.0, 0, 0);
+                for _ in 0..trials.max(4) / 4 {
+                    let (p, g) = (sim(&plate, sigma, false, &mut rng), sim(&gauge, sigma, true, &mut rng));
+                    let opts = Options { model: kind, ..Options::default() };
+                    match calibrate_with_ring(&p.scan, Some(Ring { scan: &g.scan, spec: ring }), &bench.plate, &opts) {
+                        Ok(cal) => {
+                            sq_rho += (cal.tip_radius - rho).powi(2);
+                            sq_dl += (cal.mounting.delta_l - bench.truth.delta_l).powi(2);
+                            reported += cal.tip_radius_stddev;
+                            let mut pts = correct(&traced.scan, &cal.mounting);
+                            touched_surface(&mut pts, cal.tip_radius, Traced::Inside, true);
+                            let e = circumference(&pts) - true_circ;
+                            sq_circ += e * e;
+                            sum_circ += e;
+                            n += 1;
+                        }
+                        Err(_) => failed += 1,
+                    }
+                }
+                let rms = |s: f64| (s / n.max(1) as f64).sqrt();
+                println!(
+                    "{:>6.3} mm  {:<15} {:>6.2} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>12.2} {:>+10.2} {:>7}",
+                    sigma * 1e3,
+                    kind.as_str(),
+                    rho * 1e3,
+                    rms(sq_rho) * 1e6,
+                    b_rho * sigma * 1e6,
+                    reported / n.max(1) as f64 * 1e6,
+                    rms(sq_dl) * 1e6,
+                    b_dl * sigma * 1e6,
+                    rms(sq_circ) * 1e6,
+                    sum_circ / n.max(1) as f64 * 1e6,
+                    failed
+                );
+            }
+        }
+    }
+}
+
+/// The circumference of a closed contour, from 3600 equal-angle radii.
+fn circumference(points: &[Vector2<f64>]) -> f64 {
+    let r = resample_radii(points, 3600, 0.2).expect("all the way round");
+    let p: Vec<Vector2<f64>> = r
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let a = std::f64::consts::TAU * k as f64 / 3600.0;
+            Vector2::new(r * a.cos(), r * a.sin())
+        })
+        .collect();
+    (0..p.len()).map(|i| (p[(i + 1) % p.len()] - p[i]).norm()).sum()
 }
 
 fn header() {

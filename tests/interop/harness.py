@@ -53,8 +53,9 @@ def simulate(name, shape, noise=5e-6, seed=1, **kw):
         seed=seed,
         out=path,
     )
-    if "meters_per_count" in kw:
-        args["meters_per_count"] = kw["meters_per_count"]
+    for extra in ("meters_per_count", "tip_radius", "ring_diameter"):
+        if extra in kw:
+            args[extra] = kw[extra]
     if shape == "ellipse":
         args.update(width=2 * ELLIPSE["a"], height=2 * ELLIPSE["b"], center_x=ELLIPSE["cx"], center_y=ELLIPSE["cy"])
     cmd = [TOOL_BIN, "simulate"] + [f"--{k.replace('_', '-')}={v}" for k, v in args.items()]

@@ -577,6 +577,49 @@ def test_encoder_scale(peer):
     assert list(back["calibration.covariance"]) == cov, back
 
 
+def test_stylus_tip(peer):
+    """A tracer touching with a 0.4 mm ball tip (issue 30): with `model: full_tip` and
+    `ring.diameter` the node fits the tip from the plate and the ring-gauge scan the
+    request names, answers it in the response, holds it in `stylus.tip_radius` (and
+    persists it), and corrects a lens to the surface the tip touched."""
+    tip = 0.0004
+    persisted = os.path.join(WORK, "tip.yaml")
+    node = NodeProcess(
+        "tip", ["-p", f"params_file:={persisted}", "-p", "model:=full_tip", "-p", "ring.diameter:=0.04"]
+    )
+    try:
+        pub = peer.publisher("/raw_scan")
+        contours = peer.subscribe(Contour, "/contour")
+        peer.wait_matched(pub)
+        plate = simulate("plate_tip", "plate", noise=3e-6, seed=41, tip_radius=tip)
+        ring = simulate("ring_tip", "ring", noise=3e-6, seed=42, tip_radius=tip, ring_diameter=0.04)
+        peer.send_scan(pub, raw_scan(50, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
+        r = peer.call("/calibrate", Calibrate.Request())
+        assert not r.success and "TARGET_RING_GAUGE" in r.message, r.message
+        peer.send_scan(pub, raw_scan(51, RawScan.TARGET_RING_GAUGE, *ring), contours)
+        peer.send_scan(pub, raw_scan(52, RawScan.TARGET_RING_GAUGE, *plate), contours)  # not a ring
+        r = peer.call("/calibrate", Calibrate.Request(ring_scan_id=52))
+        assert not r.success and "ring" in r.message, r.message
+        r = peer.call("/calibrate", Calibrate.Request(ring_scan_id=51))
+        assert r.success, r.message
+        assert 0 < r.tip_radius_stddev < 1e-6 and abs(r.tip_radius - tip) < 5 * r.tip_radius_stddev, r
+        assert abs(r.delta_l - TRUTH["delta_l"]) < 5 * r.stddev[2], r
+        assert abs(list(r.covariance)[24] ** 0.5 - r.tip_radius_stddev) <= 1e-12, r.covariance
+        pc = peer.param_client("/tracer_calibrator")
+        got = peer.param(lambda: pc.get_parameters(["stylus.tip_radius"])).values[0].double_value
+        assert got == r.tip_radius, got
+        lens = simulate("lens_tip", "ellipse", noise=0.0, seed=43, tip_radius=tip)
+        c = peer.send_scan(pub, raw_scan(53, RawScan.TARGET_LENS, *lens), contours)
+        worst = max(ellipse_distance(p.x, p.y) for p in c.points)
+        assert c.calibrated and worst < 15e-6, f"corrected points up to {worst * 1e6:.1f} µm off the lens"
+    finally:
+        took = node.stop()
+    assert took < 1.0, f"the node took {took:.2f} s to shut down"
+    back = read_back_with_rclpy(persisted, "tracer_calibrator", "/")
+    assert back["stylus.tip_radius"] == r.tip_radius and back["ring.diameter"] == 0.04, back
+    assert back["model"] == "full_tip", back
+
+
 def tests(peer):
     """This file's tests as `(name, fn)` pairs, in order, against the rclpy `peer`
     (node_suite.py runs them)."""
@@ -592,4 +635,5 @@ def tests(peer):
         ("kill_during_writes", test_kill_during_writes),
         ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
         ("encoder_scale", lambda: test_encoder_scale(peer)),
+        ("stylus_tip", lambda: test_stylus_tip(peer)),
     ]
