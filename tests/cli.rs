@@ -473,6 +473,22 @@ fn the_tip_models_take_a_ring_gauge() {
     let (tip, sd) = (v["tip_radius"].as_f64().unwrap(), v["tip_radius_stddev"].as_f64().unwrap());
     assert!((tip - 0.0005).abs() < 4.0 * sd + 1e-7 && sd > 0.0, "tip {tip} ± {sd}");
     assert_eq!(v["covariance"].as_array().unwrap().len(), 25);
+    // The certificates' uncertainties widen what is reported (GUM type B).
+    let o = fit(&[
+        "--input",
+        b,
+        "--model",
+        "full_tip",
+        "--ring-diameter",
+        "0.04",
+        "--plate-side-uncertainty",
+        "2e-6",
+        "--ring-diameter-uncertainty",
+        "2e-6",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let wide = json(&o)["tip_radius_stddev"].as_f64().unwrap();
+    assert!(wide > 3.0 * sd, "tip radius ± {wide} with the certificates, ± {sd} without");
     // CSV scans: the plate as --input, the ring as --ring.
     let (plate_csv, ring_csv) = (temp("tip_plate.csv"), temp("tip_ring.csv"));
     sim("plate", &plate_csv);

@@ -54,6 +54,14 @@ pub struct Args {
     /// Certified inner diameter of the ring gauge, metres (ring.diameter).
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub ring_diameter: Option<f64>,
+    /// Standard uncertainty of the plate's side from its certificate, metres
+    /// (plate.side_uncertainty): a type B part of the covariance.
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub plate_side_uncertainty: Option<f64>,
+    /// Standard uncertainty of the ring gauge's diameter from its certificate, metres
+    /// (ring.diameter_uncertainty).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub ring_diameter_uncertainty: Option<f64>,
     /// The stylus tip's radius, metres (stylus.tip_radius): known, for the models that do
     /// not fit it.
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
@@ -110,6 +118,8 @@ pub fn settings(args: &Args) -> Result<Parameters, String> {
     set("encoder.meters_per_count", args.meters_per_count)?;
     set("ring.diameter", args.ring_diameter)?;
     set("stylus.tip_radius", args.tip_radius)?;
+    set("plate.side_uncertainty", args.plate_side_uncertainty)?;
+    set("ring.diameter_uncertainty", args.ring_diameter_uncertainty)?;
     if let Some(m) = args.model {
         p.model = m;
     }
@@ -122,6 +132,8 @@ fn flag(name: &str) -> &'static str {
         "plate.corner_radius" => "corner-radius",
         "ring.diameter" => "ring-diameter",
         "stylus.tip_radius" => "tip-radius",
+        "plate.side_uncertainty" => "plate-side-uncertainty",
+        "ring.diameter_uncertainty" => "ring-diameter-uncertainty",
         _ => "meters-per-count",
     }
 }

@@ -82,6 +82,12 @@ pub struct Options {
     /// refused: dust and bounces spike a few samples, a scan that does not match the
     /// model spikes many.
     pub max_rejected_fraction: f64,
+    /// Standard uncertainty of the plate's side from its certificate, metres
+    /// (`plate.side_uncertainty`): a type B component of the covariance ([`certificate`]).
+    pub plate_side_uncertainty: f64,
+    /// Standard uncertainty of the ring gauge's diameter from its certificate, metres
+    /// (`ring.diameter_uncertainty`), for the tip models.
+    pub ring_diameter_uncertainty: f64,
     /// A tip model's fitted radius is refused above this (metres): no stylus of a
     /// tracer is that large, and a ring gauge of the wrong diameter can make it so.
     pub max_tip_radius: f64,
@@ -102,6 +108,8 @@ impl Default for Options {
             scale_tolerance: 1e-4,
             max_rejected_fraction: 0.25,
             tip_radius: 0.0,
+            plate_side_uncertainty: 0.0,
+            ring_diameter_uncertainty: 0.0,
             max_tip_radius: 2e-3,
         }
     }
@@ -528,7 +536,8 @@ fn finish(
             ModelKind::Paper => inliers(&fit.residuals, opt.outlier_threshold),
             _ => fit.used.clone(),
         };
-        let relative = scale_score(all.retain(|i| tested[i]), &fit.x).ok_or(CalibrationError::Singular)?;
+        let relative = scale_score(all.retain(|i| tested[i]), &fit.x, opt.plate_side_uncertainty)
+            .ok_or(CalibrationError::Singular)?;
         let estimate = ScaleEstimate { scale: relative.scale * opt.scale, stddev: relative.stddev * opt.scale };
         let off = (relative.scale - 1.0).abs();
         if off > opt.scale_tolerance && off > opt.max_scale_sigma * relative.stddev {
@@ -610,8 +619,14 @@ fn finish(
 /// encoder-scale model from the full model's parameters `x` at `k = 1`; its scale
 /// component and that component's standard uncertainty. `model` holds the lengths the
 /// fit saw (true lengths under the scale in force), so the result is relative to it.
-pub fn scale_score(model: FullModel, x: &full::Params) -> Option<ScaleEstimate> {
-    let ne = lm::normal_equations(&FullScaleModel::new(model), &full_scale::from_full(x, 1.0))?;
+/// A plate whose side is certified to `side_u` only adds that to the uncertainty (a
+/// plate a little larger looks like an encoder reading a little short): the step's
+/// sensitivity to the side, `-(JᵀJ)⁻¹ Jᵀ ∂r/∂S`, times `side_u` ([`certificate`]).
+pub fn scale_score(model: FullModel, x: &full::Params, side_u: f64) -> Option<ScaleEstimate> {
+    let b = model.side_sensitivity(x, 0.0)?;
+    let model = FullScaleModel::new(model);
+    let x6 = full_scale::from_full(x, 1.0);
+    let ne = lm::normal_equations(&model, &x6)?;
     let n = ne.count;
     if n <= 6 {
         return None;
@@ -621,7 +636,9 @@ pub fn scale_score(model: FullModel, x: &full::Params) -> Option<ScaleEstimate> 
     // σ̂² from the residuals after the step: ‖r‖² - gᵀ(JᵀJ)⁻¹g, the linearised cost.
     let ss = (2.0 * ne.cost - ne.jtr.dot(&(inv * ne.jtr))).max(0.0);
     let sigma2 = ss / (n - 6) as f64;
-    let var = inv[(full_scale::SCALE, full_scale::SCALE)] * sigma2;
+    let only_scale = [None, None, None, Some(full_scale::SCALE), None];
+    let side = certificate(&model, &x6, &b, side_u, only_scale).ok()?[(layout::SCALE, layout::SCALE)];
+    let var = inv[(full_scale::SCALE, full_scale::SCALE)] * sigma2 + side;
     let est = ScaleEstimate { scale: 1.0 + step[full_scale::SCALE], stddev: var.max(0.0).sqrt() };
     (est.scale.is_finite() && est.stddev.is_finite() && est.stddev > 0.0).then_some(est)
 }
@@ -790,10 +807,50 @@ impl Fit {
     }
 }
 
+/// The type B part of the covariance an artefact's certified size `A` brings (GUM 4.3,
+/// 5.1): the estimate moves with `A` as the normal equations `Jᵀr = 0` hold at the
+/// minimum, `s = dx̂/dA = -(JᵀJ)⁻¹ Jᵀ ∂r/∂A` (one more pass over the samples the fit
+/// used, `∂r/∂A` a value per row of `model`), and adds `s sᵀ u²` for a standard
+/// uncertainty `u` of `A`; returned in the tracer's [`Covariance`] layout (`tracer` as
+/// in `Fit::from_rounds`). Zero when `u` is.
+pub fn certificate<const P: usize>(
+    model: &impl Problem<P>,
+    x: &SVector<f64, P>,
+    dr_da: &[f64],
+    u: f64,
+    tracer: [Option<usize>; 5],
+) -> Result<Covariance, CalibrationError> {
+    let mut term = Covariance::zeros();
+    if u == 0.0 {
+        return Ok(term);
+    }
+    let (mut jtj, mut jtb) = (SMatrix::<f64, P, P>::zeros(), SVector::<f64, P>::zeros());
+    let mut rows = dr_da.iter();
+    let ok = model.for_each_row(x, |_, j| {
+        let b = rows.next().copied().unwrap_or(f64::NAN);
+        jtj += j * j.transpose();
+        jtb += j * b;
+    });
+    let s = -(ok.then_some(jtj).and_then(|m| m.cholesky()).ok_or(CalibrationError::Singular)?.solve(&jtb));
+    for (i, mi) in tracer.iter().enumerate() {
+        for (j, mj) in tracer.iter().enumerate() {
+            if let (Some(mi), Some(mj)) = (mi, mj) {
+                term[(i, j)] = s[*mi] * s[*mj] * u * u;
+            }
+        }
+    }
+    if term.iter().all(|v| v.is_finite()) { Ok(term) } else { Err(CalibrationError::Singular) }
+}
+
 fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
     let r = fit_rounds(all, x0, opt)?;
     let tracer = [Some(full::ALPHA0), Some(full::OFFSET), Some(full::DELTA_L), None, None];
-    Ok(Fit::from_rounds(ModelKind::Full, r.x, 1.0, tracer, r))
+    let used = all.retain(|i| r.active[i]);
+    let b = used.side_sensitivity(&r.x, 0.0).ok_or(CalibrationError::Singular)?;
+    let side = certificate(&used, &r.x, &b, opt.plate_side_uncertainty, tracer)?;
+    let mut fit = Fit::from_rounds(ModelKind::Full, r.x, 1.0, tracer, r);
+    fit.covariance += side;
+    Ok(fit)
 }
 
 /// The encoder-scale model from the full model's start at `k = 1` (a start that is
@@ -803,7 +860,14 @@ fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fi
     let (x, scale) = full_scale::to_full(&r.x);
     let tracer =
         [Some(full_scale::ALPHA0), Some(full_scale::OFFSET), Some(full_scale::DELTA_L), Some(full_scale::SCALE), None];
-    Ok(Fit::from_rounds(ModelKind::FullScale, x, scale, tracer, r))
+    // r = q/k - rho: ∂r/∂S = (∂q/∂S)/k.
+    let used = all.retain(|i| r.active[i]);
+    let b: Vec<f64> =
+        used.side_sensitivity(&x, 0.0).ok_or(CalibrationError::Singular)?.iter().map(|b| b / scale).collect();
+    let side = certificate(&FullScaleModel::new(used), &r.x, &b, opt.plate_side_uncertainty, tracer)?;
+    let mut fit = Fit::from_rounds(ModelKind::FullScale, x, scale, tracer, r);
+    fit.covariance += side;
+    Ok(fit)
 }
 
 /// `full_tip` and `full_scale_tip` ([`super::model::tip`]). The start: the full model
@@ -832,8 +896,15 @@ fn fit_tip(
     x0[tip::DELTA_L] -= tip - tip0;
     let model = TipModel::from_scans(FullModel::from_scan(plate, scan), ring, ring_scan);
     let n = scan.len();
+    // Both certificates, through the samples each fit used (∂r/∂A = (∂q/∂A)/k).
+    let certificates = |used: &TipModel, x: &tip::Params, k: f64| {
+        let (side, diameter) = used.size_sensitivities(x).ok_or(CalibrationError::Singular)?;
+        let per_k = |v: Vec<f64>| -> Vec<f64> { v.into_iter().map(|b| b / k).collect() };
+        Ok::<_, CalibrationError>((per_k(side), per_k(diameter)))
+    };
+    let (u_side, u_diameter) = (opt.plate_side_uncertainty, opt.ring_diameter_uncertainty);
     let (x, scale, mut fit) = if opt.model.fits_scale() {
-        let r = fit_rounds(&TipScaleModel::new(model), tip::with_scale(&x0, 1.0), opt)?;
+        let r = fit_rounds(&TipScaleModel::new(model.clone()), tip::with_scale(&x0, 1.0), opt)?;
         let (x, k) = tip::without_scale(&r.x);
         let at = |i: usize| if i < tip::SCALE { i } else { i + 1 };
         let tracer = [
@@ -843,13 +914,25 @@ fn fit_tip(
             Some(tip::SCALE),
             Some(at(tip::TIP_RADIUS)),
         ];
+        let used = TipScaleModel::new(model.retain(|i| r.active[i]));
+        let (b_side, b_diameter) = certificates(used.tip(), &x, k)?;
+        let types_b = certificate(&used, &r.x, &b_side, u_side, tracer)?
+            + certificate(&used, &r.x, &b_diameter, u_diameter, tracer)?;
         let (x5, _, _) = tip::to_full(&x);
-        (x, k, Fit::from_rounds(ModelKind::FullScaleTip, x5, k, tracer, r))
+        let mut fit = Fit::from_rounds(ModelKind::FullScaleTip, x5, k, tracer, r);
+        fit.covariance += types_b;
+        (x, k, fit)
     } else {
         let r = fit_rounds(&model, x0, opt)?;
         let tracer = [Some(tip::ALPHA0), Some(tip::OFFSET), Some(tip::DELTA_L), None, Some(tip::TIP_RADIUS)];
-        let (x5, _, _) = tip::to_full(&r.x);
-        (r.x, 1.0, Fit::from_rounds(ModelKind::FullTip, x5, 1.0, tracer, r))
+        let used = model.retain(|i| r.active[i]);
+        let (b_side, b_diameter) = certificates(&used, &r.x, 1.0)?;
+        let types_b = certificate(&used, &r.x, &b_side, u_side, tracer)?
+            + certificate(&used, &r.x, &b_diameter, u_diameter, tracer)?;
+        let (x, (x5, _, _)) = (r.x, tip::to_full(&r.x));
+        let mut fit = Fit::from_rounds(ModelKind::FullTip, x5, 1.0, tracer, r);
+        fit.covariance += types_b;
+        (x, 1.0, fit)
     };
     let (_, tip_radius, ring_center) = tip::to_full(&x);
     let ring_residuals = fit.residuals.split_off(n);
@@ -912,6 +995,24 @@ fn fit_paper(
             let ad_dl = model.covariance(&ad, &ne, sigma2, scan.len()).ok_or(CalibrationError::Singular)?;
             let mut covariance = Covariance::zeros();
             covariance.fixed_view_mut::<3, 3>(layout::ALPHA0, layout::ALPHA0).copy_from(&ad_dl);
+            // The plate's certificate: the reduced model's own sensitivity to the side,
+            // by central differences of its estimator (the same samples, refitted from
+            // where it stands with the side moved by ±1 µm; it has no Jacobian in S).
+            let u = opt.plate_side_uncertainty;
+            if u > 0.0 {
+                let h = 1e-6;
+                let moved = |dh: f64| -> Result<SVector<f64, 3>, CalibrationError> {
+                    let plate = PlateSpec { side: plate.side + dh, ..*plate };
+                    let m = PaperModel::select(&plate, scan, &x, margin, &active)
+                        .map_err(|e| CalibrationError::Model(e.to_string()))?;
+                    let rep = lm::minimize(&m, ad, &opt.lm);
+                    Ok(SVector::<f64, 3>::new(rep.x[0], rep.x[1], m.delta_l(&rep.x)))
+                };
+                let s = (moved(h)? - moved(-h)?) / (2.0 * h);
+                let term = s * s.transpose() * (u * u);
+                let mut block = covariance.fixed_view_mut::<3, 3>(layout::ALPHA0, layout::ALPHA0);
+                block += term;
+            }
             return Ok(Fit {
                 model: ModelKind::Paper,
                 x,

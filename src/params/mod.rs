@@ -25,7 +25,9 @@ pub mod names {
     pub const TIP_RADIUS: &str = "stylus.tip_radius";
     pub const PLATE_SIDE: &str = "plate.side";
     pub const CORNER_RADIUS: &str = "plate.corner_radius";
+    pub const SIDE_UNCERTAINTY: &str = "plate.side_uncertainty";
     pub const RING_DIAMETER: &str = "ring.diameter";
+    pub const DIAMETER_UNCERTAINTY: &str = "ring.diameter_uncertainty";
     pub const METERS_PER_COUNT: &str = "encoder.meters_per_count";
     pub const MODEL: &str = "model";
     pub const OUTPUT_FRAME_ID: &str = "output_frame_id";
@@ -37,7 +39,7 @@ pub mod names {
     pub const USE_SIM_TIME: &str = "use_sim_time";
     pub const MANAGED: &str = "managed";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 20] = [
+    pub const ALL: [&str; 22] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -47,7 +49,9 @@ pub mod names {
         TIP_RADIUS,
         PLATE_SIDE,
         CORNER_RADIUS,
+        SIDE_UNCERTAINTY,
         RING_DIAMETER,
+        DIAMETER_UNCERTAINTY,
         METERS_PER_COUNT,
         MODEL,
         OUTPUT_FRAME_ID,
@@ -79,8 +83,12 @@ pub struct Parameters {
     /// The stylus tip's radius in force, metres (fitted by the tip models, else known).
     pub tip_radius: f64,
     pub plate: PlateSpec,
+    /// Standard uncertainty of `plate.side` from its certificate, metres.
+    pub plate_side_uncertainty: f64,
     /// The ring gauge's certified inner diameter, metres; 0 = none.
     pub ring_diameter: f64,
+    /// Standard uncertainty of `ring.diameter` from its certificate, metres.
+    pub ring_diameter_uncertainty: f64,
     pub meters_per_count: f64,
     pub model: ModelKind,
     pub output_frame_id: String,
@@ -109,7 +117,9 @@ impl Default for Parameters {
             covariance: Vec::new(),
             tip_radius: 0.0,
             plate: PlateSpec::default(),
+            plate_side_uncertainty: 0.0,
             ring_diameter: 0.0,
+            ring_diameter_uncertainty: 0.0,
             meters_per_count: 1.0e-6,
             model: ModelKind::Full,
             output_frame_id: "tracer_axis".into(),
@@ -143,7 +153,9 @@ impl Parameters {
             names::TIP_RADIUS => Double(self.tip_radius),
             names::PLATE_SIDE => Double(self.plate.side),
             names::CORNER_RADIUS => Double(self.plate.corner_radius),
+            names::SIDE_UNCERTAINTY => Double(self.plate_side_uncertainty),
             names::RING_DIAMETER => Double(self.ring_diameter),
+            names::DIAMETER_UNCERTAINTY => Double(self.ring_diameter_uncertainty),
             names::METERS_PER_COUNT => Double(self.meters_per_count),
             names::MODEL => String(self.model.as_str().into()),
             names::OUTPUT_FRAME_ID => String(self.output_frame_id.clone()),
@@ -207,7 +219,9 @@ impl Parameters {
             names::TIP_RADIUS => next.tip_radius = double(value)?,
             names::PLATE_SIDE => next.plate.side = double(value)?,
             names::CORNER_RADIUS => next.plate.corner_radius = double(value)?,
+            names::SIDE_UNCERTAINTY => next.plate_side_uncertainty = double(value)?,
             names::RING_DIAMETER => next.ring_diameter = double(value)?,
+            names::DIAMETER_UNCERTAINTY => next.ring_diameter_uncertainty = double(value)?,
             names::METERS_PER_COUNT => next.meters_per_count = double(value)?,
             names::MODEL => {
                 next.model = string(value)
@@ -263,6 +277,8 @@ impl Parameters {
             model: self.model,
             scale: self.calibration.scale,
             tip_radius: self.tip_radius,
+            plate_side_uncertainty: self.plate_side_uncertainty,
+            ring_diameter_uncertainty: self.ring_diameter_uncertainty,
             ..CalibrationOptions::default()
         }
     }
@@ -281,7 +297,7 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 20);
+        assert_eq!(list.len(), 22);
         assert_eq!(p.get("calibration.covariance"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("use_sim_time"), Some(ParamValue::Bool(false)));
         assert_eq!(p.get("managed"), Some(ParamValue::Bool(false)));

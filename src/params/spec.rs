@@ -91,7 +91,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 20] = [
+pub const SPECS: [Spec; 22] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -108,7 +108,11 @@ pub const SPECS: [Spec; 20] = [
         .constraints("positive (greater than 0) and more than twice plate.corner_radius"),
     Spec::new(names::CORNER_RADIUS, "corner radius of the calibration plate (m)")
         .constraints("at least 0 and less than half of plate.side"),
+    Spec::new(names::SIDE_UNCERTAINTY, "standard uncertainty of plate.side from the plate's calibration certificate (m): a type B part of the calibration's covariance")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
     Spec::new(names::RING_DIAMETER, "certified inner diameter of the ring gauge (m), traced from inside for the models full_tip and full_scale_tip; 0 = none")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::DIAMETER_UNCERTAINTY, "standard uncertainty of ring.diameter from the ring gauge's calibration certificate (m): a type B part of the covariance of full_tip and full_scale_tip")
         .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
     Spec::new(names::METERS_PER_COUNT, "encoder resolution (m per count)").bound(Bound::Positive),
     Spec::new(names::MODEL, "fitting model: full, paper (the seed paper's reduced model), full_scale (full + encoder scale), full_tip (full + tip radius, from a plate and a ring-gauge scan) or full_scale_tip")

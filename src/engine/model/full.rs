@@ -160,16 +160,25 @@ impl FullModel {
         self.for_each_grown_prediction(x, 0.0, |s, q, j, _| f(s, q, j))
     }
 
+    /// `∂q/∂S` of every sample at `x` with the plate grown by `g`: how the lengths move
+    /// with the plate's side `S` (its certificate's uncertainty enters the covariance
+    /// through it, [`crate::engine::calibrate`]); `None` where the model cannot be
+    /// evaluated.
+    pub fn side_sensitivity(&self, x: &Params, g: f64) -> Option<Vec<f64>> {
+        let mut out = Vec::with_capacity(self.samples.len());
+        self.for_each_grown_prediction(x, g, |_, _, _, d| out.push(d.side)).then_some(out)
+    }
+
     /// [`Self::for_each_prediction`] of the plate grown by `g` all round (side `S + 2g`,
     /// corners `r + g`: the contour the centre of a tip of radius `g` follows when it
-    /// traces the plate from outside, [`super::tip`]); `f` also gets `∂q/∂g = 1/(N·u)`
-    /// (the contour moves by `dg` along its normal, `N·dX = dg`).
+    /// traces the plate from outside, [`super::tip`]); `f` also gets the sample's
+    /// [`SizeDerivatives`].
     #[inline]
     pub fn for_each_grown_prediction(
         &self,
         x: &Params,
         g: f64,
-        mut f: impl FnMut(&TableSample, f64, &Params, f64),
+        mut f: impl FnMut(&TableSample, f64, &Params, SizeDerivatives),
     ) -> bool {
         let cs_alpha = (x[ALPHA0].cos(), x[ALPHA0].sin());
         let (d, dl) = (x[OFFSET], x[DELTA_L]);
@@ -196,7 +205,7 @@ impl FullModel {
                 let t = wx * inv;
                 if (p.y + t * sa).abs() <= inner_h && t > 0.0 {
                     let j = Params::from([-sx * (t * v.x - d * ca) * inv, -sx * v.x * inv, 1.0, sx * inv, 0.0]);
-                    f(s, t + dl, &j, inv);
+                    f(s, t + dl, &j, SizeDerivatives { grow: inv, side: 0.5 * inv });
                     continue;
                 }
             } else {
@@ -204,13 +213,17 @@ impl FullModel {
                 let t = wy * inv;
                 if (p.x + t * ca).abs() <= inner_w && t > 0.0 {
                     let j = Params::from([-sy * (t * v.y - d * sa) * inv, -sy * v.y * inv, 1.0, 0.0, sy * inv]);
-                    f(s, t + dl, &j, inv);
+                    f(s, t + dl, &j, SizeDerivatives { grow: inv, side: 0.5 * inv });
                     continue;
                 }
             }
             match plate.exit_local(p, u) {
                 Some(hit) if hit.t > 0.0 => match rho_gradient(&hit, u, v, d) {
-                    Some(j) => f(s, hit.t + dl, &j, 1.0 / hit.normal.dot(&u)),
+                    Some(j) => {
+                        let inv = 1.0 / hit.normal.dot(&u);
+                        let side = 0.5 * (hit.normal.x.abs() + hit.normal.y.abs()) * inv;
+                        f(s, hit.t + dl, &j, SizeDerivatives { grow: inv, side })
+                    }
                     None => return false,
                 },
                 _ => return false,
@@ -218,6 +231,17 @@ impl FullModel {
         }
         true
     }
+}
+
+/// How a sample's length `q` moves with the plate's size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SizeDerivatives {
+    /// `∂q/∂g = 1/(N·u)`, the plate grown by `g` all round (the contour moves by `dg`
+    /// along its normal, `N·dX = dg`).
+    pub grow: f64,
+    /// `∂q/∂S`, the side alone (corner radius kept): a flat moves by `dS/2`, a corner's
+    /// centre by `(±dS/2, ±dS/2)`, so `(|N_x| + |N_y|)/(2 N·u)`.
+    pub side: f64,
 }
 
 impl Problem<5> for FullModel {

@@ -145,19 +145,41 @@ impl TipModel {
     /// tip is not smaller than the ring.
     #[inline]
     pub fn for_each_prediction(&self, x: &Params, mut f: impl FnMut(&TableSample, f64, &Params)) -> bool {
+        self.for_each_prediction_and_size(x, |s, q, j, _| f(s, q, j))
+    }
+
+    /// How every sample's length moves with the artefacts' certified sizes at `x`:
+    /// `(∂q/∂S, ∂q/∂D)`, plate's samples then ring's (a plate sample does not move with
+    /// `D`, a ring sample not with `S`; on the ring `∂q/∂D = 1/(2 N·u)`).
+    pub fn size_sensitivities(&self, x: &Params) -> Option<(Vec<f64>, Vec<f64>)> {
+        let (mut side, mut diameter) = (Vec::new(), Vec::new());
+        self.for_each_prediction_and_size(x, |_, _, _, (s, d)| {
+            side.push(s);
+            diameter.push(d);
+        })
+        .then_some((side, diameter))
+    }
+
+    /// [`Self::for_each_prediction`], `f` also getting `(∂q/∂S, ∂q/∂D)`.
+    #[inline]
+    fn for_each_prediction_and_size(
+        &self,
+        x: &Params,
+        mut f: impl FnMut(&TableSample, f64, &Params, (f64, f64)),
+    ) -> bool {
         let (x5, tip, g) = to_full(x);
-        let plate = self.plate.for_each_grown_prediction(&x5, tip, |s, q, j, dq_dg| {
+        let plate = self.plate.for_each_grown_prediction(&x5, tip, |s, q, j, size| {
             let row = Params::from([
                 j[full::ALPHA0],
                 j[full::OFFSET],
                 j[full::DELTA_L],
-                dq_dg,
+                size.grow,
                 j[full::CX],
                 j[full::CY],
                 0.0,
                 0.0,
             ]);
-            f(s, q, &row)
+            f(s, q, &row, (size.side, 0.0))
         });
         if !plate {
             return false;
@@ -188,7 +210,7 @@ impl TipModel {
                 n.x * inv,
                 n.y * inv,
             ]);
-            f(s, t + x[DELTA_L], &row);
+            f(s, t + x[DELTA_L], &row, (0.0, 0.5 * inv));
         }
         true
     }

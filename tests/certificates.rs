@@ -1,0 +1,135 @@
+//! The artefacts' certificates in the covariance (issue 30, GUM type B): the sensitivity
+//! each fit reports for the plate's side and the ring gauge's diameter is the estimator's
+//! own (fits of the same scans with the size moved), and a Monte Carlo in which the
+//! artefact really is off by its certified uncertainty is covered by what is reported.
+
+use nalgebra::Vector2;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, Normal};
+use tracer_calib::engine::calibrate::{Calibration, Options, Ring, calibrate_with_ring, layout};
+use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::engine::model::tip::RingSpec;
+use tracer_calib::engine::model::{ModelKind, PlateSpec};
+use tracer_calib::engine::scan::Scan;
+use tracer_calib::engine::shape::Ellipse;
+use tracer_calib::engine::simulate::{SimOptions, simulate};
+
+const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
+const RING: RingSpec = RingSpec { diameter: 0.040 };
+const TIP: f64 = 0.0003;
+
+fn truth() -> Mounting {
+    Mounting::new(2f64.to_radians(), 0.005, 0.002)
+}
+
+fn scans(plate: &PlateSpec, ring: &RingSpec, noise: f64, seed: u64) -> (Scan, Scan) {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let opt = SimOptions { noise, tip_radius: TIP, ..SimOptions::default() };
+    let p = simulate(&plate.at(Vector2::new(0.0008, -0.0005)), &truth(), &opt, &mut rng).unwrap().scan;
+    let r = ring.diameter / 2.0;
+    let gauge = Ellipse { center: Vector2::new(-0.0006, 0.0004), a: r, b: r, angle: 0.0 };
+    let g = simulate(&gauge, &truth(), &SimOptions { inside: true, ..opt }, &mut rng).unwrap().scan;
+    (p, g)
+}
+
+fn fit(model: ModelKind, plate: &Scan, ring: &Scan, spec: (PlateSpec, RingSpec), u: (f64, f64)) -> Calibration {
+    let opt = Options {
+        model,
+        tip_radius: if model.fits_tip() { 0.0 } else { TIP },
+        plate_side_uncertainty: u.0,
+        ring_diameter_uncertainty: u.1,
+        ..Options::default()
+    };
+    calibrate_with_ring(plate, Some(Ring { scan: ring, spec: spec.1 }), &spec.0, &opt).unwrap()
+}
+
+/// `[alpha0, offset, delta_l, scale, tip_radius]` of a fit.
+fn tracer(c: &Calibration) -> [f64; 5] {
+    [c.mounting.alpha0, c.mounting.offset, c.mounting.delta_l, c.mounting.scale, c.tip_radius]
+}
+
+/// The type B term a fit adds for `u`, against the estimator's derivative by central
+/// differences (refits of the same noise-free scans with the artefact moved by ±h).
+#[test]
+fn the_reported_sensitivity_is_the_estimators_own() {
+    let (plate, ring) = scans(&PLATE, &RING, 0.0, 1);
+    let u = 5e-6;
+    // Small enough that no sample's residual crosses the outlier floor (0.1 µm).
+    let h = 1e-8;
+    for model in ModelKind::ALL {
+        let artefacts: &[usize] = if model.fits_tip() { &[0, 1] } else { &[0] };
+        for &a in artefacts {
+            let moved = |d: f64| {
+                let mut spec = (PLATE, RING);
+                if a == 0 {
+                    spec.0.side += d
+                } else {
+                    spec.1.diameter += d
+                }
+                tracer(&fit(model, &plate, &ring, spec, (0.0, 0.0)))
+            };
+            let (up, down) = (moved(h), moved(-h));
+            let numeric: Vec<f64> = (0..5).map(|i| (up[i] - down[i]) / (2.0 * h)).collect();
+            let base = fit(model, &plate, &ring, (PLATE, RING), (0.0, 0.0)).covariance;
+            let with = fit(model, &plate, &ring, (PLATE, RING), if a == 0 { (u, 0.0) } else { (0.0, u) }).covariance;
+            let term = with - base;
+            for i in [layout::ALPHA0, layout::OFFSET, layout::DELTA_L, layout::SCALE, layout::TIP_RADIUS] {
+                // Standard uncertainties, to 2 % or a nanometre (0.1 µrad: 2.5 nm at 25 mm).
+                let want = (numeric[i] * u).abs();
+                let got = term[(i, i)].sqrt();
+                let floor = if i == layout::ALPHA0 { 1e-7 } else { 1e-9 };
+                assert!(
+                    (got - want).abs() <= 0.02 * want + floor,
+                    "{model}, artefact {a}, parameter {i}: reported {got:e}, the estimator's {want:e}"
+                );
+            }
+        }
+    }
+}
+
+/// Plates and rings whose true size is off from the certified one by their standard
+/// uncertainty (drawn per trial): the error of dL and the tip radius is what the
+/// reported uncertainty (noise and certificates) says, not what the noise alone says.
+#[test]
+fn a_monte_carlo_of_the_artefacts_is_covered() {
+    let (u_side, u_diameter) = (20e-6, 10e-6);
+    let (sd_side, sd_diameter) = (Normal::new(0.0, u_side).unwrap(), Normal::new(0.0, u_diameter).unwrap());
+    let mut rng = StdRng::seed_from_u64(7);
+    let trials = 300;
+    for model in [ModelKind::Full, ModelKind::FullTip] {
+        let (mut sq, mut reported, mut noise_only) = ([0.0; 5], [0.0; 5], [0.0; 5]);
+        for t in 0..trials {
+            let true_plate = PlateSpec { side: PLATE.side + sd_side.sample(&mut rng), ..PLATE };
+            let true_ring = RingSpec { diameter: RING.diameter + sd_diameter.sample(&mut rng) };
+            let (p, g) = scans(&true_plate, &true_ring, 2e-6, 100 + t);
+            let c = fit(model, &p, &g, (PLATE, RING), (u_side, u_diameter));
+            // The noise's part alone: the same noise on the certified artefacts.
+            let (p0, g0) = scans(&PLATE, &RING, 2e-6, 100 + t);
+            let c0 = fit(model, &p0, &g0, (PLATE, RING), (0.0, 0.0));
+            let truth = [truth().alpha0, truth().offset, truth().delta_l, 1.0, TIP];
+            for i in 0..5 {
+                sq[i] += (tracer(&c)[i] - truth[i]).powi(2);
+                reported[i] += c.covariance[(i, i)];
+                noise_only[i] += c0.covariance[(i, i)];
+            }
+        }
+        let mut checked = vec![layout::DELTA_L];
+        if model.fits_tip() {
+            checked.push(layout::TIP_RADIUS);
+        }
+        for i in checked {
+            let (rms, rep, noise) = (
+                (sq[i] / trials as f64).sqrt(),
+                (reported[i] / trials as f64).sqrt(),
+                (noise_only[i] / trials as f64).sqrt(),
+            );
+            eprintln!("{model} parameter {i}: RMS error {rms:.3e}, reported {rep:.3e}, noise alone {noise:.3e}");
+            assert!((rms / rep - 1.0).abs() < 0.15, "{model} parameter {i}: RMS error {rms:e}, reported {rep:e}");
+            assert!(
+                rms > 2.0 * noise,
+                "{model} parameter {i}: the certificates should dominate ({rms:e} vs {noise:e})"
+            );
+        }
+    }
+}
