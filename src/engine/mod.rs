@@ -14,7 +14,9 @@
 //! 6. [`start`] — a start that converges from any mounting error in range;
 //! 7. [`calibrate`](mod@calibrate) — start, fit, outlier rejection, uncertainty: a [`Calibration`];
 //! 8. [`correct`](mod@correct) — every sample to the tip's centre, and equal-angle resampling;
-//! 9. [`stylus`] — from the tip's centre to the surface it touched.
+//! 9. [`stylus`] — from the tip's centre to the surface it touched;
+//! 10. [`size`] — circumference, box and FED of a corrected contour from a smooth fit, with
+//!     their 95 % uncertainty from the calibration's covariance and the scan's noise.
 //!
 //! [`simulate`] makes scans of known shapes with known errors for tests and tools.
 
@@ -26,6 +28,7 @@ pub mod model;
 pub mod scan;
 pub mod shape;
 pub mod simulate;
+pub mod size;
 pub mod start;
 pub mod stylus;
 
