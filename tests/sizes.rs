@@ -132,18 +132,18 @@ fn the_calibration_responses_are_the_chains_own() {
         .unwrap();
         let correction = Correction { mounting: m, tip_radius: tip, traced };
         let h = [1e-5, 1e-6, 1e-6, 1e-5, 1e-6];
-        for j in 0..5 {
+        for (j, hj) in h.into_iter().enumerate() {
             let mut moved = m;
             let mut moved_tip = tip;
             match j {
-                0 => moved.alpha0 += h[j],
-                1 => moved.offset += h[j],
-                2 => moved.delta_l += h[j],
-                3 => moved.scale += h[j],
-                _ => moved_tip += h[j],
+                0 => moved.alpha0 += hj,
+                1 => moved.offset += hj,
+                2 => moved.delta_l += hj,
+                3 => moved.scale += hj,
+                _ => moved_tip += hj,
             }
             let numeric: Vec<f64> =
-                figures(&moved, moved_tip).figures().iter().zip(base.figures()).map(|(a, b)| (a - b) / h[j]).collect();
+                figures(&moved, moved_tip).figures().iter().zip(base.figures()).map(|(a, b)| (a - b) / hj).collect();
             let predicted = base.response(|t| correction.radial_sensitivities(&smooth, t)[j]);
             for f in 0..4 {
                 assert!(
