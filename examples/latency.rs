@@ -104,6 +104,12 @@ fn relay(prefix: &str) {
             .map(|k| tracer_calib::interfaces::Point { x: 0.02 + k as f64 * 1e-6, y: 0.01, z: 0.0 })
             .collect(),
         radii: (0..400).map(|k| 0.02 + k as f64 * 1e-6).collect(),
+        circumference: 0.127,
+        box_width: 0.05,
+        box_height: 0.03,
+        effective_diameter: 0.05,
+        size_u95: [4e-6; 4],
+        radii_u95: vec![2e-6; 400],
     };
     smol::block_on(async {
         let mut stream = std::pin::pin!(sub.async_stream());

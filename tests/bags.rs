@@ -87,6 +87,12 @@ fn contour(scan_id: u32, stamp_ns: u64) -> Contour {
         calibrated: scan_id.is_multiple_of(2),
         points: (0..n).map(|k| Point { x: 0.025 * angle(k).cos(), y: 0.015 * angle(k).sin(), z: 0.0 }).collect(),
         radii: (0..n).map(|k| 0.02 + 0.001 * angle(k).sin()).collect(),
+        circumference: 0.12763,
+        box_width: 0.05,
+        box_height: 0.03,
+        effective_diameter: 0.0501,
+        size_u95: [4e-6, 3e-6, 5e-6, 6e-6],
+        radii_u95: vec![2e-6; n],
     }
 }
 
@@ -330,6 +336,12 @@ fn check_rosbags_fixture(bag: &Bag) {
     assert_eq!(contour.radii.len() as u64, u64_of(&c["radii"]));
     assert_eq!(contour.radii[0], c["radius_0"].as_f64().unwrap());
     assert_eq!(contour.radii[100], c["radius_100"].as_f64().unwrap());
+    // The size figures appended to Contour (issue 30).
+    assert_eq!(contour.circumference, c["circumference"].as_f64().unwrap());
+    let u95: Vec<f64> = c["size_u95"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!(contour.size_u95.to_vec(), u95);
+    assert_eq!(contour.radii_u95, vec![c["radius_u95"].as_f64().unwrap(); contour.radii.len()]);
+    assert_eq!((contour.box_width, contour.box_height), (0.05, 0.03));
     let (a, b) =
         (truth["ellipse"]["width"].as_f64().unwrap() / 2.0, truth["ellipse"]["height"].as_f64().unwrap() / 2.0);
     for p in &contour.points {

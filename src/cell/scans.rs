@@ -4,15 +4,19 @@
 use super::{NodeState, intake};
 use nalgebra::Vector2;
 
-use crate::engine::correct::{Corrector, PolarContour, default_max_gap};
+use crate::engine::calibrate::covariance_from_values;
+use crate::engine::correct::{Corrector, PolarContour, default_max_gap, resample_radii};
 use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
+use crate::engine::size::{self, Correction};
 use crate::engine::stylus::{Traced, touched_surface};
 use crate::interfaces::{Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan};
 
 /// Largest coordinate of a corrected point, metres: what a `Point32` of the polygon holds.
 /// (Any contour of a real tracer is a few centimetres.)
 pub const MAX_COORDINATE: f64 = f32::MAX as f64;
+/// Equal-angle radii the size figures are taken from when `resample_points` is 0.
+const SIZE_RADII: usize = 400;
 /// Calibration-plate scans kept for `/calibrate`, and as many ring-gauge scans.
 pub const PLATE_SCANS_KEPT: usize = 16;
 
@@ -83,16 +87,16 @@ impl NodeState {
             }
         };
         let tip = self.params.tip_radius;
+        let traced = match msg.target {
+            RawScan::TARGET_FRAME | RawScan::TARGET_RING_GAUGE => Traced::Inside,
+            _ => Traced::Outside,
+        };
         if tip == 0.0 {
             corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, emit);
         } else {
             // The tip's centre first, then the surface it touched (engine::stylus).
             let mut path = Vec::with_capacity(n);
             corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, |p| path.push(p));
-            let traced = match msg.target {
-                RawScan::TARGET_FRAME | RawScan::TARGET_RING_GAUGE => Traced::Inside,
-                _ => Traced::Outside,
-            };
             let closed = goes_round(&msg.step, steps_per_rev);
             touched_surface(&mut path, tip, traced, closed);
             path.into_iter().for_each(&mut emit);
@@ -104,9 +108,15 @@ impl NodeState {
             );
             return Err(self.reject(msg, e));
         }
-        let radii = polar
-            .and_then(|polar| polar.resample(self.params.resample_points, default_max_gap(steps_per_rev)))
-            .unwrap_or_default();
+        let max_gap = default_max_gap(steps_per_rev);
+        let radii = polar.and_then(|polar| polar.resample(self.params.resample_points, max_gap)).unwrap_or_default();
+        // The size figures, when the contour goes all the way round (engine::size), with the
+        // calibration's whole covariance when it is known.
+        let surface: Vec<Vector2<f64>> = points.iter().map(|p| Vector2::new(p.x, p.y)).collect();
+        let sized = if radii.is_empty() { resample_radii(&surface, SIZE_RADII, max_gap) } else { Some(radii.clone()) };
+        let covariance = calibration.and_then(|_| covariance_from_values(&self.params.covariance).ok());
+        let correction = Correction { mounting, tip_radius: tip, traced };
+        let report = sized.and_then(|r| size::uncertainty(&surface, &r, &correction, covariance.as_ref()));
         let header = Header { stamp: msg.header.stamp, frame_id: self.params.output_frame_id.clone() };
         let polygon = with_polygon.then(|| PolygonStamped {
             header: header.clone(),
@@ -114,6 +124,10 @@ impl NodeState {
                 points: points.iter().map(|p| Point32 { x: p.x as f32, y: p.y as f32, z: 0.0 }).collect(),
             },
         });
+        let (figures, size_u95, radii_u95) = match report {
+            Some(r) => (r.sizes.figures(), r.u95, if radii.is_empty() { Vec::new() } else { r.radii_u95 }),
+            None => ([0.0; 4], [0.0; 4], Vec::new()),
+        };
         let contour = Contour {
             header,
             scan_id: msg.scan_id,
@@ -121,6 +135,12 @@ impl NodeState {
             calibrated: calibration.is_some(),
             points,
             radii,
+            circumference: figures[0],
+            box_width: figures[1],
+            box_height: figures[2],
+            effective_diameter: figures[3],
+            size_u95,
+            radii_u95,
         };
         self.stats.contours_published += 1;
         Ok(Corrected { contour, polygon })

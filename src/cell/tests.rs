@@ -538,5 +538,28 @@ fn the_tip_is_fitted_from_a_ring_gauge_and_contours_are_of_the_touched_surface()
         let c = st.on_raw_scan(&msg, false).unwrap().contour;
         let worst = c.points.iter().zip(&truth).map(|(p, t)| (Vector2::new(p.x, p.y) - t).norm()).fold(0.0, f64::max);
         assert!(worst < 30e-6, "target {}: a point {:.1} µm from the surface touched", msg.target, worst * 1e6);
+        // Its size figures (engine::size), within their U95 of the truth's.
+        use crate::engine::size::{HARMONICS, Sizes, Smooth};
+        let true_radii = crate::engine::correct::resample_radii(&truth, 400, 0.2).unwrap();
+        let want = Sizes::of(&Smooth::fit(&true_radii, HARMONICS).unwrap()).figures();
+        let got = [c.circumference, c.box_width, c.box_height, c.effective_diameter];
+        for f in 0..4 {
+            assert!(c.size_u95[f] > 0.0 && c.size_u95[f] < 30e-6, "target {}: U95 {:?}", msg.target, c.size_u95);
+            assert!(
+                (got[f] - want[f]).abs() <= c.size_u95[f],
+                "target {}: figure {f} {} for {} ± {}",
+                msg.target,
+                got[f],
+                want[f],
+                c.size_u95[f]
+            );
+        }
+        assert_eq!(c.radii_u95.len(), c.radii.len());
     }
+    // A scan that does not go all the way round has no size figures.
+    let (mut half, _) = traced_msg(6, RawScan::TARGET_LENS, &lens, &m, tip);
+    half.step.truncate(200);
+    half.counts.truncate(200);
+    let c = st.on_raw_scan(&half, false).unwrap().contour;
+    assert_eq!((c.circumference, c.size_u95, c.radii_u95.len()), (0.0, [0.0; 4], 0));
 }

@@ -77,6 +77,12 @@ impl Sample for Contour {
             calibrated: true,
             points: vec![Point::sample(), Point { x: 1.0, y: 2.0, z: 0.0 }],
             radii: vec![0.021, 0.0215, f64::MIN_POSITIVE],
+            circumference: 0.1276,
+            box_width: 0.05,
+            box_height: 0.0305,
+            effective_diameter: 0.0512,
+            size_u95: [4.5e-6, 2.5e-6, 3.0e-6, 6.25e-6],
+            radii_u95: vec![2e-6, 2.5e-6, 3e-6],
         }
     }
 }
