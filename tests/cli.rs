@@ -513,6 +513,64 @@ fn the_tip_models_take_a_ring_gauge() {
     let o = fit(&["--input", p, "--model", "full_tip", "--ring", p, "--ring-diameter", "0.04"]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(json(&o)["message"].as_str().unwrap().contains("ring"), "{}", stderr(&o));
+    // `correct --json`: the size figures of every corrected scan, from a params file with
+    // the tip calibration in force (its covariance too); a frame with 8 mm corners traced
+    // from inside by the same tip comes out its size, within the reported U95. The OMA
+    // export carries them as CIRC, HBOX, VBOX and FED.
+    let v = {
+        let o = fit(&["--input", b, "--model", "full_tip", "--ring-diameter", "0.04"]);
+        json(&o)
+    };
+    let params = temp("tip_params.yaml");
+    std::fs::write(
+        &params,
+        format!(
+            "tracer_calibrator:\n  ros__parameters:\n    calibration.alpha0: {}\n    calibration.offset: {}\n    calibration.delta_l: {}\n    calibration.valid: true\n    calibration.covariance: {}\n    stylus.tip_radius: {}\n",
+            v["alpha0"], v["offset"], v["delta_l"], v["covariance"], v["tip_radius"]
+        ),
+    )
+    .unwrap();
+    let frame_bag = temp("tip_frame.mcap");
+    let o = tool(&[
+        "simulate",
+        "--shape",
+        "rect",
+        "--corner-radius",
+        "0.008",
+        "--tip-radius",
+        "0.0005",
+        "--noise",
+        "2e-6",
+        "--out",
+        frame_bag.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let oma = temp("tip_frame.oma");
+    let o = tool(&[
+        "correct",
+        "--input",
+        frame_bag.to_str().unwrap(),
+        "--params",
+        params.to_str().unwrap(),
+        "--json",
+        "--oma",
+        oma.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let line = json(&o);
+    assert_eq!((line["target"].as_u64(), line["calibrated"].as_bool()), (Some(2), Some(true)), "{line}");
+    let (r, w, h) = (0.008, 0.05, 0.03);
+    let truth = [2.0 * (w + h) - 8.0 * r + std::f64::consts::TAU * r, w, h];
+    let u95: Vec<f64> = line["size_u95"].as_array().unwrap().iter().map(|u| u.as_f64().unwrap()).collect();
+    for (f, name) in ["circumference", "box_width", "box_height"].iter().enumerate() {
+        let got = line[name].as_f64().unwrap();
+        assert!(u95[f] > 0.0 && (got - truth[f]).abs() <= u95[f], "{name}: {got} for {} ± {}", truth[f], u95[f]);
+    }
+    let text = std::fs::read_to_string(&oma).unwrap();
+    for label in ["CIRC=", "HBOX=", "VBOX=", "FED="] {
+        assert!(text.contains(label), "{label} missing from {text}");
+    }
+    assert!(text.contains(&format!("HBOX={:.2};", line["box_width"].as_f64().unwrap() * 1e3)), "{text}");
     // The other models: the tip told, no tip fields in the JSON.
     let o = fit(&["--input", p, "--tip-radius", "0.0005"]);
     assert!(o.status.success(), "{}", stderr(&o));

@@ -32,9 +32,9 @@ pub struct Args {
     /// Topic of the RawScan messages.
     #[arg(long, default_value = "/raw_scan")]
     pub topic: String,
-    /// The bag to write (a directory, or a file ending in .mcap).
-    #[arg(long, value_name = "BAG")]
-    pub out: PathBuf,
+    /// The bag to write (a directory, or a file ending in .mcap); optional with --json.
+    #[arg(long, value_name = "BAG", required_unless_present = "json")]
+    pub out: Option<PathBuf>,
     /// Also write the corrected lens and frame traces as VCA/OMA trace records: one file,
     /// or FILE_<scan_id>.oma per scan when there are several.
     #[arg(long, value_name = "FILE")]
@@ -42,12 +42,37 @@ pub struct Args {
     /// The eye the OMA traces are labelled with.
     #[arg(long, default_value = "R", value_parser = ["R", "L", "B"])]
     pub eye: String,
+    /// Print one JSON object a line per corrected scan: scan_id, target, calibrated,
+    /// circumference, box_width, box_height, effective_diameter, size_u95 (metres).
+    #[arg(long)]
+    pub json: bool,
 }
+
+/// A corrected scan's line of `--json` (the Contour's fields, metres).
+#[derive(serde::Serialize)]
+struct SizeLine {
+    scan_id: u32,
+    target: u8,
+    calibrated: bool,
+    circumference: f64,
+    box_width: f64,
+    box_height: f64,
+    effective_diameter: f64,
+    size_u95: [f64; 4],
+}
+
+/// A lens or frame scan for the OMA export: scan id, target, radii and size figures.
+type Traced = (u32, u8, Vec<f64>, Option<[f64; 4]>);
 
 pub fn run(args: &Args) -> i32 {
     match correct_bag(args) {
         Ok(summary) => {
-            println!("{summary}");
+            // With --json, stdout holds the JSON lines only.
+            if args.json {
+                eprintln!("{summary}");
+            } else {
+                println!("{summary}");
+            }
             exit::OK
         }
         Err(e) => {
@@ -71,21 +96,43 @@ fn correct_bag(args: &Args) -> Result<String, String> {
         );
     }
     let mut state = NodeState::new(fqn, params);
-    let mut writer = BagWriter::create(&args.out).map_err(|e| e.to_string())?;
-    writer.add_topic::<Contour>("/contour").map_err(|e| e.to_string())?;
-    writer.add_topic::<PolygonStamped>("/contour_polygon").map_err(|e| e.to_string())?;
+    let mut writer = match &args.out {
+        Some(out) => {
+            let mut w = BagWriter::create(out).map_err(|e| e.to_string())?;
+            w.add_topic::<Contour>("/contour").map_err(|e| e.to_string())?;
+            w.add_topic::<PolygonStamped>("/contour_polygon").map_err(|e| e.to_string())?;
+            Some(w)
+        }
+        None => None,
+    };
     let mut traces = Vec::new();
     let (mut corrected, mut rejected) = (0, 0);
     for (t, msg) in &scans {
         match state.on_raw_scan(msg, true) {
             Ok(out) => {
                 corrected += 1;
+                let c = &out.contour;
                 if msg.target == RawScan::TARGET_LENS || msg.target == RawScan::TARGET_FRAME {
-                    traces.push((msg.scan_id, msg.target, out.contour.radii.clone()));
+                    traces.push((msg.scan_id, msg.target, c.radii.clone(), sizes_of(c)));
                 }
-                writer.write("/contour", *t, &out.contour).map_err(|e| e.to_string())?;
-                if let Some(polygon) = &out.polygon {
-                    writer.write("/contour_polygon", *t, polygon).map_err(|e| e.to_string())?;
+                if args.json {
+                    let line = SizeLine {
+                        scan_id: c.scan_id,
+                        target: c.target,
+                        calibrated: c.calibrated,
+                        circumference: c.circumference,
+                        box_width: c.box_width,
+                        box_height: c.box_height,
+                        effective_diameter: c.effective_diameter,
+                        size_u95: c.size_u95,
+                    };
+                    println!("{}", serde_json::to_string(&line).expect("a size line serialises"));
+                }
+                if let Some(writer) = writer.as_mut() {
+                    writer.write("/contour", *t, c).map_err(|e| e.to_string())?;
+                    if let Some(polygon) = &out.polygon {
+                        writer.write("/contour_polygon", *t, polygon).map_err(|e| e.to_string())?;
+                    }
                 }
             }
             Err(e) => {
@@ -94,11 +141,13 @@ fn correct_bag(args: &Args) -> Result<String, String> {
             }
         }
     }
-    let out_path = writer.finish().map_err(|e| e.to_string())?;
+    let wrote = match writer {
+        Some(w) => format!("; wrote {}", w.finish().map_err(|e| e.to_string())?.display()),
+        None => String::new(),
+    };
     let mut summary = format!(
-        "{corrected} scans corrected ({}), {rejected} rejected; wrote {}",
+        "{corrected} scans corrected ({}), {rejected} rejected{wrote}",
         if state.params.calibration_valid { "calibrated" } else { "uncalibrated" },
-        out_path.display()
     );
     if let Some(oma_path) = &args.oma {
         let written = write_oma(oma_path, &args.eye, &traces)?;
@@ -107,20 +156,44 @@ fn correct_bag(args: &Args) -> Result<String, String> {
     Ok(summary)
 }
 
+/// `[C, A, B, FED]` of a contour, if it has them.
+fn sizes_of(c: &Contour) -> Option<[f64; 4]> {
+    (c.circumference > 0.0).then_some([c.circumference, c.box_width, c.box_height, c.effective_diameter])
+}
+
+/// A scan's size records for the OMA file: `CIRC`, `HBOX`, `VBOX`, `FED` in millimetres
+/// (1/100 mm), chiral as the VCA standard lays them out (`right;left`: the eye's side
+/// filled, both for `B`).
+fn size_records(eye: Eye, sizes: [f64; 4]) -> Vec<(String, String)> {
+    ["CIRC", "HBOX", "VBOX", "FED"]
+        .iter()
+        .zip(sizes)
+        .map(|(label, v)| {
+            let mm = format!("{:.2}", v * 1e3);
+            let value = match eye {
+                Eye::Right => format!("{mm};"),
+                Eye::Left => format!(";{mm}"),
+                Eye::Both => format!("{mm};{mm}"),
+            };
+            (label.to_string(), value)
+        })
+        .collect()
+}
+
 /// One OMA file per traced lens or frame (radii present), named after `path`.
-fn write_oma(path: &Path, eye: &str, traces: &[(u32, u8, Vec<f64>)]) -> Result<Vec<String>, String> {
+fn write_oma(path: &Path, eye: &str, traces: &[Traced]) -> Result<Vec<String>, String> {
     let eye = Eye::from_code(eye).ok_or_else(|| format!("--eye: unknown eye '{eye}'"))?;
-    let usable: Vec<_> = traces.iter().filter(|(_, _, r)| !r.is_empty()).collect();
+    let usable: Vec<_> = traces.iter().filter(|(_, _, r, _)| !r.is_empty()).collect();
     if usable.is_empty() {
         return Err("--oma: no lens or frame scan in the bag goes all the way round: no trace to write".into());
     }
     let mut written = Vec::new();
-    for (scan_id, target, radii) in &usable {
+    for (scan_id, target, radii, sizes) in &usable {
         let trace_type = if *target == RawScan::TARGET_FRAME { TraceType::Frame } else { TraceType::Lens };
         let file = OmaFile {
             job: Some(scan_id.to_string()),
             traces: vec![Trace::equiangular(eye, trace_type, radii.clone())],
-            other: Vec::new(),
+            other: sizes.map(|s| size_records(eye, s)).unwrap_or_default(),
         };
         let target_path = if usable.len() == 1 {
             path.to_path_buf()

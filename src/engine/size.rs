@@ -7,12 +7,13 @@
 //! the least-squares Fourier fit):
 //!
 //! ```text
-//! r(θ) = a_0 + Σ_{k=1..K} (a_k cos kθ + b_k sin kθ),     K = min(40, M/4)
+//! r(θ) = a_0 + Σ_{k=1..K} (a_k cos kθ + b_k sin kθ),     K = 40 (60, 80, 100 if need be, ≤ M/4)
 //! ```
 //!
 //! The raw polygon's circumference is biased by the noise (a zig-zag is longer than the
-//! line: +111 µm at σ = 10 µm on a lens); the fit's is not (under 2 µm), and a lens or a
-//! frame is smooth enough for 40 harmonics.
+//! line: +111 µm at σ = 10 µm on a lens); the fit's is not (under 2 µm). A lens is smooth
+//! enough for 40 harmonics; a frame with sharp corners (3 mm) is not, and gets more, until
+//! the samples' scatter about the fit is their noise ([`sample_noise`]).
 //!
 //! **The figures** ([`Sizes`]), on a grid of [`GRID`] angles: the circumference
 //! `C = ∮ √(r² + r'²) dθ` (trapezoid, spectrally accurate on a periodic function); the box
@@ -130,6 +131,8 @@ fn argmax(v: &[f64]) -> usize {
 struct Extreme {
     value: f64,
     weights: Vec<(f64, f64)>,
+    /// Taken from the raw points (their noise independent of the smooth's).
+    raw: bool,
 }
 
 /// The largest `v_i` on the grid, robust to a smooth fit's noise ripple: where the
@@ -154,7 +157,7 @@ fn extreme(v: &[f64], s: &[f64], tau: f64) -> Extreme {
     let h = TAU / n as f64;
     let peak = || {
         let (angle, value) = refine(v, top);
-        Extreme { value, weights: vec![(angle, 1.0)] }
+        Extreme { value, weights: vec![(angle, 1.0)], raw: false }
     };
     if region.len() < 5 {
         return peak();
@@ -180,8 +183,82 @@ fn extreme(v: &[f64], s: &[f64], tau: f64) -> Extreme {
         }
     }
     let w = inv * nalgebra::Vector3::new(1.0, best, best * best);
-    Extreme { value: at(best), weights: region.iter().zip(&rows).map(|(&i, r)| (i as f64 * h, w.dot(r))).collect() }
+    Extreme {
+        value: at(best),
+        weights: region.iter().zip(&rows).map(|(&i, r)| (i as f64 * h, w.dot(r))).collect(),
+        raw: false,
+    }
 }
+
+/// A side of the box from the raw points themselves: those whose coordinate `v` is within
+/// `tau` of the smooth's extreme `near`, fitted with a parabola in the other coordinate
+/// `s` as [`extreme`] does. The smooth's ripple where a side is flat (a frame's: its
+/// truncated harmonics overshoot there by microns) does not reach it, and the samples'
+/// noise averages over the side. `None` with fewer than 6 points (a curved extreme: the
+/// smooth's own is good there).
+fn raw_extreme(
+    points: &[Vector2<f64>],
+    coords: impl Fn(&Vector2<f64>) -> (f64, f64),
+    near: f64,
+    tau: f64,
+    noise: f64,
+) -> Option<Extreme> {
+    let mut chosen: Vec<(f64, f64, f64)> = points
+        .iter()
+        .filter_map(|p| {
+            let (v, s) = coords(p);
+            (v >= near - tau).then_some((v, s, p.y.atan2(p.x)))
+        })
+        .collect();
+    // Fit; drop the points the fit puts more than 2σ below its top (where a flat side
+    // turns into its corners, which bend a parabola down); fit again.
+    for round in 0..3 {
+        if chosen.len() < 6 {
+            return None;
+        }
+        let s0 = chosen.iter().map(|c| c.1).sum::<f64>() / chosen.len() as f64;
+        let row = |s: f64| nalgebra::Vector3::new(1.0, s - s0, (s - s0).powi(2));
+        let xtx: nalgebra::Matrix3<f64> = chosen.iter().map(|c| row(c.1) * row(c.1).transpose()).sum();
+        let inv = xtx.try_inverse()?;
+        let c = inv * chosen.iter().map(|c| row(c.1) * c.0).sum::<nalgebra::Vector3<f64>>();
+        let (lo, hi) =
+            chosen.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c.1 - s0), b.max(c.1 - s0)));
+        let at = |x: f64| c[0] + c[1] * x + c[2] * x * x;
+        let mut best = if at(lo) >= at(hi) { lo } else { hi };
+        if c[2] < 0.0 {
+            let vertex = -c[1] / (2.0 * c[2]);
+            if (lo..=hi).contains(&vertex) {
+                best = vertex;
+            }
+        }
+        let value = at(best);
+        let kept: Vec<(f64, f64, f64)> =
+            chosen.iter().copied().filter(|c| at(c.1 - s0) >= value - 2.0 * noise).collect();
+        if kept.len() == chosen.len() || round == 2 {
+            // A side that the fit lets fall by less than a third of the band it was chosen
+            // from over its width is flat: its mean, not the top of a parabola through noise
+            // (biased up). A curved side falls by about the whole band (that is how its
+            // points were chosen).
+            let half = (hi - lo) / 2.0;
+            if c[1].abs() * half < tau / 3.0 && c[2].abs() * half * half < tau / 3.0 {
+                let n = chosen.len() as f64;
+                let value = chosen.iter().map(|c| c.0).sum::<f64>() / n;
+                return Some(Extreme { value, weights: chosen.iter().map(|c| (c.2, 1.0 / n)).collect(), raw: true });
+            }
+            let w = inv * nalgebra::Vector3::new(1.0, best, best * best);
+            return value.is_finite().then(|| Extreme {
+                value,
+                weights: chosen.iter().map(|c| (c.2, w.dot(&row(c.1)))).collect(),
+                raw: true,
+            });
+        }
+        chosen = kept;
+    }
+    None
+}
+
+/// A side's coordinate of a point and the one along the side.
+type Coordinates = dyn Fn(&Vector2<f64>) -> (f64, f64);
 
 /// The size figures of a smooth contour, and where its extremes are.
 #[derive(Debug, Clone, PartialEq)]
@@ -205,12 +282,13 @@ pub struct Sizes {
 impl Sizes {
     /// The figures of `smooth` (module docs), taken as noise-free.
     pub fn of(smooth: &Smooth) -> Sizes {
-        Self::of_noisy(smooth, 0.0)
+        Self::of_noisy(smooth, 0.0, &[], 0.0)
     }
 
     /// The figures of `smooth` whose radii have a noise ripple of standard deviation
-    /// `ripple` ([`extreme`]).
-    pub fn of_noisy(smooth: &Smooth, ripple: f64) -> Sizes {
+    /// `ripple` ([`extreme`]), fitted to the raw `points` whose noise is `noise`: the box's
+    /// flat sides are taken from those ([`raw_extreme`]).
+    pub fn of_noisy(smooth: &Smooth, ripple: f64, points: &[Vector2<f64>], noise: f64) -> Sizes {
         let h = TAU / GRID as f64;
         let grid: Vec<(f64, f64)> = (0..GRID).map(|i| smooth.at(i as f64 * h)).collect();
         let circumference = grid.iter().map(|(r, dr)| (r * r + dr * dr).sqrt()).sum::<f64>() * h;
@@ -221,8 +299,17 @@ impl Sizes {
         let y = coord(&|r, t| r * t.sin());
         let neg = |v: &[f64]| v.iter().map(|a| -a).collect::<Vec<_>>();
         let tau = 2.0 * ripple;
-        let sides =
+        let mut sides =
             [extreme(&x, &y, tau), extreme(&neg(&x), &y, tau), extreme(&y, &x, tau), extreme(&neg(&y), &x, tau)];
+        if !points.is_empty() {
+            let raw_tau = 3.0 * noise + tau;
+            let coords: [&Coordinates; 4] = [&|p| (p.x, p.y), &|p| (-p.x, p.y), &|p| (p.y, p.x), &|p| (-p.y, p.x)];
+            for (side, coord) in sides.iter_mut().zip(coords) {
+                if let Some(raw) = raw_extreme(points, coord, side.value, raw_tau, noise) {
+                    *side = raw;
+                }
+            }
+        }
         let [xmax, nxmin, ymax, nymin] = [0, 1, 2, 3].map(|i| sides[i].value);
         let center = Vector2::new((xmax - nxmin) / 2.0, (ymax - nymin) / 2.0);
         let dist: Vec<f64> = (0..GRID)
@@ -302,13 +389,17 @@ impl Sizes {
         out
     }
 
-    /// `[δC, δA, δB, δFED]` given `δC` and the radial change.
-    fn extremes_response(&self, dc: f64, dr: impl Fn(f64) -> f64) -> [f64; 4] {
+    /// How each side of the box (max x, max -x, max y, max -y) moves with the radial change.
+    fn side_responses(&self, dr: &impl Fn(f64) -> f64) -> [f64; 4] {
         let side = |k: usize, f: &dyn Fn(f64) -> f64| -> f64 {
             self.sides[k].weights.iter().map(|&(t, w)| w * dr(t) * f(t)).sum()
         };
-        let (dxmax, dnxmin) = (side(0, &|t| t.cos()), side(1, &|t| -t.cos()));
-        let (dymax, dnymin) = (side(2, &|t| t.sin()), side(3, &|t| -t.sin()));
+        [side(0, &|t| t.cos()), side(1, &|t| -t.cos()), side(2, &|t| t.sin()), side(3, &|t| -t.sin())]
+    }
+
+    /// `[δC, δA, δB, δFED]` given `δC` and the radial change.
+    fn extremes_response(&self, dc: f64, dr: impl Fn(f64) -> f64) -> [f64; 4] {
+        let [dxmax, dnxmin, dymax, dnymin] = self.side_responses(&dr);
         let dcenter = Vector2::new(dxmax - dnxmin, dymax - dnymin) / 2.0;
         let t_fed = self.fed_angle;
         let e_r = Vector2::new(t_fed.cos(), t_fed.sin());
@@ -356,6 +447,20 @@ impl Correction {
     }
 }
 
+/// The samples' own noise, seen in the second differences of their distances from the
+/// axis in sample order: `1.4826 · median|r_{i-1} - 2 r_i + r_{i+1}| / √6` (robust: a
+/// corner's curvature shows in a few of them only).
+pub fn sample_noise(points: &[Vector2<f64>]) -> f64 {
+    let r: Vec<f64> = points.iter().map(|p| p.norm()).collect();
+    let mut d: Vec<f64> = r.windows(3).map(|w| (w[0] - 2.0 * w[1] + w[2]).abs()).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    let (_, med, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * *med / 6f64.sqrt()
+}
+
 /// The size figures of one contour with their uncertainties.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SizeReport {
@@ -379,18 +484,31 @@ pub fn uncertainty(
     correction: &Correction,
     covariance: Option<&Covariance>,
 ) -> Option<SizeReport> {
-    let smooth = Smooth::fit(radii, HARMONICS)?;
     let m = radii.len();
+    // The fewest harmonics that leave only noise: the raw points' radial scatter about
+    // the fit, each at its own angle (the resampled radii are interpolated, smoother than
+    // the samples), against the noise their second differences show ([`sample_noise`]).
+    // Sharp corners (a frame's 3 mm) need more than [`HARMONICS`]; more cost noise.
+    let floor = sample_noise(points);
+    let scatter = |smooth: &Smooth| {
+        let k = smooth.harmonics();
+        let ss: f64 = points.iter().map(|p| (p.norm() - smooth.at(p.y.atan2(p.x)).0).powi(2)).sum();
+        (ss / points.len().saturating_sub(2 * k + 1).max(1) as f64).sqrt()
+    };
+    let mut smooth = Smooth::fit(radii, HARMONICS)?;
+    let mut noise = scatter(&smooth);
+    for more in [60, 80, 100] {
+        if noise <= 1.2 * floor || more > m / 4 {
+            break;
+        }
+        smooth = Smooth::fit(radii, more)?;
+        noise = scatter(&smooth);
+    }
     let k = smooth.harmonics();
-    // σ_r from the raw points' radial scatter about the fit, each at its own angle (the
-    // resampled radii are interpolated, smoother than the samples); the smooth holds the
-    // information of min(N, M) equal-angle values.
-    let ss: f64 = points.iter().map(|p| (p.norm() - smooth.at(p.y.atan2(p.x)).0).powi(2)).sum();
-    let dof = points.len().saturating_sub(2 * k + 1).max(1);
-    let noise = (ss / dof as f64).sqrt();
+    // The smooth holds the information of min(N, M) equal-angle values.
     let n = points.len().min(m).max(1);
     // The smooth's own ripple: 2K + 1 coefficients of n values.
-    let sizes = Sizes::of_noisy(&smooth, noise * ((2 * k + 1) as f64 / n as f64).sqrt());
+    let sizes = Sizes::of_noisy(&smooth, noise * ((2 * k + 1) as f64 / n as f64).sqrt(), points, noise);
     let responses = sizes.harmonic_responses(k);
     let mut var_noise = [0.0; 4];
     for (i, g) in responses.iter().enumerate() {
@@ -400,6 +518,30 @@ pub fn uncertainty(
         }
     }
     var_noise = var_noise.map(|v| v * noise * noise / n as f64);
+    // A side taken from the raw points has their noise alone (Σ w² σ²), independent of the
+    // other side's; a side from the smooth its harmonics'.
+    let side_var = |k_side: usize| -> f64 {
+        let side = &sizes.sides[k_side];
+        if side.raw {
+            side.weights.iter().map(|(_, w)| w * w).sum::<f64>() * noise * noise
+        } else {
+            let mut v = 0.0;
+            for kk in 0..=k {
+                let kf = kk as f64;
+                let weight = if kk == 0 { 1.0 } else { 2.0 };
+                v += weight * sizes.side_responses(&|t: f64| (kf * t).cos())[k_side].powi(2);
+                if kk > 0 {
+                    v += weight * sizes.side_responses(&|t: f64| (kf * t).sin())[k_side].powi(2);
+                }
+            }
+            v * noise * noise / n as f64
+        }
+    };
+    for (figure, pair) in [(1, [0, 1]), (2, [2, 3])] {
+        if pair.iter().any(|&i| sizes.sides[i].raw) {
+            var_noise[figure] = side_var(pair[0]) + side_var(pair[1]);
+        }
+    }
     let mut var_cal = [0.0; 4];
     let mut radii_var_cal = vec![0.0; m];
     if let Some(cov) = covariance {
