@@ -23,6 +23,7 @@ use tracer_calib::engine::model::{ModelKind, PlateSpec};
 use tracer_calib::engine::scan::Scan;
 use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib::engine::size;
 use tracer_calib::interfaces::{Header, RawScan, from_cdr, to_cdr};
 
 /// The full model behind the `levenberg-marquardt` crate's trait: residuals and the
@@ -92,7 +93,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| LevenbergMarquardt::new().minimize(CrateAdapter { model: black_box(&model).clone(), x: start }))
     });
     c.bench_function("fit/normal_equations_pass_400", |b| b.iter(|| lm::normal_equations(black_box(&model), &start)));
-    for kind in ModelKind::ALL {
+    for kind in ModelKind::ALL.into_iter().filter(|k| !k.fits_tip()) {
         let opts = Options { model: kind, ..Options::default() };
         c.bench_function(&format!("calibrate/{kind}_400 (start + fit + outlier test + checks)"), |b| {
             b.iter(|| calibrate(black_box(&scan), &plate, &opts).unwrap())
@@ -102,7 +103,10 @@ fn bench(c: &mut Criterion) {
     let m = Mounting::new(2f64.to_radians(), 0.005, 0.002);
     let lens = Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 };
     let mut rng = StdRng::seed_from_u64(2);
-    let lens_scan = simulate(&lens, &m, &SimOptions::default(), &mut rng).unwrap().scan;
+    // A real trace: 5 µm of noise, 1 µm counts.
+    let lens_scan = simulate(&lens, &m, &SimOptions { noise: 5e-6, quantum: 1e-6, ..SimOptions::default() }, &mut rng)
+        .unwrap()
+        .scan;
     let corrector = Corrector::new(m, 400);
     c.bench_function("correct/400 (cached corrector)", |b| b.iter(|| corrector.correct(black_box(&lens_scan))));
     c.bench_function("correct/400 (fresh, builds the table)", |b| b.iter(|| correct(black_box(&lens_scan), &m)));
@@ -119,13 +123,27 @@ fn bench(c: &mut Criterion) {
         step: lens_scan.samples().iter().map(|s| s.step).collect(),
         counts: lens_scan.samples().iter().map(|s| (s.rho * 1e6).round() as i32).collect(),
     };
-    let params = tracer_calib::params::Parameters { calibration: m, calibration_valid: true, ..Default::default() };
+    // A calibration in force with its covariance, as after /calibrate: the size figures'
+    // uncertainty has its calibration part.
+    let mut covariance = vec![0.0; 25];
+    for (i, v) in [4e-8, 4e-11, 2e-12].into_iter().enumerate() {
+        covariance[i * 6] = v;
+    }
+    let params =
+        tracer_calib::params::Parameters { calibration: m, calibration_valid: true, covariance, ..Default::default() };
     let mut state = NodeState::new("/tracer_calibrator".into(), params);
     c.bench_function("node/on_raw_scan_400 (validate, correct, resample, build messages)", |b| {
         b.iter(|| state.on_raw_scan(black_box(&raw), true).unwrap())
     });
     c.bench_function("node/on_raw_scan_400 (no polygon subscriber: the latency bench's case)", |b| {
         b.iter(|| state.on_raw_scan(black_box(&raw), false).unwrap())
+    });
+    let contour_pts: Vec<Vector2<f64>> = pts.clone();
+    let radii = resample_radii(&contour_pts, 400, default_max_gap(400)).unwrap();
+    let correction = size::Correction { mounting: m, tip_radius: 0.0, traced: tracer_calib::engine::Traced::Outside };
+    let cov = tracer_calib::engine::calibrate::covariance_from_values(&state.params.covariance).unwrap();
+    c.bench_function("size/uncertainty_400 (smooth fit, C, A, B, FED, U95, radii U95)", |b| {
+        b.iter(|| size::uncertainty(black_box(&contour_pts), &radii, &correction, Some(&cov)).unwrap())
     });
     let out = state.on_raw_scan(&raw, true).unwrap();
     c.bench_function("node/encode Contour + PolygonStamped (CDR)", |b| {

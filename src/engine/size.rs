@@ -53,7 +53,7 @@ use super::stylus::Traced;
 /// Harmonics of the smooth fit at most.
 pub const HARMONICS: usize = 40;
 /// Angles the figures are evaluated at.
-pub const GRID: usize = 1024;
+pub const GRID: usize = 512;
 
 /// A contour's smooth fit, `r(θ)` as a Fourier series (module docs).
 #[derive(Debug, Clone, PartialEq)]
@@ -378,15 +378,45 @@ impl Sizes {
                 (c, s) = (c * c1 - s * s1, s * c1 + c * s1);
             }
         }
+        // Each side's response to cos kθ and sin kθ, all k at once (rotation per point).
+        let sides = self.side_harmonics(k_max);
+        let t_fed = self.fed_angle;
+        let e = (Vector2::new(t_fed.cos(), t_fed.sin()) * self.grid_r(t_fed) - self.center).normalize();
+        let e_r = Vector2::new(t_fed.cos(), t_fed.sin());
+        let assemble = |dc: f64, side: [f64; 4], at_fed: f64| -> [f64; 4] {
+            let [dxmax, dnxmin, dymax, dnymin] = side;
+            let dcenter = Vector2::new(dxmax - dnxmin, dymax - dnymin) / 2.0;
+            [dc, dxmax + dnxmin, dymax + dnymin, 2.0 * (e_r * at_fed - dcenter).dot(&e)]
+        };
         let mut out = Vec::with_capacity(2 * k_max + 1);
         for k in 0..=k_max {
             let kf = k as f64;
-            out.push(self.extremes_response(cc[k] * h, |t| (kf * t).cos()));
+            out.push(assemble(cc[k] * h, [0, 1, 2, 3].map(|j| sides[j][k].0), (kf * t_fed).cos()));
             if k > 0 {
-                out.push(self.extremes_response(cs[k] * h, |t| (kf * t).sin()));
+                out.push(assemble(cs[k] * h, [0, 1, 2, 3].map(|j| sides[j][k].1), (kf * t_fed).sin()));
             }
         }
         out
+    }
+
+    /// For each side of the box and `k = 0..=k_max`, its response to `cos kθ` and `sin kθ`
+    /// ([`Self::side_responses`] of each harmonic, by rotation instead of trigonometry).
+    fn side_harmonics(&self, k_max: usize) -> [Vec<(f64, f64)>; 4] {
+        let direction: [fn(f64, f64) -> f64; 4] = [|c, _| c, |c, _| -c, |_, s| s, |_, s| -s];
+        [0, 1, 2, 3].map(|j| {
+            let mut out = vec![(0.0, 0.0); k_max + 1];
+            for &(t, w) in &self.sides[j].weights {
+                let (s1, c1) = t.sin_cos();
+                let f = w * direction[j](c1, s1);
+                let (mut c, mut s) = (1.0, 0.0);
+                for o in out.iter_mut() {
+                    o.0 += f * c;
+                    o.1 += f * s;
+                    (c, s) = (c * c1 - s * s1, s * c1 + c * s1);
+                }
+            }
+            out
+        })
     }
 
     /// How each side of the box (max x, max -x, max y, max -y) moves with the radial change.
@@ -427,6 +457,11 @@ impl Correction {
     /// surface point at `θ` of `smooth` (module docs).
     pub fn radial_sensitivities(&self, smooth: &Smooth, theta: f64) -> [f64; 5] {
         let (r, rp) = smooth.at(theta);
+        self.radial_sensitivities_at(r, rp, theta)
+    }
+
+    /// [`Self::radial_sensitivities`] where `r(θ)` and `r'(θ)` are known.
+    pub fn radial_sensitivities_at(&self, r: f64, rp: f64, theta: f64) -> [f64; 5] {
         let e_r = Vector2::new(theta.cos(), theta.sin());
         let e_t = Vector2::new(-theta.sin(), theta.cos());
         let normal = (e_r * r - e_t * rp).normalize();
@@ -520,20 +555,17 @@ pub fn uncertainty(
     var_noise = var_noise.map(|v| v * noise * noise / n as f64);
     // A side taken from the raw points has their noise alone (Σ w² σ²), independent of the
     // other side's; a side from the smooth its harmonics'.
+    let harmonics = sizes.side_harmonics(k);
     let side_var = |k_side: usize| -> f64 {
         let side = &sizes.sides[k_side];
         if side.raw {
             side.weights.iter().map(|(_, w)| w * w).sum::<f64>() * noise * noise
         } else {
-            let mut v = 0.0;
-            for kk in 0..=k {
-                let kf = kk as f64;
-                let weight = if kk == 0 { 1.0 } else { 2.0 };
-                v += weight * sizes.side_responses(&|t: f64| (kf * t).cos())[k_side].powi(2);
-                if kk > 0 {
-                    v += weight * sizes.side_responses(&|t: f64| (kf * t).sin())[k_side].powi(2);
-                }
-            }
+            let v: f64 = harmonics[k_side]
+                .iter()
+                .enumerate()
+                .map(|(kk, (c, s))| if kk == 0 { c * c } else { 2.0 * (c * c + s * s) })
+                .sum();
             v * noise * noise / n as f64
         }
     };
@@ -557,7 +589,12 @@ pub fn uncertainty(
         };
         // Each parameter's radial change on the grid, in one pass; the figures' response.
         let h = TAU / GRID as f64;
-        let table: Vec<[f64; 5]> = (0..GRID).map(|i| correction.radial_sensitivities(&smooth, i as f64 * h)).collect();
+        let table: Vec<[f64; 5]> = (0..GRID)
+            .map(|i| {
+                let (r, rp) = sizes.grid[i];
+                correction.radial_sensitivities_at(r, rp, i as f64 * h)
+            })
+            .collect();
         let mut g = [[0.0; 4]; 5];
         for (j, p) in params.iter().enumerate() {
             if cov[(*p, *p)] > 0.0 {
@@ -567,8 +604,12 @@ pub fn uncertainty(
         for (f, v) in var_cal.iter_mut().enumerate() {
             *v = quadratic(&[g[0][f], g[1][f], g[2][f], g[3][f], g[4][f]]);
         }
+        // Each radius' own, read off the grid between its neighbours.
         for (i, v) in radii_var_cal.iter_mut().enumerate() {
-            *v = quadratic(&correction.radial_sensitivities(&smooth, TAU * i as f64 / m as f64));
+            let x = i as f64 * GRID as f64 / m as f64;
+            let (j, f) = (x.floor() as usize % GRID, x - x.floor());
+            let (a, b) = (&table[j], &table[(j + 1) % GRID]);
+            *v = quadratic(&[0, 1, 2, 3, 4].map(|p| a[p] * (1.0 - f) + b[p] * f));
         }
     }
     let u95 = [0, 1, 2, 3].map(|f| 2.0 * (var_cal[f] + var_noise[f]).max(0.0).sqrt());
