@@ -24,6 +24,13 @@
 //!    at the truth), the mean reported uncertainty of ρ, and the error of the
 //!    circumference of a 50×30 mm frame (8 mm corners) traced from inside with the same
 //!    tip (noise-free) and corrected to the surface the tip touched.
+//! 5. The size figures of a lens (outside, `full`) and a 50×30 mm frame with 8 mm corners
+//!    (inside, a 0.5 mm tip, `full_tip`), each trial calibrated from its own scans: how
+//!    often the reported U95 of circumference, A, B and FED covers the exact figure, the
+//!    mean U95 and the mean error, at σ = 1, 5 and 10 µm.
+
+#[path = "../tests/common/size_coverage.rs"]
+mod size_coverage;
 
 use nalgebra::Vector2;
 use rand::SeedableRng;
@@ -216,6 +223,62 @@ fn main() {
     println!("4. A tracer with a ball tip of radius ρ, from the plate and a Ø 40 mm ring gauge");
     println!("   (errors RMS in µm, {} trials a row; circ.: a 50x30 mm frame traced from inside)", trials.max(4) / 4);
     tip_part(&bench, trials);
+    println!();
+
+    println!("5. Size figures: share of trials whose U95 covers the exact [C, A, B, FED], {trials} a row");
+    size_part(trials);
+}
+
+/// Part 5 (module docs).
+fn size_part(trials: usize) {
+    use tracer_calib::engine::shape::RoundedRect;
+    let lens = Ellipse { center: Vector2::new(0.0005, -0.0003), a: 0.026, b: 0.016, angle: 0.3 };
+    let frame = RoundedRect { center: Vector2::new(0.001, -0.0005), half_w: 0.025, half_h: 0.015, radius: 0.008 };
+    println!(
+        "{:>9}  {:<28} {:>28} {:>26} {:>26}",
+        "noise", "contour", "covered [C, A, B, FED] %", "mean U95 µm", "mean error µm"
+    );
+    for (i, sigma) in [1e-6, 5e-6, 10e-6].into_iter().enumerate() {
+        let rows = [
+            (
+                "lens 52x34, full",
+                size_coverage::run(
+                    &lens,
+                    size_coverage::ellipse_truth(&lens),
+                    Traced::Outside,
+                    ModelKind::Full,
+                    0.0,
+                    sigma,
+                    trials,
+                    70 + i as u64,
+                ),
+            ),
+            (
+                "frame 50x30, full_tip 0.5 mm",
+                size_coverage::run(
+                    &frame,
+                    size_coverage::rect_truth(&frame),
+                    Traced::Inside,
+                    ModelKind::FullTip,
+                    0.0005,
+                    sigma,
+                    trials,
+                    80 + i as u64,
+                ),
+            ),
+        ];
+        for (name, c) in rows {
+            let f = |v: [f64; 4], scale: f64| v.map(|x| format!("{:.1}", x * scale)).join(" ");
+            println!(
+                "{:>6.3} mm  {:<28} {:>28} {:>26} {:>26}",
+                sigma * 1e3,
+                name,
+                f(c.covered.map(|k| k as f64 / c.n as f64), 100.0),
+                f(c.u95, 1e6),
+                f(c.bias, 1e6)
+            );
+        }
+    }
 }
 
 /// Part 4: the stylus tip (module docs).

@@ -29,6 +29,7 @@ from tracer_calib_msgs.srv import Calibrate
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from harness import (  # noqa: E402
+    ELLIPSE,
     NODE_BIN,
     TOOL_BIN,
     TRUTH,
@@ -612,6 +613,16 @@ def test_stylus_tip(peer):
         c = peer.send_scan(pub, raw_scan(53, RawScan.TARGET_LENS, *lens), contours)
         worst = max(ellipse_distance(p.x, p.y) for p in c.points)
         assert c.calibrated and worst < 15e-6, f"corrected points up to {worst * 1e6:.1f} µm off the lens"
+        # Its size figures, as rclpy reads them: the ellipse's own, within their U95.
+        a, b = ELLIPSE["a"], ELLIPSE["b"]
+        q = ((a - b) / (a + b)) ** 2
+        circumference = math.pi * (a + b) * (1 + 3 * q / (10 + math.sqrt(4 - 3 * q)))
+        truth = [circumference, 2 * a, 2 * b, 2 * a]
+        got = [c.circumference, c.box_width, c.box_height, c.effective_diameter]
+        u95 = list(c.size_u95)
+        assert len(u95) == 4 and all(0 < u < 20e-6 for u in u95), u95
+        assert all(abs(g - t) <= u for g, t, u in zip(got, truth, u95)), (got, truth, u95)
+        assert len(c.radii_u95) == len(c.radii) == 400, len(c.radii_u95)
     finally:
         took = node.stop()
     assert took < 1.0, f"the node took {took:.2f} s to shut down"

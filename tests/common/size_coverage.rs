@@ -1,0 +1,91 @@
+//! The size figures' Monte Carlo (issue 30), shared by `tests/sizes.rs` (400 trials a row)
+//! and the accuracy example's part 5 (2000): a tracer calibrated from its own noisy plate
+//! (and ring gauge) scans each trial traces a lens or a frame; how often the reported U95
+//! covers the exact figures, and their mean error.
+
+use nalgebra::Vector2;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use tracer_calib::engine::calibrate::{Options, Ring, calibrate_with_ring};
+use tracer_calib::engine::correct::{correct, resample_radii};
+use tracer_calib::engine::geometry::Mounting;
+use tracer_calib::engine::model::tip::RingSpec;
+use tracer_calib::engine::model::{ModelKind, PlateSpec};
+use tracer_calib::engine::shape::{Ellipse, RoundedRect, Shape};
+use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib::engine::size::{Correction, uncertainty};
+use tracer_calib::engine::stylus::{Traced, touched_surface};
+
+const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
+const RING: RingSpec = RingSpec { diameter: 0.040 };
+
+pub struct Coverage {
+    pub covered: [usize; 4],
+    pub bias: [f64; 4],
+    pub u95: [f64; 4],
+    pub n: usize,
+}
+
+/// `[C, A, B, FED]` of an ellipse, exactly (Ramanujan's circumference: 1e-10 relative here).
+pub fn ellipse_truth(e: &Ellipse) -> [f64; 4] {
+    let (a, b, phi) = (e.a, e.b, e.angle);
+    let h = ((a - b) / (a + b)).powi(2);
+    let c = std::f64::consts::PI * (a + b) * (1.0 + 3.0 * h / (10.0 + (4.0 - 3.0 * h).sqrt()));
+    let width = 2.0 * (a * a * phi.cos().powi(2) + b * b * phi.sin().powi(2)).sqrt();
+    let height = 2.0 * (a * a * phi.sin().powi(2) + b * b * phi.cos().powi(2)).sqrt();
+    [c, width, height, 2.0 * a]
+}
+
+/// `[C, A, B, FED]` of a rounded rectangle, exactly.
+pub fn rect_truth(r: &RoundedRect) -> [f64; 4] {
+    let (w, h, k) = (2.0 * r.half_w, 2.0 * r.half_h, r.radius);
+    let fed = 2.0 * ((r.half_w - k).hypot(r.half_h - k) + k);
+    [2.0 * (w + h) - 8.0 * k + std::f64::consts::TAU * k, w, h, fed]
+}
+
+/// `trials` calibrations and traces of `shape` (true figures `truth`) at noise `sigma`
+/// with a tip `tip`.
+#[allow(clippy::too_many_arguments)]
+pub fn run(
+    shape: &impl Shape,
+    truth: [f64; 4],
+    traced: Traced,
+    model: ModelKind,
+    tip: f64,
+    sigma: f64,
+    trials: usize,
+    seed: u64,
+) -> Coverage {
+    let m = Mounting::new(2f64.to_radians(), 0.005, 0.002);
+    let mut rng = StdRng::seed_from_u64(seed);
+    let inside = traced == Traced::Inside;
+    let opt = |noise: f64, inside: bool| SimOptions { noise, tip_radius: tip, inside, ..SimOptions::default() };
+    // The truth: the surface touched, noise-free, through the same smooth fit.
+    let gauge = Ellipse { center: Vector2::new(-0.0006, 0.0004), a: 0.02, b: 0.02, angle: 0.0 };
+    let mut c = Coverage { covered: [0; 4], bias: [0.0; 4], u95: [0.0; 4], n: 0 };
+    for _ in 0..trials {
+        let plate = simulate(&PLATE.at(Vector2::new(0.0008, -0.0005)), &m, &opt(sigma, false), &mut rng).unwrap();
+        let ring = simulate(&gauge, &m, &opt(sigma, true), &mut rng).unwrap();
+        let o = Options { model, tip_radius: if model.fits_tip() { 0.0 } else { tip }, ..Options::default() };
+        let cal = calibrate_with_ring(&plate.scan, Some(Ring { scan: &ring.scan, spec: RING }), &PLATE, &o).unwrap();
+        let scan = simulate(shape, &m, &opt(sigma, inside), &mut rng).unwrap().scan;
+        let mut points = correct(&scan, &cal.mounting);
+        touched_surface(&mut points, cal.tip_radius, traced, true);
+        let radii = resample_radii(&points, 400, 0.2).unwrap();
+        let correction = Correction { mounting: cal.mounting, tip_radius: cal.tip_radius, traced };
+        let report = uncertainty(&points, &radii, &correction, Some(&cal.covariance)).unwrap();
+        let got = report.sizes.figures();
+        for f in 0..4 {
+            let e = got[f] - truth[f];
+            c.bias[f] += e;
+            c.u95[f] += report.u95[f];
+            if e.abs() <= report.u95[f] {
+                c.covered[f] += 1;
+            }
+        }
+        c.n += 1;
+    }
+    c.bias = c.bias.map(|b| b / c.n as f64);
+    c.u95 = c.u95.map(|u| u / c.n as f64);
+    c
+}
