@@ -133,6 +133,8 @@ struct Extreme {
     weights: Vec<(f64, f64)>,
     /// Taken from the raw points (their noise independent of the smooth's).
     raw: bool,
+    /// `c_2` of `v ≈ c_0 + c_1 s + c_2 s²` there (negative where the side is curved).
+    curvature: f64,
 }
 
 /// The largest `v_i` on the grid, robust to a smooth fit's noise ripple: where the
@@ -157,7 +159,10 @@ fn extreme(v: &[f64], s: &[f64], tau: f64) -> Extreme {
     let h = TAU / n as f64;
     let peak = || {
         let (angle, value) = refine(v, top);
-        Extreme { value, weights: vec![(angle, 1.0)], raw: false }
+        let (a, b) = ((top + n - 1) % n, (top + 1) % n);
+        let ds = (s[b] - s[a]) / 2.0;
+        let curvature = if ds.abs() > 0.0 { (v[a] - 2.0 * v[top] + v[b]) / (2.0 * ds * ds) } else { 0.0 };
+        Extreme { value, weights: vec![(angle, 1.0)], raw: false, curvature }
     };
     if region.len() < 5 {
         return peak();
@@ -187,6 +192,7 @@ fn extreme(v: &[f64], s: &[f64], tau: f64) -> Extreme {
         value: at(best),
         weights: region.iter().zip(&rows).map(|(&i, r)| (i as f64 * h, w.dot(r))).collect(),
         raw: false,
+        curvature: c[2],
     }
 }
 
@@ -202,6 +208,7 @@ fn raw_extreme(
     near: f64,
     tau: f64,
     noise: f64,
+    curvature: f64,
 ) -> Option<Extreme> {
     let mut chosen: Vec<(f64, f64, f64)> = points
         .iter()
@@ -235,21 +242,23 @@ fn raw_extreme(
         let kept: Vec<(f64, f64, f64)> =
             chosen.iter().copied().filter(|c| at(c.1 - s0) >= value - 2.0 * noise).collect();
         if kept.len() == chosen.len() || round == 2 {
-            // A side that the fit lets fall by less than a third of the band it was chosen
-            // from over its width is flat: its mean, not the top of a parabola through noise
-            // (biased up). A curved side falls by about the whole band (that is how its
-            // points were chosen).
+            // A side that the smooth (whose curvature is not the noise's) lets fall by less
+            // than a third of the band over the points' width is flat: their mean, not the
+            // top of a parabola through noise (biased up). A curved side falls by about the
+            // whole band (that is how its points were chosen).
             let half = (hi - lo) / 2.0;
-            if c[1].abs() * half < tau / 3.0 && c[2].abs() * half * half < tau / 3.0 {
+            if c[1].abs() * half < tau / 3.0 && curvature.abs() * half * half < tau / 3.0 {
                 let n = chosen.len() as f64;
                 let value = chosen.iter().map(|c| c.0).sum::<f64>() / n;
-                return Some(Extreme { value, weights: chosen.iter().map(|c| (c.2, 1.0 / n)).collect(), raw: true });
+                let weights = chosen.iter().map(|c| (c.2, 1.0 / n)).collect();
+                return Some(Extreme { value, weights, raw: true, curvature });
             }
             let w = inv * nalgebra::Vector3::new(1.0, best, best * best);
             return value.is_finite().then(|| Extreme {
                 value,
                 weights: chosen.iter().map(|c| (c.2, w.dot(&row(c.1)))).collect(),
                 raw: true,
+                curvature: c[2],
             });
         }
         chosen = kept;
@@ -305,7 +314,7 @@ impl Sizes {
             let raw_tau = 3.0 * noise + tau;
             let coords: [&Coordinates; 4] = [&|p| (p.x, p.y), &|p| (-p.x, p.y), &|p| (p.y, p.x), &|p| (-p.y, p.x)];
             for (side, coord) in sides.iter_mut().zip(coords) {
-                if let Some(raw) = raw_extreme(points, coord, side.value, raw_tau, noise) {
+                if let Some(raw) = raw_extreme(points, coord, side.value, raw_tau, noise, side.curvature) {
                     *side = raw;
                 }
             }
