@@ -518,12 +518,26 @@ fn check_rosbags_view(seen: &Value, sample: &Sample) {
             ["TARGET_UNKNOWN", "uint8", 0],
             ["TARGET_CALIBRATION_PLATE", "uint8", 1],
             ["TARGET_FRAME", "uint8", 2],
-            ["TARGET_LENS", "uint8", 3]
+            ["TARGET_LENS", "uint8", 3],
+            ["TARGET_RING_GAUGE", "uint8", 4]
         ])
     );
     assert_eq!(
         seen["types"]["tracer_calib_msgs/msg/Contour"]["fields"],
-        serde_json::json!(["header", "scan_id", "target", "calibrated", "points", "radii"])
+        serde_json::json!([
+            "header",
+            "scan_id",
+            "target",
+            "calibrated",
+            "points",
+            "radii",
+            "circumference",
+            "box_width",
+            "box_height",
+            "effective_diameter",
+            "size_u95",
+            "radii_u95"
+        ])
     );
     for ty in
         ["std_msgs/msg/Header", "builtin_interfaces/msg/Time", "geometry_msgs/msg/Point", "geometry_msgs/msg/Polygon"]
