@@ -2,7 +2,7 @@
 //! boxed width `A` and height `B`, effective diameter (FED), each with its expanded
 //! uncertainty, from a smooth fit of the corrected contour (never the raw polygon).
 //!
-//! **The smooth fit.** The contour's equal-angle radii `r_m` (`M` of them, [`super::correct`])
+//! **The smooth fit.** The contour's equal-angle radii `r_m` (`M` of them, [`super::correct`](mod@super::correct))
 //! are cut to their first `K` harmonics (a truncated DFT, which for equal-angle samples is
 //! the least-squares Fourier fit):
 //!
@@ -34,7 +34,7 @@
 //!   `∂P/∂alpha0 = t v - d u`, `∂P/∂d = v`, `∂P/∂dL = -u`, `∂P/∂k = rho u`, and the tip
 //!   `∂P/∂ρ = -s N`, [`super::stylus`]); radially, `δr = δP·N/(N·e_r)`. With the response
 //!   `g_j` of a figure to each, its variance is `gᵀ Σ g` over the whole 5×5 covariance
-//!   (tracer and certificates, [`super::calibrate`]);
+//!   (tracer and certificates, [`super::calibrate`](mod@super::calibrate));
 //! - *this scan's noise*: `σ_r²` from the raw radii's scatter about the fit (`N - 2K - 1`
 //!   degrees of freedom); a Fourier coefficient of `N` equal-angle samples has variance
 //!   `σ_r²/N` (`a_0`) or `2σ_r²/N`, so a figure's is `σ_r²/N (g_0² + 2 Σ_k g_k²)` over the
@@ -295,8 +295,8 @@ impl Sizes {
     }
 
     /// The figures of `smooth` whose radii have a noise ripple of standard deviation
-    /// `ripple` ([`extreme`]), fitted to the raw `points` whose noise is `noise`: the box's
-    /// flat sides are taken from those ([`raw_extreme`]).
+    /// `ripple` (`extreme`), fitted to the raw `points` whose noise is `noise`: the box's
+    /// flat sides are taken from those (`raw_extreme`).
     pub fn of_noisy(smooth: &Smooth, ripple: f64, points: &[Vector2<f64>], noise: f64) -> Sizes {
         let h = TAU / GRID as f64;
         let grid: Vec<(f64, f64)> = (0..GRID).map(|i| smooth.at(i as f64 * h)).collect();

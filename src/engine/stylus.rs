@@ -1,7 +1,7 @@
 //! The stylus tip: from the path of its centre to the surface it touched.
 //!
 //! The encoder reads where the centre of the probe's ball tip (radius `ρ`) is, so a
-//! corrected scan ([`super::correct`]) is the path of that centre: the traced contour
+//! corrected scan ([`super::correct`](mod@super::correct)) is the path of that centre: the traced contour
 //! offset by `ρ` along its normal, outward when the tip traces from outside (a plate, a
 //! lens), inward when it traces from inside (a frame's groove, a ring gauge). The
 //! surface is the path moved back, `X = C - s ρ N`, `s = +1` from outside and `-1`

@@ -162,7 +162,7 @@ impl FullModel {
 
     /// `∂q/∂S` of every sample at `x` with the plate grown by `g`: how the lengths move
     /// with the plate's side `S` (its certificate's uncertainty enters the covariance
-    /// through it, [`crate::engine::calibrate`]); `None` where the model cannot be
+    /// through it, [`crate::engine::calibrate`](mod@crate::engine::calibrate)); `None` where the model cannot be
     /// evaluated.
     pub fn side_sensitivity(&self, x: &Params, g: f64) -> Option<Vec<f64>> {
         let mut out = Vec::with_capacity(self.samples.len());
