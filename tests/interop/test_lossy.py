@@ -157,7 +157,8 @@ def loss_counters():
 
 def stock_server_main():
     """A stock rclpy node in the node's place, with its QoS: raw_scan (reliable, keep last
-    100) answered by a Contour as large as the node's (400 points, 360 radii) on contour
+    100) answered by a Contour as large as the node's (400 points, 360 radii and their
+    U95, the size figures) on contour
     (reliable, keep last 10); /calibrate answered at once; `calibration` latched
     (reliable, transient local, depth 1); a parameter `calibration.valid`."""
     import rclpy
@@ -186,6 +187,9 @@ def stock_server_main():
         c.target = scan.target
         c.points = [Point(x=1e-6 * n, y=1e-6 * n) for n in scan.counts]
         c.radii = [0.02] * 360
+        c.radii_u95 = [2e-6] * 360
+        c.circumference, c.box_width, c.box_height, c.effective_diameter = 0.1276, 0.05, 0.03, 0.05
+        c.size_u95 = [4e-6] * 4
         try:
             pub.publish(c)
         except Exception as e:  # noqa: BLE001 (rclpy's RCLError)
