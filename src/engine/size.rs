@@ -53,7 +53,7 @@ use super::stylus::Traced;
 /// Harmonics of the smooth fit at most.
 pub const HARMONICS: usize = 40;
 /// Angles the figures are evaluated at.
-pub const GRID: usize = 512;
+pub const GRID: usize = 256;
 
 /// A contour's smooth fit, `r(θ)` as a Fourier series (module docs).
 #[derive(Debug, Clone, PartialEq)]
@@ -377,13 +377,14 @@ impl Sizes {
         // δC for δr = cos kθ: ∮ (r cos kθ - r' k sin kθ)/L; for sin kθ: ∮ (r sin kθ + r' k cos kθ)/L.
         let (mut cc, mut cs) = (vec![0.0; k_max + 1], vec![0.0; k_max + 1]);
         for (i, (r, rp)) in self.grid.iter().enumerate() {
-            let l = (r * r + rp * rp).sqrt();
+            let inv_l = 1.0 / (r * r + rp * rp).sqrt();
+            let (rl, rpl) = (r * inv_l, rp * inv_l);
             let (s1, c1) = (i as f64 * h).sin_cos();
             let (mut c, mut s) = (1.0, 0.0);
             for k in 0..=k_max {
                 let kf = k as f64;
-                cc[k] += (r * c - rp * kf * s) / l;
-                cs[k] += (r * s + rp * kf * c) / l;
+                cc[k] += rl * c - rpl * kf * s;
+                cs[k] += rl * s + rpl * kf * c;
                 (c, s) = (c * c1 - s * s1, s * c1 + c * s1);
             }
         }
