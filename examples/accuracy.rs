@@ -30,6 +30,7 @@
 //!    mean U95 and the mean error, at σ = 1, 5 and 10 µm.
 
 #[path = "../tests/common/size_coverage.rs"]
+#[allow(dead_code)] // shared with tests/sizes.rs and tests/stylus_tip.rs
 mod size_coverage;
 
 use nalgebra::Vector2;
@@ -37,7 +38,6 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use tracer_calib::engine::calibrate::{CalibrationError, Options, Ring, calibrate, calibrate_with_ring};
 use tracer_calib::engine::correct::correct;
-use tracer_calib::engine::correct::resample_radii;
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::lm::normal_equations;
 use tracer_calib::engine::model::full::{self, FullModel, TableSample};
@@ -244,7 +244,7 @@ fn size_part(trials: usize) {
                 "lens 52x34, full",
                 size_coverage::run(
                     &lens,
-                    size_coverage::ellipse_truth(&lens),
+                    lens.exact_sizes(),
                     Traced::Outside,
                     ModelKind::Full,
                     0.0,
@@ -257,7 +257,7 @@ fn size_part(trials: usize) {
                 "frame 50x30, full_tip 0.5 mm",
                 size_coverage::run(
                     &frame,
-                    size_coverage::rect_truth(&frame),
+                    frame.exact_sizes(),
                     Traced::Inside,
                     ModelKind::FullTip,
                     0.0005,
@@ -331,7 +331,7 @@ fn tip_part(bench: &Bench, trials: usize) {
                     (inv[(tip::TIP_RADIUS, tip::TIP_RADIUS)].sqrt(), inv[(tip::DELTA_L, tip::DELTA_L)].sqrt())
                 };
                 let traced = sim(&framed, 0.0, true, &mut rng);
-                let true_circ = circumference(&traced.truth);
+                let true_circ = size_coverage::polygon_circumference(&traced.truth);
                 let (mut sq_rho, mut sq_dl, mut reported, mut sq_circ, mut sum_circ, mut n, mut failed) =
                     (0.0, 0.0, 0.0, 0.0, 0.0, 0, 0);
                 for _ in 0..trials.max(4) / 4 {
@@ -344,7 +344,7 @@ fn tip_part(bench: &Bench, trials: usize) {
                             reported += cal.tip_radius_stddev;
                             let mut pts = correct(&traced.scan, &cal.mounting);
                             touched_surface(&mut pts, cal.tip_radius, Traced::Inside, true);
-                            let e = circumference(&pts) - true_circ;
+                            let e = size_coverage::polygon_circumference(&pts) - true_circ;
                             sq_circ += e * e;
                             sum_circ += e;
                             n += 1;
@@ -370,20 +370,6 @@ fn tip_part(bench: &Bench, trials: usize) {
             }
         }
     }
-}
-
-/// The circumference of a closed contour, from 3600 equal-angle radii.
-fn circumference(points: &[Vector2<f64>]) -> f64 {
-    let r = resample_radii(points, 3600, 0.2).expect("all the way round");
-    let p: Vec<Vector2<f64>> = r
-        .iter()
-        .enumerate()
-        .map(|(k, r)| {
-            let a = std::f64::consts::TAU * k as f64 / 3600.0;
-            Vector2::new(r * a.cos(), r * a.sin())
-        })
-        .collect();
-    (0..p.len()).map(|i| (p[(i + 1) % p.len()] - p[i]).norm()).sum()
 }
 
 fn header() {

@@ -4,12 +4,13 @@
 //! truth in about 95 % of the trials (90-99 % asserted), and the circumference is unbiased.
 
 #[path = "common/size_coverage.rs"]
+#[allow(dead_code)] // shared with the accuracy example and tests/stylus_tip.rs
 mod size_coverage;
 
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use size_coverage::{Coverage, ellipse_truth, rect_truth, run};
+use size_coverage::{Coverage, run};
 use tracer_calib::engine::correct::{correct, resample_radii};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::model::ModelKind;
@@ -41,7 +42,7 @@ fn check(name: &str, c: &Coverage, sigma: f64) {
 fn a_lens_u95_covers_the_truth() {
     let lens = Ellipse { center: Vector2::new(0.0005, -0.0003), a: 0.026, b: 0.016, angle: 0.3 };
     for (i, sigma) in [1e-6, 5e-6, 10e-6].into_iter().enumerate() {
-        let c = run(&lens, ellipse_truth(&lens), Traced::Outside, ModelKind::Full, 0.0, sigma, 400, 10 + i as u64);
+        let c = run(&lens, lens.exact_sizes(), Traced::Outside, ModelKind::Full, 0.0, sigma, 400, 10 + i as u64);
         check("lens, full", &c, sigma);
     }
 }
@@ -49,7 +50,7 @@ fn a_lens_u95_covers_the_truth() {
 #[test]
 fn a_frame_traced_with_a_tip_u95_covers_the_truth() {
     let frame = RoundedRect { center: Vector2::new(0.001, -0.0005), half_w: 0.025, half_h: 0.015, radius: 0.008 };
-    let c = run(&frame, rect_truth(&frame), Traced::Inside, ModelKind::FullTip, 0.0005, 10e-6, 400, 20);
+    let c = run(&frame, frame.exact_sizes(), Traced::Inside, ModelKind::FullTip, 0.0005, 10e-6, 400, 20);
     check("frame, full_tip, 0.5 mm tip", &c, 10e-6);
 }
 

@@ -3,9 +3,14 @@
 //! `full_scale_tip`), a known tip in force for the other models, frames and lenses
 //! corrected to the surface the tip touched, and the scans that do not fit refused.
 
+#[path = "common/size_coverage.rs"]
+#[allow(dead_code)] // shared with tests/sizes.rs and the accuracy example
+mod size_coverage;
+
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
+use size_coverage::polygon_circumference;
 use tracer_calib::engine::calibrate::{CalibrationError, Options, Ring, calibrate, calibrate_with_ring};
 use tracer_calib::engine::correct::{correct, resample_radii};
 use tracer_calib::engine::geometry::Mounting;
@@ -40,20 +45,6 @@ fn plate_and_ring(m: &Mounting, tip: f64, noise: f64, seed: u64) -> (Scan, Scan)
 
 fn options(model: ModelKind) -> Options {
     Options { model, ..Options::default() }
-}
-
-/// The circumference of a closed contour given as points, from 3600 resampled radii.
-fn circumference(points: &[Vector2<f64>]) -> f64 {
-    let r = resample_radii(points, 3600, 0.2).expect("all the way round");
-    let p: Vec<Vector2<f64>> = r
-        .iter()
-        .enumerate()
-        .map(|(k, r)| {
-            let a = std::f64::consts::TAU * k as f64 / 3600.0;
-            Vector2::new(r * a.cos(), r * a.sin())
-        })
-        .collect();
-    (0..p.len()).map(|i| (p[(i + 1) % p.len()] - p[i]).norm()).sum()
 }
 
 #[test]
@@ -121,7 +112,7 @@ fn frames_keep_their_circumference_for_any_tip_up_to_a_millimetre() {
         let traced = trace(&frame, &m, tip, true, 0.0, 20 + i as u64);
         let mut points = correct(&traced.scan, &cal.mounting);
         touched_surface(&mut points, cal.tip_radius, Traced::Inside, true);
-        let error = circumference(&points) - circumference(&traced.truth);
+        let error = polygon_circumference(&points) - polygon_circumference(&traced.truth);
         assert!(error.abs() < 5e-6, "tip {tip}: circumference off by {:.2} µm", error * 1e6);
         // And radius by radius, to the surface the tip touched.
         let radii = resample_radii(&points, 400, 0.2).unwrap();

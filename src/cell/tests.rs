@@ -539,17 +539,7 @@ fn the_tip_is_fitted_from_a_ring_gauge_and_contours_are_of_the_touched_surface()
         let worst = c.points.iter().zip(&truth).map(|(p, t)| (Vector2::new(p.x, p.y) - t).norm()).fold(0.0, f64::max);
         assert!(worst < 30e-6, "target {}: a point {:.1} µm from the surface touched", msg.target, worst * 1e6);
         // Its size figures (engine::size), within their U95 of the exact ones.
-        let want = if msg.target == RawScan::TARGET_FRAME {
-            let (w, h, k) = (0.05, 0.03, 0.008);
-            [2.0 * (w + h) - 8.0 * k + std::f64::consts::TAU * k, w, h, 2.0 * ((0.025f64 - k).hypot(0.015 - k) + k)]
-        } else {
-            let (a, b, phi) = (0.026f64, 0.017f64, 0.3f64);
-            let q = ((a - b) / (a + b)).powi(2);
-            let circ = std::f64::consts::PI * (a + b) * (1.0 + 3.0 * q / (10.0 + (4.0 - 3.0 * q).sqrt()));
-            let width = 2.0 * (a * a * phi.cos().powi(2) + b * b * phi.sin().powi(2)).sqrt();
-            let height = 2.0 * (a * a * phi.sin().powi(2) + b * b * phi.cos().powi(2)).sqrt();
-            [circ, width, height, 2.0 * a]
-        };
+        let want = if msg.target == RawScan::TARGET_FRAME { frame.exact_sizes() } else { lens.exact_sizes() };
         let got = [c.circumference, c.box_width, c.box_height, c.effective_diameter];
         for f in 0..4 {
             assert!(c.size_u95[f] > 0.0 && c.size_u95[f] < 30e-6, "target {}: U95 {:?}", msg.target, c.size_u95);

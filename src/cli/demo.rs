@@ -341,27 +341,8 @@ fn demo(args: &Args) -> Result<(), String> {
     println!("   (raw: the tip's centre, uncorrected; corrected errors are the encoder noise; radii: the 400");
     println!("   equal-angle radii of Contour.radii)");
     // The size figures the node put in each Contour, against the shapes' exact ones.
-    let ellipse_truth = {
-        let (a, b, phi) = (lens.a, lens.b, lens.angle);
-        let q = ((a - b) / (a + b)).powi(2);
-        [
-            std::f64::consts::PI * (a + b) * (1.0 + 3.0 * q / (10.0 + (4.0 - 3.0 * q).sqrt())),
-            2.0 * (a * a * phi.cos().powi(2) + b * b * phi.sin().powi(2)).sqrt(),
-            2.0 * (a * a * phi.sin().powi(2) + b * b * phi.cos().powi(2)).sqrt(),
-            2.0 * a,
-        ]
-    };
-    let frame_truth = {
-        let (w, h, k) = (2.0 * frame.half_w, 2.0 * frame.half_h, frame.radius);
-        [
-            2.0 * (w + h) - 8.0 * k + std::f64::consts::TAU * k,
-            w,
-            h,
-            2.0 * ((frame.half_w - k).hypot(frame.half_h - k) + k),
-        ]
-    };
     println!("   Size figures in each Contour (mm, ± U95), and the shapes' exact ones:");
-    for (name, c, truth) in [("lens", &lens_c, ellipse_truth), ("frame", &frame_c, frame_truth)] {
+    for (name, c, truth) in [("lens", &lens_c, lens.exact_sizes()), ("frame", &frame_c, frame.exact_sizes())] {
         let got = [c.circumference, c.box_width, c.box_height, c.effective_diameter];
         let shown: Vec<String> = ["circumference", "A", "B", "FED"]
             .iter()

@@ -649,9 +649,8 @@ mod tests {
         assert!((circle.effective_diameter - 0.04).abs() < 1e-12);
         let e = Sizes::of(&Smooth::fit(&ellipse_radii(0.025, 0.015, 400), 40).unwrap());
         // Ramanujan's second approximation, exact to 1e-10 relative here.
-        let (a, b) = (0.025f64, 0.015f64);
-        let h = ((a - b) / (a + b)).powi(2);
-        let c = std::f64::consts::PI * (a + b) * (1.0 + 3.0 * h / (10.0 + (4.0 - 3.0 * h).sqrt()));
+        let [c, ..] =
+            crate::engine::shape::Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 }.exact_sizes();
         assert!((e.circumference - c).abs() < 1e-9, "{} vs {c}", e.circumference);
         assert!((e.box_width - 0.05).abs() < 1e-9 && (e.box_height - 0.03).abs() < 1e-9, "{e:?}");
         assert!((e.effective_diameter - 0.05).abs() < 1e-9);

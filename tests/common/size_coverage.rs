@@ -11,7 +11,7 @@ use tracer_calib::engine::correct::{correct, resample_radii};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::model::tip::RingSpec;
 use tracer_calib::engine::model::{ModelKind, PlateSpec};
-use tracer_calib::engine::shape::{Ellipse, RoundedRect, Shape};
+use tracer_calib::engine::shape::{Ellipse, Shape};
 use tracer_calib::engine::simulate::{SimOptions, simulate};
 use tracer_calib::engine::size::{Correction, uncertainty};
 use tracer_calib::engine::stylus::{Traced, touched_surface};
@@ -26,21 +26,19 @@ pub struct Coverage {
     pub n: usize,
 }
 
-/// `[C, A, B, FED]` of an ellipse, exactly (Ramanujan's circumference: 1e-10 relative here).
-pub fn ellipse_truth(e: &Ellipse) -> [f64; 4] {
-    let (a, b, phi) = (e.a, e.b, e.angle);
-    let h = ((a - b) / (a + b)).powi(2);
-    let c = std::f64::consts::PI * (a + b) * (1.0 + 3.0 * h / (10.0 + (4.0 - 3.0 * h).sqrt()));
-    let width = 2.0 * (a * a * phi.cos().powi(2) + b * b * phi.sin().powi(2)).sqrt();
-    let height = 2.0 * (a * a * phi.sin().powi(2) + b * b * phi.cos().powi(2)).sqrt();
-    [c, width, height, 2.0 * a]
-}
-
-/// `[C, A, B, FED]` of a rounded rectangle, exactly.
-pub fn rect_truth(r: &RoundedRect) -> [f64; 4] {
-    let (w, h, k) = (2.0 * r.half_w, 2.0 * r.half_h, r.radius);
-    let fed = 2.0 * ((r.half_w - k).hypot(r.half_h - k) + k);
-    [2.0 * (w + h) - 8.0 * k + std::f64::consts::TAU * k, w, h, fed]
+/// The circumference of a closed contour given as points, from 3600 resampled radii (a
+/// polygon fine enough that its own error is far below the figures compared with it).
+pub fn polygon_circumference(points: &[Vector2<f64>]) -> f64 {
+    let r = resample_radii(points, 3600, 0.2).expect("all the way round");
+    let p: Vec<Vector2<f64>> = r
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let a = std::f64::consts::TAU * k as f64 / 3600.0;
+            Vector2::new(r * a.cos(), r * a.sin())
+        })
+        .collect();
+    (0..p.len()).map(|i| (p[(i + 1) % p.len()] - p[i]).norm()).sum()
 }
 
 /// `trials` calibrations and traces of `shape` (true figures `truth`) at noise `sigma`
