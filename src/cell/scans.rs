@@ -113,10 +113,11 @@ impl NodeState {
         // The size figures, when the contour goes all the way round (engine::size), with the
         // calibration's whole covariance when it is known.
         let surface: Vec<Vector2<f64>> = points.iter().map(|p| Vector2::new(p.x, p.y)).collect();
-        let sized = if radii.is_empty() { resample_radii(&surface, SIZE_RADII, max_gap) } else { Some(radii.clone()) };
+        let resampled = if radii.is_empty() { resample_radii(&surface, SIZE_RADII, max_gap) } else { None };
+        let sized = if radii.is_empty() { resampled.as_deref() } else { Some(radii.as_slice()) };
         let covariance = calibration.and_then(|_| covariance_from_values(&self.params.covariance).ok());
         let correction = Correction { mounting, tip_radius: tip, traced };
-        let report = sized.and_then(|r| size::uncertainty(&surface, &r, &correction, covariance.as_ref()));
+        let report = sized.and_then(|r| size::uncertainty(&surface, r, &correction, covariance.as_ref()));
         let header = Header { stamp: msg.header.stamp, frame_id: self.params.output_frame_id.clone() };
         let polygon = with_polygon.then(|| PolygonStamped {
             header: header.clone(),

@@ -167,32 +167,56 @@ fn extreme(v: &[f64], s: &[f64], tau: f64) -> Extreme {
     if region.len() < 5 {
         return peak();
     }
-    let s0 = s[top];
-    let mut xtx = nalgebra::Matrix3::<f64>::zeros();
-    for &i in &region {
-        let row = nalgebra::Vector3::new(1.0, s[i] - s0, (s[i] - s0).powi(2));
-        xtx += row * row.transpose();
-    }
-    let Some(inv) = xtx.try_inverse() else { return peak() };
-    let rows: Vec<nalgebra::Vector3<f64>> =
-        region.iter().map(|&i| nalgebra::Vector3::new(1.0, s[i] - s0, (s[i] - s0).powi(2))).collect();
-    let c = inv * rows.iter().zip(&region).map(|(r, &i)| r * v[i]).sum::<nalgebra::Vector3<f64>>();
-    let (lo, hi) =
-        region.iter().map(|&i| s[i] - s0).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
-    let at = |x: f64| c[0] + c[1] * x + c[2] * x * x;
-    let mut best = if at(lo) >= at(hi) { lo } else { hi };
-    if c[2] < 0.0 {
-        let vertex = -c[1] / (2.0 * c[2]);
-        if (lo..=hi).contains(&vertex) {
-            best = vertex;
-        }
-    }
-    let w = inv * nalgebra::Vector3::new(1.0, best, best * best);
+    let pairs: Vec<(f64, f64)> = region.iter().map(|&i| (s[i], v[i])).collect();
+    let Some(top_fit) = ParabolaTop::fit(&pairs, s[top]) else { return peak() };
     Extreme {
-        value: at(best),
-        weights: region.iter().zip(&rows).map(|(&i, r)| (i as f64 * h, w.dot(r))).collect(),
+        value: top_fit.value,
+        weights: region.iter().zip(&top_fit.weights).map(|(&i, w)| (i as f64 * h, *w)).collect(),
         raw: false,
-        curvature: c[2],
+        curvature: top_fit.c[2],
+    }
+}
+
+/// The least-squares parabola `v = c_0 + c_1 (s - s_0) + c_2 (s - s_0)²` through `(s, v)`
+/// pairs, and its largest value over their span (at the vertex if it lies there, else at
+/// the higher end), with that value's first-order weight on each `v`
+/// (`[1, s*, s*²] (XᵀX)⁻¹ Xᵀ`): what [`extreme`] and [`raw_extreme`] take a side from.
+struct ParabolaTop {
+    c: nalgebra::Vector3<f64>,
+    s0: f64,
+    /// The span of `s - s_0`.
+    lo: f64,
+    hi: f64,
+    value: f64,
+    weights: Vec<f64>,
+}
+
+impl ParabolaTop {
+    /// `None` if the pairs do not determine a parabola.
+    fn fit(pairs: &[(f64, f64)], s0: f64) -> Option<ParabolaTop> {
+        let row = |s: f64| nalgebra::Vector3::new(1.0, s - s0, (s - s0).powi(2));
+        let xtx: nalgebra::Matrix3<f64> = pairs.iter().map(|&(s, _)| row(s) * row(s).transpose()).sum();
+        let inv = xtx.try_inverse()?;
+        let c = inv * pairs.iter().map(|&(s, v)| row(s) * v).sum::<nalgebra::Vector3<f64>>();
+        let (lo, hi) =
+            pairs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &(s, _)| (a.min(s - s0), b.max(s - s0)));
+        let mut top = ParabolaTop { c, s0, lo, hi, value: 0.0, weights: Vec::new() };
+        let mut best = if top.at(lo) >= top.at(hi) { lo } else { hi };
+        if c[2] < 0.0 {
+            let vertex = -c[1] / (2.0 * c[2]);
+            if (lo..=hi).contains(&vertex) {
+                best = vertex;
+            }
+        }
+        let w = inv * nalgebra::Vector3::new(1.0, best, best * best);
+        top.value = top.at(best);
+        top.weights = pairs.iter().map(|&(s, _)| w.dot(&row(s))).collect();
+        Some(top)
+    }
+
+    /// The parabola at `s - s_0 = x`.
+    fn at(&self, x: f64) -> f64 {
+        self.c[0] + self.c[1] * x + self.c[2] * x * x
     }
 }
 
@@ -224,41 +248,26 @@ fn raw_extreme(
             return None;
         }
         let s0 = chosen.iter().map(|c| c.1).sum::<f64>() / chosen.len() as f64;
-        let row = |s: f64| nalgebra::Vector3::new(1.0, s - s0, (s - s0).powi(2));
-        let xtx: nalgebra::Matrix3<f64> = chosen.iter().map(|c| row(c.1) * row(c.1).transpose()).sum();
-        let inv = xtx.try_inverse()?;
-        let c = inv * chosen.iter().map(|c| row(c.1) * c.0).sum::<nalgebra::Vector3<f64>>();
-        let (lo, hi) =
-            chosen.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c.1 - s0), b.max(c.1 - s0)));
-        let at = |x: f64| c[0] + c[1] * x + c[2] * x * x;
-        let mut best = if at(lo) >= at(hi) { lo } else { hi };
-        if c[2] < 0.0 {
-            let vertex = -c[1] / (2.0 * c[2]);
-            if (lo..=hi).contains(&vertex) {
-                best = vertex;
-            }
-        }
-        let value = at(best);
+        let fit = ParabolaTop::fit(&chosen.iter().map(|c| (c.1, c.0)).collect::<Vec<_>>(), s0)?;
         let kept: Vec<(f64, f64, f64)> =
-            chosen.iter().copied().filter(|c| at(c.1 - s0) >= value - 2.0 * noise).collect();
+            chosen.iter().copied().filter(|c| fit.at(c.1 - fit.s0) >= fit.value - 2.0 * noise).collect();
         if kept.len() == chosen.len() || round == 2 {
             // A side that the smooth (whose curvature is not the noise's) lets fall by less
             // than a third of the band over the points' width is flat: their mean, not the
             // top of a parabola through noise (biased up). A curved side falls by about the
             // whole band (that is how its points were chosen).
-            let half = (hi - lo) / 2.0;
-            if c[1].abs() * half < tau / 3.0 && curvature.abs() * half * half < tau / 3.0 {
+            let half = (fit.hi - fit.lo) / 2.0;
+            if fit.c[1].abs() * half < tau / 3.0 && curvature.abs() * half * half < tau / 3.0 {
                 let n = chosen.len() as f64;
                 let value = chosen.iter().map(|c| c.0).sum::<f64>() / n;
                 let weights = chosen.iter().map(|c| (c.2, 1.0 / n)).collect();
                 return Some(Extreme { value, weights, raw: true, curvature });
             }
-            let w = inv * nalgebra::Vector3::new(1.0, best, best * best);
-            return value.is_finite().then(|| Extreme {
-                value,
-                weights: chosen.iter().map(|c| (c.2, w.dot(&row(c.1)))).collect(),
+            return fit.value.is_finite().then(|| Extreme {
+                value: fit.value,
+                weights: chosen.iter().zip(&fit.weights).map(|(c, w)| (c.2, *w)).collect(),
                 raw: true,
-                curvature: c[2],
+                curvature: fit.c[2],
             });
         }
         chosen = kept;
