@@ -75,14 +75,20 @@ CAPTURE = None  # dumpcap, with LOSSY_PCAP
 DELAY_MS, JITTER_MS = 10, 10
 
 
-def apply_loss(percent, protocols="udp"):
+def apply_loss(percent, protocols="udp", per_frame=False):
     """In this (fresh) network namespace: lo up, and `percent` % of the packets of
     `protocols` (nftables' set syntax: "udp", "{ udp, tcp }") that lo receives dropped.
 
     With LOSSY_PCAP=FILE (for a maintainer chasing a loss), the packets are dropped as they
     are sent instead, and a capture of what lo delivered is written to FILE: a capture on lo
     sees a packet before the input hook, so it would show the dropped ones too. The
-    server's log is kept beside it (FILE.log)."""
+    server's log is kept beside it (FILE.log).
+
+    `per_frame`: the packets are dropped as they arrive, before the kernel puts IP
+    fragments back together (a prerouting chain ahead of defragmentation, priority -450),
+    so that a datagram larger than the MTU is lost when any of its frames is, as on an
+    Ethernet link. On the input hook a datagram is whole again and counts once, however
+    many frames it took."""
     subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
     pcap = os.environ.get("LOSSY_PCAP")
     if pcap:
@@ -94,10 +100,13 @@ def apply_loss(percent, protocols="udp"):
     if percent <= 0:
         return
     hook, iface = ("output", "oifname") if pcap else ("input", "iifname")
+    priority = 0
+    if per_frame and not pcap:
+        hook, priority = "prerouting", -450
     rules = f"""
 table inet tracer_loss {{
     chain {hook} {{
-        type filter hook {hook} priority 0; policy accept;
+        type filter hook {hook} priority {priority}; policy accept;
         {iface} "lo" meta l4proto {protocols} counter
         {iface} "lo" meta l4proto {protocols} numgen random mod 100 < {percent} counter drop
     }}
@@ -212,9 +221,10 @@ def scenario_main(server, loss, variant=""):
     Zenoh (RMW_IMPLEMENTATION=rmw_zenoh_cpp) everything goes by TCP through the router,
     and TCP segments are dropped too. `variant` "delay": UDP datagrams delayed and
     reordered too (apply_delay); "mtu1500": lo's MTU that of an Ethernet link, so that
-    large samples travel as several datagrams (RustDDS: DATA_FRAG) or IP fragments."""
+    large samples travel as several datagrams (RustDDS: DATA_FRAG) or IP fragments, and
+    the loss strikes frames, as it would on that link (apply_loss's `per_frame`)."""
     zenoh = os.environ.get("RMW_IMPLEMENTATION") == "rmw_zenoh_cpp"
-    apply_loss(loss, "{ udp, tcp }" if zenoh else "udp")
+    apply_loss(loss, "{ udp, tcp }" if zenoh else "udp", per_frame=variant == "mtu1500")
     if variant == "mtu1500":
         subprocess.run(["ip", "link", "set", "lo", "mtu", "1500"], check=True)
     delay = apply_delay() if variant == "delay" else None

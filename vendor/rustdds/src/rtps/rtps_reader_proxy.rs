@@ -20,7 +20,8 @@ use crate::{
   structure::{
     guid::{EntityId, GUID},
     locator::Locator,
-    sequence_number::{FragmentNumber, FragmentNumberSet, SequenceNumber, SequenceNumberRange},
+    // tracer_calib patch: FragmentNumber no longer used here
+    sequence_number::{FragmentNumberSet, SequenceNumber, SequenceNumberRange},
   },
 };
 use super::reader::ReaderIngredients;
@@ -578,68 +579,40 @@ impl RtpsReaderProxy {
     }
   }
 
-  // This just removes the FragmentNumber entry from the set.
-  pub fn mark_frag_sent(&mut self, seq_num: SequenceNumber, frag_num: &FragmentNumber) {
-    let mut frag_map_emptied = false;
-    if let Some(frag_map) = self.frags_requested.get_mut(&seq_num) {
-      // -1 because FragmentNumbers start at 1
-      frag_map.set(usize::from(*frag_num) - 1, false);
-      frag_map_emptied = frag_map.none();
-    }
-    if frag_map_emptied {
-      self.frags_requested.remove(&seq_num);
-    }
-  }
-
-  // Note: The current implementation produces an iterator that iterates only
-  // over one fragmented sample, but the upper layer should detect that
-  // there are still other fragmented samples requested (if any)
-  // and continue sending.
-  pub fn frags_requested_iterator(&self) -> FragBitVecIterator {
-    match self.frags_requested.iter().next() {
-      None => FragBitVecIterator::new(SequenceNumber::default(), BitVec::new()), // empty iterator
-      Some((sn, bv)) => FragBitVecIterator::new(*sn, bv.clone()),
-    }
-  }
+  // tracer_calib patch: `mark_frag_sent` and `frags_requested_iterator` (one sample,
+  // one fragment at a time) gave way to `requested_frag_runs` below.
 
   pub fn repair_frags_requested(&self) -> bool {
     self.frags_requested.values().any(|rf| rf.any())
   }
-}
 
-pub struct FragBitVecIterator {
-  sequence_number: SequenceNumber,
-  frag_count: FragmentNumber,
-  bitvec: BitVec,
-}
-
-impl FragBitVecIterator {
-  pub fn new(sequence_number: SequenceNumber, bv: BitVec) -> FragBitVecIterator {
-    FragBitVecIterator {
-      sequence_number,
-      frag_count: FragmentNumber::new(1),
-      bitvec: bv,
+  // tracer_calib patch: begin (a NACK_FRAG is answered at once, packed)
+  /// The lowest sequence number with fragments requested, and those fragments as
+  /// contiguous runs `(first, count)`, 1-based like FragmentNumbers.
+  pub fn requested_frag_runs(&self) -> Option<(SequenceNumber, Vec<(u32, u32)>)> {
+    let (sn, bits) = self.frags_requested.iter().find(|(_, bits)| bits.any())?;
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    for (idx, requested) in bits.iter().enumerate() {
+      if !requested {
+        continue;
+      }
+      let frag = idx as u32 + 1;
+      match runs.last_mut() {
+        Some((first, count)) if *first + *count == frag => *count += 1,
+        _ => runs.push((frag, 1)),
+      }
     }
+    Some((*sn, runs))
   }
-}
 
-impl Iterator for FragBitVecIterator {
-  type Item = (SequenceNumber, FragmentNumber);
-
-  fn next(&mut self) -> Option<Self::Item> {
-    // f indexes from 1, like FragmentNumber
-    let mut f = u32::from(self.frag_count);
-    while (f as usize) <= self.bitvec.len() && self.bitvec.get((f - 1) as usize) == Some(false) {
-      f += 1;
-    }
-    if (f as usize) > self.bitvec.len() {
-      None
-    } else {
-      self.frag_count = FragmentNumber::new(f + 1);
-      Some((self.sequence_number, FragmentNumber::new(f)))
-    }
+  /// Forget the fragments requested of `seq_num` (sent, or no longer held).
+  pub fn clear_frags_requested(&mut self, seq_num: SequenceNumber) {
+    self.frags_requested.remove(&seq_num);
   }
+  // tracer_calib patch: end
 }
+
+// tracer_calib patch: `FragBitVecIterator` removed with `frags_requested_iterator`.
 
 // pub enum ChangeForReaderStatusKind {
 //   UNSENT,
