@@ -35,9 +35,9 @@ sends delayed 10 ± 10 ms (uniformly), so that many arrive out of order (tests/i
 netdelay.py, an NFQUEUE that iptables queues them to; TRACER_NETDELAY_PYTHON, a Python with
 NetfilterQueue, which run.sh makes): asserted as at 10 %. lossy_fastdds_10_mtu1500,
 lossy_cyclone_10_mtu1500: 10 % loss on a loopback whose MTU is Ethernet's, so that contours
-travel as several DATA_FRAGs (RustDDS) or IP fragments (the stock peers): asserted as at
-10 % (with Cyclone DDS peers the node's latency is several times the stock node's there:
-BENCHMARKS.md, open). lossy_ten_cells_fastdds_10,
+travel as several DATA_FRAGs (RustDDS) or IP fragments (the stock peers), and the loss strikes
+frames, as on an Ethernet link (a datagram larger than the MTU is lost with any of its
+frames): asserted as at 10 %. lossy_ten_cells_fastdds_10,
 lossy_ten_cells_cyclone_25: ten nodes and a planner (tests/interop/cell_graph.py, an rclpy
 planner on Fast DDS, or on Cyclone DDS under 25 % loss) started at once; the planner matches
 every cell, every call and scan is answered; lossy_ten_cells_fastdds_25 the same under 25 % loss
@@ -51,7 +51,7 @@ contours lost beyond the stock node's (OPEN).
 
 Environment: LOSSY_SCANS (100), LOSSY_RUN="SERVER RMW LOSS [delay]" runs one scenario and
 prints its figures (SERVER: node or stock, or cells for the ten-cell graph; RMW: fastdds, cyclone or zenoh; delay: delayed
-and reordered too; mtu1500: lo's MTU 1500), as scripts/bench_lossy.sh does for other losses.
+and reordered too; mtu1500: lo's MTU 1500, loss per frame), as scripts/bench_lossy.sh does for other losses.
 """
 
 import json
