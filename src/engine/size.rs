@@ -2,12 +2,12 @@
 //! boxed width `A` and height `B`, effective diameter (FED), each with its expanded
 //! uncertainty, from a smooth fit of the corrected contour (never the raw polygon).
 //!
-//! **The smooth fit.** The contour's equal-angle radii `r_m` (`M` of them, [`super::correct`](mod@super::correct))
+//! The contour's equal-angle radii `r_m` (`M` of them, [`super::correct`](mod@super::correct))
 //! are cut to their first `K` harmonics (a truncated DFT, which for equal-angle samples is
-//! the least-squares Fourier fit):
+//! the least-squares Fourier fit; computed by FFT, `realfft`):
 //!
 //! ```text
-//! r(θ) = a_0 + Σ_{k=1..K} (a_k cos kθ + b_k sin kθ),     K = 40 (60, 80, 100 if need be, ≤ M/4)
+//! r(θ) = a_0 + Σ_{k=1..K} (a_k cos kθ + b_k sin kθ),     K = 40 (60, 80, 100 if need be, ≤ M/4, < GRID/2)
 //! ```
 //!
 //! The raw polygon's circumference is biased by the noise (a zig-zag is longer than the
@@ -44,6 +44,8 @@
 //! calibration's part at its angle, and `σ_r²` (each is interpolated from raw samples).
 
 use nalgebra::Vector2;
+use realfft::RealFftPlanner;
+use realfft::num_complex::Complex;
 use std::f64::consts::TAU;
 
 use super::calibrate::{Covariance, layout};
@@ -63,28 +65,22 @@ pub struct Smooth {
 }
 
 impl Smooth {
-    /// The first `harmonics` harmonics of equal-angle radii (`radii[m]` at `2π m/M`);
-    /// `None` for fewer than 8 radii.
+    /// The first `harmonics` harmonics of equal-angle radii (`radii[m]` at `2π m/M`), at
+    /// most `M/4` and fewer than `GRID/2`: from the DFT `X_k = Σ_m r_m e^{-2πi mk/M}`,
+    /// `a_0 = X_0/M`, `a_k = 2 Re X_k/M`, `b_k = -2 Im X_k/M`. `None` for fewer than 8 radii.
     pub fn fit(radii: &[f64], harmonics: usize) -> Option<Smooth> {
         let m = radii.len();
         if m < 8 {
             return None;
         }
-        let k_max = harmonics.min(m / 4).max(1);
-        let mut coefficients = vec![0.0; 2 * k_max + 1];
-        for (i, r) in radii.iter().enumerate() {
-            coefficients[0] += r;
-            // cos kθ, sin kθ by rotation: one sin_cos a radius.
-            let (s1, c1) = (TAU * i as f64 / m as f64).sin_cos();
-            let (mut c, mut s) = (1.0, 0.0);
-            for k in 1..=k_max {
-                (c, s) = (c * c1 - s * s1, s * c1 + c * s1);
-                coefficients[2 * k - 1] += r * c;
-                coefficients[2 * k] += r * s;
-            }
+        let k_max = harmonics.clamp(1, (m / 4).min(GRID / 2 - 1)); // m >= 8: a bound of 2 or more
+        let spectrum = forward_dft(radii)?;
+        let scale = 2.0 / m as f64;
+        let mut coefficients = Vec::with_capacity(2 * k_max + 1);
+        coefficients.push(spectrum[0].re / m as f64);
+        for x in &spectrum[1..=k_max] {
+            coefficients.extend([x.re * scale, -x.im * scale]);
         }
-        coefficients[0] /= m as f64;
-        coefficients[1..].iter_mut().for_each(|a| *a *= 2.0 / m as f64);
         Some(Smooth { coefficients })
     }
 
@@ -105,6 +101,104 @@ impl Smooth {
             dr += k as f64 * (b * c - a * s);
         }
         (r, dr)
+    }
+
+    /// `r` and `r'` at the [`GRID`] angles, by two inverse FFTs: `r_i = Σ_k Y_k e^{ikθ_i}`
+    /// over the Hermitian spectrum with `Y_0 = a_0`, `Y_k = (a_k - i b_k)/2`, and for `r'`,
+    /// `Y'_k = k (b_k + i a_k)/2`.
+    fn on_grid(&self) -> Vec<(f64, f64)> {
+        let k_max = self.harmonics();
+        let mut y = vec![Complex::new(0.0, 0.0); GRID / 2 + 1];
+        let mut yp = y.clone();
+        y[0].re = self.coefficients[0];
+        for k in 1..=k_max {
+            let (a, b) = (self.coefficients[2 * k - 1], self.coefficients[2 * k]);
+            y[k] = Complex::new(a / 2.0, -b / 2.0);
+            yp[k] = Complex::new(k as f64 * b / 2.0, k as f64 * a / 2.0);
+        }
+        match (inverse_dft(y), inverse_dft(yp)) {
+            (Some(r), Some(rp)) => r.into_iter().zip(rp).collect(),
+            // Not reached (the plan's own lengths); the sums themselves, then.
+            _ => grid_unit().iter().map(|(c, s)| self.at(s.atan2(*c))).collect(),
+        }
+    }
+
+    /// `Σ (|p| - r(θ_p))²` over `points` (`θ_p` the angle of `p`, whose cosine and sine
+    /// are `p/|p|`), LANES points at a time.
+    fn squared_residuals(&self, points: &[Vector2<f64>]) -> f64 {
+        let mut sum = 0.0;
+        for ps in points.chunks(LANES) {
+            let mut norm = [1.0; LANES];
+            let (mut c1, mut s1) = ([1.0; LANES], [0.0; LANES]);
+            for (l, p) in ps.iter().enumerate() {
+                norm[l] = p.norm();
+                if norm[l] > 0.0 {
+                    (c1[l], s1[l]) = (p.x / norm[l], p.y / norm[l]);
+                }
+            }
+            let mut r = [self.coefficients[0]; LANES];
+            let (mut c, mut s) = ([1.0; LANES], [0.0; LANES]);
+            for k in 1..=self.harmonics() {
+                rotate(&mut c, &mut s, &c1, &s1);
+                let (a, b) = (self.coefficients[2 * k - 1], self.coefficients[2 * k]);
+                for l in 0..LANES {
+                    r[l] += a * c[l] + b * s[l];
+                }
+            }
+            sum += (0..ps.len()).map(|l| (norm[l] - r[l]).powi(2)).sum::<f64>();
+        }
+        sum
+    }
+}
+
+thread_local! {
+    /// FFT plans, made once per length (and thread) and kept.
+    static FFT: std::cell::RefCell<RealFftPlanner<f64>> = std::cell::RefCell::new(RealFftPlanner::new());
+}
+
+/// The DFT of real `values`: `X_k = Σ_i f_i e^{-2πi ik/n}`, `k = 0..=n/2`.
+fn forward_dft(values: &[f64]) -> Option<Vec<Complex<f64>>> {
+    FFT.with(|planner| {
+        let fft = planner.borrow_mut().plan_fft_forward(values.len());
+        let mut input = values.to_vec();
+        let mut output = fft.make_output_vec();
+        fft.process(&mut input, &mut output).ok()?;
+        Some(output)
+    })
+}
+
+/// The real values `f_i = Σ_k Y_k e^{2πi ik/GRID}` (over the Hermitian spectrum whose
+/// first half, `k = 0..=GRID/2`, is `spectrum`; `Y_0` and `Y_{GRID/2}` real).
+fn inverse_dft(mut spectrum: Vec<Complex<f64>>) -> Option<Vec<f64>> {
+    FFT.with(|planner| {
+        let fft = planner.borrow_mut().plan_fft_inverse(GRID);
+        let mut output = fft.make_output_vec();
+        fft.process(&mut spectrum, &mut output).ok()?;
+        Some(output)
+    })
+}
+
+/// `(cos θ_i, sin θ_i)` of the [`GRID`] angles `θ_i = 2π i/GRID`, computed once.
+fn grid_unit() -> &'static [(f64, f64); GRID] {
+    static UNIT: std::sync::OnceLock<[(f64, f64); GRID]> = std::sync::OnceLock::new();
+    UNIT.get_or_init(|| {
+        std::array::from_fn(|i| {
+            let (s, c) = (TAU * i as f64 / GRID as f64).sin_cos();
+            (c, s)
+        })
+    })
+}
+
+/// Points or radii taken together in the harmonic sums: independent rotations side by side
+/// (instruction-level parallelism, and SIMD where the compiler finds it).
+const LANES: usize = 4;
+
+/// One step of `LANES` rotations: `(c, s) ← (c c1 - s s1, s c1 + c s1)`, i.e. from
+/// `cos kθ`, `sin kθ` to `cos (k+1)θ`, `sin (k+1)θ`.
+#[inline(always)]
+fn rotate(c: &mut [f64; LANES], s: &mut [f64; LANES], c1: &[f64; LANES], s1: &[f64; LANES]) {
+    for l in 0..LANES {
+        (c[l], s[l]) = (c[l] * c1[l] - s[l] * s1[l], s[l] * c1[l] + c[l] * s1[l]);
     }
 }
 
@@ -238,7 +332,7 @@ fn raw_extreme(
         .iter()
         .filter_map(|p| {
             let (v, s) = coords(p);
-            (v >= near - tau).then_some((v, s, p.y.atan2(p.x)))
+            (v >= near - tau).then(|| (v, s, p.y.atan2(p.x)))
         })
         .collect();
     // Fit; drop the points the fit puts more than 2σ below its top (where a flat side
@@ -308,13 +402,11 @@ impl Sizes {
     /// flat sides are taken from those (`raw_extreme`).
     pub fn of_noisy(smooth: &Smooth, ripple: f64, points: &[Vector2<f64>], noise: f64) -> Sizes {
         let h = TAU / GRID as f64;
-        let grid: Vec<(f64, f64)> = (0..GRID).map(|i| smooth.at(i as f64 * h)).collect();
+        let unit = grid_unit();
+        let grid = smooth.on_grid();
         let circumference = grid.iter().map(|(r, dr)| (r * r + dr * dr).sqrt()).sum::<f64>() * h;
-        let coord = |f: &dyn Fn(f64, f64) -> f64| -> Vec<f64> {
-            grid.iter().enumerate().map(|(i, (r, _))| f(*r, i as f64 * h)).collect()
-        };
-        let x = coord(&|r, t| r * t.cos());
-        let y = coord(&|r, t| r * t.sin());
+        let x: Vec<f64> = grid.iter().zip(unit).map(|((r, _), (c, _))| r * c).collect();
+        let y: Vec<f64> = grid.iter().zip(unit).map(|((r, _), (_, s))| r * s).collect();
         let neg = |v: &[f64]| v.iter().map(|a| -a).collect::<Vec<_>>();
         let tau = 2.0 * ripple;
         let mut sides =
@@ -330,12 +422,8 @@ impl Sizes {
         }
         let [xmax, nxmin, ymax, nymin] = [0, 1, 2, 3].map(|i| sides[i].value);
         let center = Vector2::new((xmax - nxmin) / 2.0, (ymax - nymin) / 2.0);
-        let dist: Vec<f64> = (0..GRID)
-            .map(|i| {
-                let t = i as f64 * h;
-                (Vector2::new(t.cos(), t.sin()) * grid[i].0 - center).norm()
-            })
-            .collect();
+        let dist: Vec<f64> =
+            grid.iter().zip(unit).map(|((r, _), (c, s))| (Vector2::new(*c, *s) * *r - center).norm()).collect();
         let (fed_angle, far) = refine(&dist, argmax(&dist));
         Sizes {
             circumference,
@@ -379,24 +467,21 @@ impl Sizes {
         self.extremes_response(dc * h, at)
     }
 
-    /// [`Self::response`] to `cos kθ` and `sin kθ` for `k = 0..=K` (`k = 0`: the constant),
-    /// the circumference's by one pass over the grid (`cos kθ`, `sin kθ` by rotation).
+    /// [`Self::response`] to `cos kθ` and `sin kθ` for `k = 0..=K` (`k = 0`: the constant).
+    /// The circumference's, `∮ (r cos kθ - r' k sin kθ)/L` and `∮ (r sin kθ + r' k cos kθ)/L`,
+    /// from the DFTs `F` of `r/L` and `r'/L` on the grid: `Re F(r/L)_k + k Im F(r'/L)_k` and
+    /// `-Im F(r/L)_k + k Re F(r'/L)_k` (`K < GRID/2`).
     fn harmonic_responses(&self, k_max: usize) -> Vec<[f64; 4]> {
         let h = TAU / GRID as f64;
-        // δC for δr = cos kθ: ∮ (r cos kθ - r' k sin kθ)/L; for sin kθ: ∮ (r sin kθ + r' k cos kθ)/L.
-        let (mut cc, mut cs) = (vec![0.0; k_max + 1], vec![0.0; k_max + 1]);
-        for (i, (r, rp)) in self.grid.iter().enumerate() {
-            let inv_l = 1.0 / (r * r + rp * rp).sqrt();
-            let (rl, rpl) = (r * inv_l, rp * inv_l);
-            let (s1, c1) = (i as f64 * h).sin_cos();
-            let (mut c, mut s) = (1.0, 0.0);
-            for k in 0..=k_max {
-                let kf = k as f64;
-                cc[k] += rl * c - rpl * kf * s;
-                cs[k] += rl * s + rpl * kf * c;
-                (c, s) = (c * c1 - s * s1, s * c1 + c * s1);
-            }
-        }
+        let k_max = k_max.min(GRID / 2 - 1);
+        let inv_l: Vec<f64> = self.grid.iter().map(|(r, rp)| 1.0 / (r * r + rp * rp).sqrt()).collect();
+        let rl: Vec<f64> = self.grid.iter().zip(&inv_l).map(|((r, _), il)| r * il).collect();
+        let rpl: Vec<f64> = self.grid.iter().zip(&inv_l).map(|((_, rp), il)| rp * il).collect();
+        let (Some(f_r), Some(f_rp)) = (forward_dft(&rl), forward_dft(&rpl)) else {
+            return Vec::new(); // not reached: the plan's own lengths
+        };
+        let cc: Vec<f64> = (0..=k_max).map(|k| f_r[k].re + k as f64 * f_rp[k].im).collect();
+        let cs: Vec<f64> = (0..=k_max).map(|k| -f_r[k].im + k as f64 * f_rp[k].re).collect();
         // Each side's response to cos kθ and sin kθ, all k at once (rotation per point).
         let sides = self.side_harmonics(k_max);
         let t_fed = self.fed_angle;
@@ -476,13 +561,20 @@ impl Correction {
     /// surface point at `θ` of `smooth` (module docs).
     pub fn radial_sensitivities(&self, smooth: &Smooth, theta: f64) -> [f64; 5] {
         let (r, rp) = smooth.at(theta);
-        self.radial_sensitivities_at(r, rp, theta)
+        let (s, c) = theta.sin_cos();
+        self.radial_sensitivities_at(r, rp, (c, s))
     }
 
-    /// [`Self::radial_sensitivities`] where `r(θ)` and `r'(θ)` are known.
-    pub fn radial_sensitivities_at(&self, r: f64, rp: f64, theta: f64) -> [f64; 5] {
-        let e_r = Vector2::new(theta.cos(), theta.sin());
-        let e_t = Vector2::new(-theta.sin(), theta.cos());
+    /// [`Self::radial_sensitivities`] where `r(θ)`, `r'(θ)` and `(cos θ, sin θ)` are known.
+    ///
+    /// The rail that measured the tip's centre `c` runs at `a = atan2(c) - atan2(d, t)`,
+    /// `t = √(|c|² - d²)`; its direction `u = (cos a, sin a)` is `c` turned back by the
+    /// angle whose cosine is `t/|c|` and sine `d/|c|`: `u = (c_x t + c_y d, c_y t - c_x d)/|c|²` (normalised, for a centre
+    /// inside the offset circle),
+    /// and `v = (-u_y, u_x)` (no trigonometry).
+    pub fn radial_sensitivities_at(&self, r: f64, rp: f64, (cos, sin): (f64, f64)) -> [f64; 5] {
+        let e_r = Vector2::new(cos, sin);
+        let e_t = Vector2::new(-sin, cos);
         let normal = (e_r * r - e_t * rp).normalize();
         let s = match self.traced {
             Traced::Outside => 1.0,
@@ -492,8 +584,8 @@ impl Correction {
         let centre = e_r * r + normal * (s * self.tip_radius);
         let d = self.mounting.offset;
         let t = (centre.norm_squared() - d * d).max(0.0).sqrt();
-        let a = centre.y.atan2(centre.x) - d.atan2(t);
-        let (u, v) = (Vector2::new(a.cos(), a.sin()), Vector2::new(-a.sin(), a.cos()));
+        let u = Vector2::new(centre.x * t + centre.y * d, centre.y * t - centre.x * d).normalize();
+        let v = Vector2::new(-u.y, u.x);
         let rho = (t + self.mounting.delta_l) / self.mounting.scale;
         let moves = [v * t - u * d, v, -u, u * rho, -normal * s];
         let n_er = normal.dot(&e_r);
@@ -546,8 +638,7 @@ pub fn uncertainty(
     let floor = sample_noise(points);
     let scatter = |smooth: &Smooth| {
         let k = smooth.harmonics();
-        let ss: f64 = points.iter().map(|p| (p.norm() - smooth.at(p.y.atan2(p.x)).0).powi(2)).sum();
-        (ss / points.len().saturating_sub(2 * k + 1).max(1) as f64).sqrt()
+        (smooth.squared_residuals(points) / points.len().saturating_sub(2 * k + 1).max(1) as f64).sqrt()
     };
     let mut smooth = Smooth::fit(radii, HARMONICS)?;
     let mut noise = scatter(&smooth);
@@ -597,22 +688,20 @@ pub fn uncertainty(
     let mut radii_var_cal = vec![0.0; m];
     if let Some(cov) = covariance {
         let params = [layout::ALPHA0, layout::OFFSET, layout::DELTA_L, layout::SCALE, layout::TIP_RADIUS];
+        let sigma: [[f64; 5]; 5] = params.map(|pa| params.map(|pb| cov[(pa, pb)]));
         let quadratic = |s: &[f64; 5]| -> f64 {
             let mut v = 0.0;
-            for (a, pa) in params.iter().enumerate() {
-                for (b, pb) in params.iter().enumerate() {
-                    v += s[a] * cov[(*pa, *pb)] * s[b];
-                }
+            for (row, sa) in sigma.iter().zip(s) {
+                v += sa * row.iter().zip(s).map(|(c, sb)| c * sb).sum::<f64>();
             }
             v
         };
         // Each parameter's radial change on the grid, in one pass; the figures' response.
-        let h = TAU / GRID as f64;
-        let table: Vec<[f64; 5]> = (0..GRID)
-            .map(|i| {
-                let (r, rp) = sizes.grid[i];
-                correction.radial_sensitivities_at(r, rp, i as f64 * h)
-            })
+        let table: Vec<[f64; 5]> = sizes
+            .grid
+            .iter()
+            .zip(grid_unit())
+            .map(|((r, rp), u)| correction.radial_sensitivities_at(*r, *rp, *u))
             .collect();
         let mut g = [[0.0; 4]; 5];
         for (j, p) in params.iter().enumerate() {
