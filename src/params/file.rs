@@ -251,24 +251,9 @@ fn array(items: &[Node]) -> Option<ParamValue> {
             _ => None,
         })
         .collect::<Option<_>>()?;
-    let all = |f: fn(&ParamValue) -> bool| values.iter().all(f);
-    Some(if values.is_empty() {
-        ParamValue::StringArray(Vec::new())
-    } else if all(|v| matches!(v, ParamValue::Bool(_))) {
-        ParamValue::BoolArray(values.iter().map(|v| matches!(v, ParamValue::Bool(true))).collect())
-    } else if all(|v| matches!(v, ParamValue::Integer(_))) {
-        ParamValue::IntegerArray(
-            values.iter().filter_map(|v| if let ParamValue::Integer(i) = v { Some(*i) } else { None }).collect(),
-        )
-    } else if all(|v| v.as_f64().is_some()) {
-        ParamValue::DoubleArray(values.iter().filter_map(ParamValue::as_f64).collect())
-    } else if all(|v| matches!(v, ParamValue::String(_))) {
-        ParamValue::StringArray(
-            values.iter().filter_map(|v| if let ParamValue::String(s) = v { Some(s.clone()) } else { None }).collect(),
-        )
-    } else {
-        return None;
-    })
+    // In a file, integers among doubles are doubles.
+    let numbers: Option<Vec<f64>> = values.iter().map(ParamValue::as_f64).collect();
+    ParamValue::array_of(values).or_else(|| numbers.map(ParamValue::DoubleArray))
 }
 
 impl ParamsFile {

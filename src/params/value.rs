@@ -3,6 +3,9 @@
 
 use std::fmt;
 
+use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
+use yaml_rust2::scanner::{Marker, TScalarStyle};
+
 /// A ROS 2 parameter value, as a params file or a `-p` override can give it.
 ///
 /// (ROS also has byte arrays, which YAML cannot express; they are not needed here.)
@@ -83,29 +86,73 @@ impl ParamValue {
     /// type (ROS has no mixed arrays; `[1, 2.5]` is an error, write `[1.0, 2.5]`). A trailing
     /// ` # comment` is ignored. Mappings, nested sequences, anchors and block scalars are errors,
     /// as are an empty plain value and an empty sequence (its type is unknown).
+    ///
+    /// The YAML is read by `yaml_rust2`'s parser (as rcl reads it with libyaml); its scalars
+    /// are typed by rcl's rules ([`ParamValue::from_yaml_scalar`]), not YAML 1.2's core
+    /// schema, which `yaml_rust2`'s loader follows (`010` is 8 for rcl, `yes` a bool).
     pub fn parse_yaml(text: &str) -> Result<ParamValue, String> {
-        let mut cursor = Cursor { text, pos: 0 };
-        cursor.skip_spaces();
-        let value = match cursor.peek() {
-            None | Some('#') => return Err("empty value (write '' for an empty string)".into()),
-            Some('[') => {
-                cursor.pos += 1;
-                parse_flow_sequence(&mut cursor)?
+        /// The parser's events, in order.
+        struct Events(Vec<Event>);
+        impl MarkedEventReceiver for Events {
+            fn on_event(&mut self, event: Event, _: Marker) {
+                self.0.push(event);
             }
-            Some('{') => return Err("a YAML mapping is not a parameter value".into()),
-            Some(_) => {
-                let scalar = parse_scalar(&mut cursor, false)?;
-                if !scalar.quoted && scalar.text.is_empty() {
-                    return Err("empty value (write '' for an empty string)".into());
-                }
-                ParamValue::from_yaml_scalar(&scalar.text, scalar.quoted)
-            }
-        };
-        cursor.skip_spaces_and_comment();
-        if let Some(rest) = cursor.rest().filter(|r| !r.is_empty()) {
-            return Err(format!("unexpected '{rest}' after the value"));
         }
-        Ok(value)
+        let mut events = Events(Vec::new());
+        Parser::new_from_str(text).load(&mut events, true).map_err(|e| format!("not valid YAML: {}", e.info()))?;
+        let body: Vec<Event> = events
+            .0
+            .into_iter()
+            .filter(|e| !matches!(e, Event::StreamStart | Event::StreamEnd | Event::DocumentStart | Event::DocumentEnd))
+            .collect();
+        let empty = || "empty value (write '' for an empty string)".to_string();
+        match body.as_slice() {
+            [] => Err(empty()),
+            [Event::Scalar(text, TScalarStyle::Plain, ..)] if text.is_empty() => Err(empty()),
+            [scalar @ Event::Scalar(..)] => yaml_scalar(scalar),
+            // rcl reads a block sequence (`- 1`) as no value: only `[a, b]` is one.
+            [Event::SequenceStart(..), ..] if !text.trim_start().starts_with('[') => {
+                Err("a sequence is written [a, b, c]".into())
+            }
+            [Event::SequenceStart(anchor, _), items @ .., Event::SequenceEnd] => {
+                if *anchor != 0 {
+                    return Err("YAML anchors are not supported in parameter values".into());
+                }
+                if items.is_empty() {
+                    return Err("an empty sequence has no type".into());
+                }
+                let values = items.iter().map(yaml_scalar).collect::<Result<Vec<_>, _>>()?;
+                ParamValue::array_of(values).ok_or_else(|| {
+                    "an array must hold scalars of one type (write [1.0, 2.5], not [1, 2.5])".to_string()
+                })
+            }
+            [Event::MappingStart(..), ..] => Err("a YAML mapping is not a parameter value".into()),
+            [Event::Alias(_)] => Err("YAML aliases are not supported in parameter values".into()),
+            _ => Err("expected one scalar, or a sequence of scalars [a, b, c]".into()),
+        }
+    }
+
+    /// The array of `values`, all of one type (integers among doubles are not: ROS has no
+    /// mixed arrays); `None` if they are not. No value: an empty string array.
+    pub fn array_of(values: Vec<ParamValue>) -> Option<ParamValue> {
+        let all = |f: fn(&ParamValue) -> bool| values.iter().all(f);
+        Some(if values.is_empty() {
+            ParamValue::StringArray(Vec::new())
+        } else if all(|v| matches!(v, ParamValue::Bool(_))) {
+            ParamValue::BoolArray(values.iter().map(|v| matches!(v, ParamValue::Bool(true))).collect())
+        } else if all(|v| matches!(v, ParamValue::Integer(_))) {
+            ParamValue::IntegerArray(
+                values.iter().filter_map(|v| if let ParamValue::Integer(i) = v { Some(*i) } else { None }).collect(),
+            )
+        } else if all(|v| matches!(v, ParamValue::Double(_))) {
+            ParamValue::DoubleArray(values.iter().filter_map(ParamValue::as_f64).collect())
+        } else if all(|v| matches!(v, ParamValue::String(_))) {
+            ParamValue::StringArray(
+                values.into_iter().filter_map(|v| if let ParamValue::String(s) = v { Some(s) } else { None }).collect(),
+            )
+        } else {
+            return None;
+        })
     }
 
     /// Writes the value as one-line YAML that [`ParamValue::parse_yaml`], rcl and other YAML
@@ -339,196 +386,23 @@ fn yaml_list(items: impl Iterator<Item = String>) -> String {
     format!("[{}]", items.collect::<Vec<_>>().join(", "))
 }
 
-/// A scalar read from YAML text.
-struct Scalar {
-    text: String,
-    quoted: bool,
-}
-
-struct Cursor<'a> {
-    text: &'a str,
-    pos: usize,
-}
-
-impl<'a> Cursor<'a> {
-    fn rest(&self) -> Option<&'a str> {
-        self.text.get(self.pos..)
-    }
-    fn peek(&self) -> Option<char> {
-        self.rest().and_then(|r| r.chars().next())
-    }
-    fn bump(&mut self) -> Option<char> {
-        let c = self.peek()?;
-        self.pos += c.len_utf8();
-        Some(c)
-    }
-    fn skip_spaces(&mut self) {
-        while matches!(self.peek(), Some(' ' | '\t')) {
-            self.pos += 1;
-        }
-    }
-    fn skip_spaces_and_comment(&mut self) {
-        let start = self.pos;
-        self.skip_spaces();
-        // A comment needs whitespace before it, or to start the text.
-        if self.peek() == Some('#') && (self.pos > start || self.pos == 0) {
-            self.pos = self.text.len();
-        }
-    }
-}
-
-/// Reads one scalar at the cursor; `in_flow`: inside `[...]`, where `,` and `]` end it.
-fn parse_scalar(cursor: &mut Cursor<'_>, in_flow: bool) -> Result<Scalar, String> {
-    let mut force_string = false;
-    if let Some(rest) = cursor.rest().filter(|r| r.starts_with('!')) {
-        let tag_len = rest.find([' ', '\t']).unwrap_or(rest.len());
-        force_string = &rest[..tag_len] == "!!str";
-        cursor.pos += tag_len;
-        cursor.skip_spaces();
-    }
-    let mut scalar = match cursor.peek() {
-        Some('\'') => {
-            cursor.pos += 1;
-            let mut text = String::new();
-            loop {
-                match cursor.bump() {
-                    None => return Err("unterminated single-quoted string".into()),
-                    Some('\'') if cursor.peek() == Some('\'') => {
-                        cursor.pos += 1;
-                        text.push('\'');
-                    }
-                    Some('\'') => break,
-                    Some(c) => text.push(c),
-                }
-            }
-            Scalar { text, quoted: true }
-        }
-        Some('"') => {
-            cursor.pos += 1;
-            Scalar { text: parse_double_quoted(cursor)?, quoted: true }
-        }
-        Some(c) if "&*|>%@`".contains(c) => {
-            return Err(format!("'{c}' (YAML anchors, aliases, block scalars, directives) is not supported"));
-        }
-        Some('[' | '{') if in_flow => return Err("nested sequences or mappings are not parameter values".into()),
-        _ => {
-            let rest = cursor.rest().unwrap_or("");
-            let mut end = rest.len();
-            for (i, c) in rest.char_indices() {
-                let comment = c == '#' && rest[..i].ends_with([' ', '\t']);
-                if comment || (in_flow && matches!(c, ',' | ']' | '[' | '{' | '}')) {
-                    end = i;
-                    break;
-                }
-            }
-            let text = rest[..end].trim_end_matches([' ', '\t']);
-            if text.contains(": ") || text.ends_with(':') {
-                return Err(format!("'{text}' is a YAML mapping, not a parameter value (quote it)"));
-            }
-            if text.starts_with("- ") || text == "-" {
-                return Err("a YAML block sequence is not supported; write [a, b]".into());
-            }
-            cursor.pos += text.len();
-            Scalar { text: text.to_string(), quoted: false }
-        }
+/// One scalar event as a parameter value: typed as rcl types it ([`ParamValue::from_yaml_scalar`]),
+/// quoted or tagged `!!str` a string; block scalars (`|`, `>`) and anchors refused.
+fn yaml_scalar(event: &Event) -> Result<ParamValue, String> {
+    let Event::Scalar(text, style, anchor, tag) = event else {
+        return Err("a sequence must hold scalars (no nested sequence or mapping)".into());
     };
-    if force_string {
-        scalar.quoted = true;
+    if *anchor != 0 {
+        return Err("YAML anchors are not supported in parameter values".into());
     }
-    Ok(scalar)
-}
-
-fn parse_double_quoted(cursor: &mut Cursor<'_>) -> Result<String, String> {
-    let mut text = String::new();
-    loop {
-        match cursor.bump() {
-            None => return Err("unterminated double-quoted string".into()),
-            Some('"') => return Ok(text),
-            Some('\\') => {
-                let escape = cursor.bump().ok_or("unterminated double-quoted string")?;
-                let hex_len = match escape {
-                    'x' => 2,
-                    'u' => 4,
-                    'U' => 8,
-                    _ => 0,
-                };
-                if hex_len > 0 {
-                    let digits = cursor.rest().and_then(|r| r.get(..hex_len)).ok_or("short \\x/\\u escape")?;
-                    let code = u32::from_str_radix(digits, 16).map_err(|_| format!("bad escape \\{escape}{digits}"))?;
-                    text.push(char::from_u32(code).ok_or_else(|| format!("bad escape \\{escape}{digits}"))?);
-                    cursor.pos += hex_len;
-                    continue;
-                }
-                text.push(match escape {
-                    '0' => '\0',
-                    'a' => '\x07',
-                    'b' => '\x08',
-                    't' | '\t' => '\t',
-                    'n' => '\n',
-                    'v' => '\x0b',
-                    'f' => '\x0c',
-                    'r' => '\r',
-                    'e' => '\x1b',
-                    ' ' => ' ',
-                    '"' => '"',
-                    '/' => '/',
-                    '\\' => '\\',
-                    'N' => '\u{85}',
-                    '_' => '\u{a0}',
-                    'L' => '\u{2028}',
-                    'P' => '\u{2029}',
-                    other => return Err(format!("unknown escape \\{other}")),
-                });
-            }
-            Some(c) => text.push(c),
-        }
-    }
-}
-
-/// Reads `[a, b, c]` after the `[`.
-fn parse_flow_sequence(cursor: &mut Cursor<'_>) -> Result<ParamValue, String> {
-    let mut items = Vec::new();
-    loop {
-        cursor.skip_spaces();
-        match cursor.peek() {
-            None => return Err("unterminated '['".into()),
-            Some(']') => {
-                cursor.pos += 1;
-                break;
-            }
-            Some(_) => {}
-        }
-        let scalar = parse_scalar(cursor, true)?;
-        if !scalar.quoted && scalar.text.is_empty() {
-            return Err("empty item in a sequence".into());
-        }
-        items.push(ParamValue::from_yaml_scalar(&scalar.text, scalar.quoted));
-        cursor.skip_spaces();
-        match cursor.bump() {
-            Some(',') => continue,
-            Some(']') => break,
-            Some(c) => return Err(format!("expected ',' or ']' in a sequence, got '{c}'")),
-            None => return Err("unterminated '['".into()),
-        }
-    }
-    let first = items.first().ok_or("an empty sequence has no type; ROS cannot tell what array it is")?;
-    let kind = first.type_name();
-    if let Some(odd) = items.iter().find(|v| v.type_name() != kind) {
-        return Err(format!("a sequence must have one type: {} and {} mixed", kind, odd.type_name()));
-    }
-    macro_rules! collect {
-        ($variant:ident, $array:ident) => {
-            ParamValue::$array(
-                items.into_iter().map(|v| if let ParamValue::$variant(x) = v { x } else { unreachable!() }).collect(),
-            )
-        };
-    }
-    Ok(match first {
-        ParamValue::Bool(_) => collect!(Bool, BoolArray),
-        ParamValue::Integer(_) => collect!(Integer, IntegerArray),
-        ParamValue::Double(_) => collect!(Double, DoubleArray),
-        _ => collect!(String, StringArray),
-    })
+    let quoted = match style {
+        TScalarStyle::Plain => false,
+        TScalarStyle::SingleQuoted | TScalarStyle::DoubleQuoted => true,
+        _ => return Err("a block scalar (| or >) is not a one-line value".into()),
+    };
+    let str_tag =
+        tag.as_ref().is_some_and(|t| t.suffix == "str" && (t.handle == "!!" || t.handle == "tag:yaml.org,2002:"));
+    Ok(ParamValue::from_yaml_scalar(text, quoted || str_tag))
 }
 
 impl ParamValue {
