@@ -21,7 +21,7 @@
 
 pub mod file;
 
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::{SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
 
@@ -332,6 +332,7 @@ impl Record {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     fn record(time: &str, alpha0: f64, previous: Option<Previous>) -> Record {
         Record { time: time.into(), alpha0, previous, ..Record::example() }
