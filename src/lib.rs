@@ -17,6 +17,7 @@
 //! Conventions (docs/engine.md): SI units (metres, radians), the rail turns
 //! counter-clockwise, `P = (k rho - dL) u + d v`.
 
+pub(crate) mod c_number;
 pub mod cell;
 pub mod cli;
 pub mod engine;

@@ -7,7 +7,7 @@
 
 use super::implementation::{Middleware, UnknownImplementation};
 use super::security::SecurityEnv;
-use crate::params::value::c_strtoll;
+use crate::c_number;
 
 /// An unusable ROS environment variable.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -68,7 +68,7 @@ pub fn parse_domain_id(value: Option<&str>) -> Result<u32, EnvError> {
     let Some(text) = value.map(str::trim).filter(|t| !t.is_empty()) else {
         return Ok(0);
     };
-    match c_strtoll(text).and_then(|v| u32::try_from(v).ok()) {
+    match c_number::strtoll(text).and_then(|v| u32::try_from(v).ok()) {
         Some(id) if id <= ROS_DOMAIN_ID_MAX && !text.starts_with(['-', '+']) => Ok(id),
         _ => Err(EnvError::DomainId(value.unwrap_or_default().to_string())),
     }

@@ -45,34 +45,12 @@ impl RouterCheck {
     pub fn from_value(value: Option<&str>) -> RouterCheck {
         match value.filter(|v| !v.is_empty()) {
             None => RouterCheck::Attempts(1),
-            Some(v) => match c_strtoll_prefix(v) {
+            Some(v) => match crate::c_number::strtoll_prefix(v) {
                 n if n > 0 => RouterCheck::Attempts(n as u64),
                 n if n < 0 => RouterCheck::Skip,
                 _ => RouterCheck::Forever,
             },
         }
-    }
-}
-
-/// C `strtoll(v, NULL, 10)`: leading whitespace, a sign, the longest run of digits; 0 if
-/// none, saturated on overflow.
-fn c_strtoll_prefix(v: &str) -> i64 {
-    let t = v.trim_start();
-    let (negative, digits) = match t.as_bytes().first() {
-        Some(b'-') => (true, &t[1..]),
-        Some(b'+') => (false, &t[1..]),
-        _ => (false, t),
-    };
-    let end = digits.find(|c: char| !c.is_ascii_digit()).unwrap_or(digits.len());
-    let text = &digits[..end];
-    if text.is_empty() {
-        return 0;
-    }
-    match text.parse::<i64>() {
-        Ok(n) if negative => -n,
-        Ok(n) => n,
-        Err(_) if negative => i64::MIN,
-        Err(_) => i64::MAX,
     }
 }
 
