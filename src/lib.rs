@@ -10,6 +10,8 @@
 //! - [`cell`]: the cell's logic (scan checks, correction, calibration in force, records,
 //!   diagnostics), without any middleware;
 //! - [`io`]: files (CSV, rosbag2, OMA, SVG);
+//! - [`names`]: ROS 2 names (node names, namespaces, topics, services, `-r` remap rules),
+//!   validated, expanded and remapped as rcl does;
 //! - [`rmw`]: joining a ROS graph (the ROS environment, the DDS participant);
 //! - [`ros`]: the node shell (`tracer_calib_node`); [`cli`]: the offline tool
 //!   (`tracer_calib`). Neither uses the other.
@@ -23,6 +25,7 @@ pub mod cli;
 pub mod engine;
 pub mod interfaces;
 pub mod io;
+pub mod names;
 pub mod params;
 pub mod records;
 pub mod rmw;

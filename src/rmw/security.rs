@@ -28,7 +28,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::ros::names::validate_namespace;
+use crate::names::validate_namespace;
 
 #[cfg(feature = "security")]
 pub mod credentials;

@@ -3,7 +3,8 @@
 //! logic of its own beyond what rcl does for a stock node.
 //!
 //! - [`args`]: the command line (`--ros-args`: remaps, `-p`, params files, log levels);
-//! - [`names`]: node, topic and service names, validated, expanded and remapped as rcl does;
+//! - [`names`]: node, topic and service names, validated, expanded and remapped as rcl does
+//!   ([`crate::names`], below the middleware, which validates names too; here for the shell);
 //! - [`qos_overrides`]: the `qos_overrides.*` parameters, as rclcpp offers them;
 //! - [`node`]: the node itself, one loop per concern.
 //!
@@ -12,6 +13,6 @@
 //! uses this module.
 
 pub mod args;
-pub mod names;
+pub use crate::names;
 pub mod node;
 pub mod qos_overrides;

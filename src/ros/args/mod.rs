@@ -1,5 +1,5 @@
 //! ROS 2 command-line arguments and parameter value typing: what `rcl` does for a C++ or
-//! Python node, and ros2-client does not. Names and their resolution: [`super::names`]; the
+//! Python node, and ros2-client does not. Names and their resolution: [`crate::names`]; the
 //! ROS environment variables: [`crate::rmw::env`].
 //!
 //! # Command line (rcl semantics)
@@ -40,7 +40,7 @@ use std::str::FromStr;
 
 pub use crate::params::ParamValue;
 
-use super::names::{
+use crate::names::{
     NameError, NodeIdentity, normalize_namespace, resolve_service, resolve_topic, validate_namespace,
     validate_node_name,
 };
@@ -49,7 +49,8 @@ mod rules;
 #[cfg(test)]
 mod tests;
 
-pub use rules::{ParamOverride, ParamSource, RemapKind, RemapRule};
+pub use crate::names::{RemapKind, RemapRule};
+pub use rules::{ParamOverride, ParamSource};
 
 /// A command-line argument that could not be used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

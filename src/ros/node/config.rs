@@ -4,11 +4,11 @@
 use log::{debug, warn};
 
 use super::DEFAULT_NODE_NAME;
+use crate::names::NodeIdentity;
 use crate::params::{Parameters, file as params_file, names};
 use crate::records;
 use crate::rmw::{RosEnv, Security, security};
 use crate::ros::args::RosArgs;
-use crate::ros::names::NodeIdentity;
 use crate::ros::qos_overrides::{self, QosOverrides};
 
 /// Everything the node needs to start, from the command line, the environment and

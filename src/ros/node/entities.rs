@@ -48,10 +48,10 @@ use crate::interfaces::{
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
     tracer_calib_msgs as msgs,
 };
+use crate::names::{NodeIdentity, ros2_name};
 use crate::rmw::dds::TypesInUse;
 use crate::rmw::{RosEnv, Security};
 use crate::ros::args::RosArgs;
-use crate::ros::names::{NodeIdentity, ros2_name};
 use crate::ros::qos_overrides::{QosOverrides, Side};
 
 /// Calibrate requests waiting for the one-at-a-time fit. The DDS reader drops the

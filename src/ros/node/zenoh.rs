@@ -39,10 +39,10 @@ use crate::interfaces::{
     GetAvailableStatesResponse, GetAvailableTransitions, GetAvailableTransitionsRequest,
     GetAvailableTransitionsResponse, GetState, GetStateRequest, GetStateResponse, TransitionEvent,
 };
+use crate::names::NodeIdentity;
 use crate::rmw::RosEnv;
 use crate::rmw::dds::TypesInUse;
 use crate::rmw::zenoh::ZenohEnv;
-use crate::ros::names::NodeIdentity;
 
 /// The node's Zenoh entities.
 pub(super) struct ZenohEntities {

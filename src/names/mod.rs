@@ -13,7 +13,8 @@
 
 use std::fmt;
 
-use super::args::RemapRule;
+mod remap;
+pub use remap::{RemapKind, RemapRule};
 
 /// A name token: `[A-Za-z0-9_]+`.
 pub(crate) fn is_token(s: &str) -> bool {
