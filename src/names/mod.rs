@@ -49,6 +49,12 @@ pub struct NodeIdentity {
 }
 
 impl NodeIdentity {
+    /// rcl's logger name: the namespace's tokens and the name joined by dots
+    /// (`cell1.tracer`; `tracer` in the root namespace).
+    pub fn logger_name(&self) -> String {
+        self.namespace.split('/').filter(|t| !t.is_empty()).chain([self.name.as_str()]).collect::<Vec<_>>().join(".")
+    }
+
     /// `/ns/name`, or `/name` in the root namespace.
     pub fn fully_qualified_name(&self) -> String {
         fully_qualified_node_name(&self.namespace, &self.name)

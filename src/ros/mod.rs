@@ -13,6 +13,7 @@
 //! uses this module.
 
 pub mod args;
+pub mod logging;
 pub use crate::names;
 pub mod node;
 pub mod qos_overrides;

@@ -631,6 +631,69 @@ def test_stylus_tip(peer):
     assert back["model"] == "full_tip", back
 
 
+def test_rosout(peer):
+    """Every record the node logs at or above its level reaches /rosout as rcl publishes it:
+    the logger name `ns.node`, the level, file, function (module) and line; reliable and
+    transient local, so a console that joins late gets the start-up records. `--log-level
+    NAME:=LEVEL` for the node's logger and `--disable-rosout-logs` do what rcl does."""
+    from rcl_interfaces.msg import Log
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+
+    def console():
+        box = []
+        qos = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        peer.node.create_subscription(Log, "/rosout", box.append, qos)
+        return box
+
+    steps, counts = simulate("plate_rosout", "plate", seed=5)
+    lengths_differ = raw_scan(1, 1, steps, counts[:-1])
+    node = NodeProcess("rosout", ["-r", "__ns:=/cell7", "-r", "__node:=tracer", "-r", "raw_scan:=/rosout_scan"])
+    try:
+        pub = peer.publisher("/rosout_scan")
+        peer.wait_matched(pub)
+        time.sleep(0.5)
+        logs = console()  # a console that joins after the node started
+
+        def mine(level=None, text=""):
+            return [r for r in logs if r.name == "cell7.tracer" and (level is None or r.level == level) and text in r.msg]
+
+        peer.spin_until(lambda: mine(Log.INFO, "listening on"), 10, "the start-up record, for a late console")
+        pub.publish(lengths_differ)
+        peer.spin_until(lambda: mine(Log.WARN, "rejected raw scan"), 10, "the rejected scan's warning on /rosout")
+        r = mine(Log.WARN, "rejected raw scan")[0]
+        assert r.file.endswith(".rs") and r.line > 0 and r.function.startswith("tracer_calib"), r
+        assert "rejected raw scan" in node.output(), node.output()  # and on stderr
+    finally:
+        node.stop()
+
+    # The node's logger at ERROR: its warnings stay off /rosout (and stderr); rosout off:
+    # nothing at all, while stderr still has them.
+    quiet = NodeProcess(
+        "rosout_error", ["-r", "__ns:=/cell8", "-r", "__node:=tracer", "-r", "raw_scan:=/rosout_scan", "--log-level", "cell8.tracer:=error"]
+    )
+    off = NodeProcess(
+        "rosout_off", ["-r", "__ns:=/cell9", "-r", "__node:=tracer", "-r", "raw_scan:=/rosout_scan", "--disable-rosout-logs"]
+    )
+    try:
+        logs = console()
+        pub = peer.publisher("/rosout_scan")
+        peer.spin_until(lambda: pub.get_subscription_count() >= 2, 15, "both nodes on /rosout_scan")
+        time.sleep(0.5)
+        pub.publish(lengths_differ)
+        peer.spin_until(lambda: "rejected raw scan" in off.output(), 10, "the warning on the rosout-less node's stderr")
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline:
+            peer.executor.spin_once(timeout_sec=0.05)
+        assert not [r for r in logs if r.name == "cell9.tracer"], [r.msg for r in logs if r.name == "cell9.tracer"]
+        assert not [r for r in logs if r.name == "cell8.tracer" and r.level < Log.ERROR], [
+            r.msg for r in logs if r.name == "cell8.tracer"
+        ]
+        assert "rejected raw scan" not in quiet.output(), quiet.output()
+    finally:
+        quiet.stop()
+        off.stop()
+
+
 def tests(peer):
     """This file's tests as `(name, fn)` pairs, in order, against the rclpy `peer`
     (node_suite.py runs them)."""
@@ -647,4 +710,5 @@ def tests(peer):
         ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
         ("encoder_scale", lambda: test_encoder_scale(peer)),
         ("stylus_tip", lambda: test_stylus_tip(peer)),
+        ("rosout", lambda: test_rosout(peer)),
     ]

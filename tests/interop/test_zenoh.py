@@ -352,6 +352,9 @@ def test_zenoh_node_calibrate():
         peer.spin_until(lambda: diags, 5, "/diagnostics")
         assert any("tracer_calibrator" in s.name for s in diags[-1].status), diags[-1]
         peer.spin_until(lambda: any("calibrate:" in m.msg for m in logs), 5, "the calibration on /rosout")
+        # As rcl publishes it: the logger name (root namespace: the node's name), the place.
+        rec = next(m for m in logs if "calibrate:" in m.msg)
+        assert rec.name == "tracer_calibrator" and rec.file.endswith(".rs") and rec.line > 0, rec
 
         pc = peer.param_client("/tracer_calibrator")
         names = peer.param(lambda: pc.list_parameters()).result.names

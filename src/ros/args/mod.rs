@@ -16,9 +16,10 @@
 //! | `-r`/`--remap [NODE:]FROM:=TO` | name remap; `__node`/`__name` renames the node, `__ns` sets its namespace (must be absolute); `rostopic://`/`rosservice://` limit `FROM` to topics/services |
 //! | `-p`/`--param [NODE:]NAME:=VALUE` | parameter override; `NAME` as rcl reads it (parts of tokens and `/` separated by `.`: `qos_overrides./raw_scan.subscription.depth`), `VALUE` a one-line YAML value, typed like a params file ([`ParamValue::parse_yaml`]); a value rcl reads as NOT_SET (`[]`, a comment alone) sets nothing |
 //! | `--params-file FILE` | parameters file; may repeat |
-//! | `--log-level LEVEL` / `--log-level LOGGER:=LEVEL` | `debug info warn error fatal unset`, any case |
+//! | `--log-level LEVEL` / `--log-level LOGGER:=LEVEL` | `debug info warn error fatal unset`, any case: the node logger's level, by rcl's rules ([`crate::ros::logging`]) |
 //! | `--log-config-file FILE`, `-e`/`--enclave NAME`, `--log-file-name NAME` | recorded |
-//! | `--enable-`/`--disable-` + `stdout-logs`/`rosout-logs`/`external-lib-logs` | accepted, ignored |
+//! | `--enable-`/`--disable-` + `stdout-logs`/`rosout-logs` | the node's records on stderr / on `/rosout` |
+//! | `--enable-`/`--disable-external-lib-logs` | accepted, ignored |
 //!
 //! Anything else inside a block is an error, as in rclcpp ("unknown ROS arguments"); so is a
 //! flag with nothing after it, or a malformed rule. Errors name the flag and the argument.
@@ -143,7 +144,13 @@ pub struct RosArgs {
     pub log_config_file: Option<PathBuf>,
     /// `-e`/`--enclave NAME` (the last one given).
     pub enclave: Option<String>,
-    /// ROS arguments that were accepted but have no effect here (`--disable-rosout-logs`,
+    /// `--enable-stdout-logs` / `--disable-stdout-logs` (the last one given): the node's
+    /// records on stderr ([`crate::ros::logging`]).
+    pub stdout_logs: Option<bool>,
+    /// `--enable-rosout-logs` / `--disable-rosout-logs` (the last one given): the node's
+    /// records on `/rosout`.
+    pub rosout_logs: Option<bool>,
+    /// ROS arguments that were accepted but have no effect here (`--disable-external-lib-logs`,
     /// `--log-file-name NAME`, ...), as given.
     pub ignored: Vec<String>,
     /// Everything outside the `--ros-args` blocks, in order (with `argv[0]` if it was given).
@@ -237,6 +244,12 @@ impl RosArgs {
                 "--log-file-name" => {
                     let v = value(EXPECT_NAME)?;
                     out.ignored.push(format!("{arg} {v}"));
+                }
+                "--enable-stdout-logs" | "--disable-stdout-logs" => {
+                    out.stdout_logs = Some(arg.starts_with("--enable"));
+                }
+                "--enable-rosout-logs" | "--disable-rosout-logs" => {
+                    out.rosout_logs = Some(arg.starts_with("--enable"));
                 }
                 _ if is_logging_toggle(arg) => out.ignored.push(arg.to_string()),
                 _ => return Err(ArgsError::UnknownRosArg(arg.to_string())),

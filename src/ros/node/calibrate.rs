@@ -2,8 +2,7 @@
 //! logged to rosout, and answered.
 
 use futures::StreamExt;
-use log::{debug, warn};
-use ros2_client::ros2::LogLevel;
+use log::{debug, info, warn};
 
 use super::{Shared, Wire, parameters};
 
@@ -42,10 +41,10 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
             let _ = shared.calibration_changed.try_send(());
         }
         let r = &outcome.response;
+        // On stderr and /rosout ([`crate::ros::logging`]).
         if r.success {
-            e.rosout(LogLevel::Info, &format!("calibrate: {}", r.message));
+            info!("calibrate: {}", r.message);
         } else {
-            e.rosout(LogLevel::Warn, &format!("calibrate: {}", r.message));
             warn!("calibrate: {}", r.message);
         }
         match e.answer_calibrate(id, outcome.response).await {

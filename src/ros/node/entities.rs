@@ -30,10 +30,10 @@
 
 use std::time::Duration;
 
+use crate::ros::logging::RosoutRecord;
 use futures::{Stream, StreamExt};
 use log::{info, warn};
 use ros2_client::dds::{Context, Publisher, Server, ServiceMapping, Subscription};
-use ros2_client::ros2::LogLevel;
 use ros2_client::rosout::RosoutRaw;
 use ros2_client::service::RmwRequestId;
 use ros2_client::{
@@ -153,6 +153,8 @@ pub(super) struct Entities {
     pub lifecycle: Option<LifecycleEntities>,
     /// The types of the node's endpoints, which `type_description` describes.
     pub types_in_use: TypesInUse,
+    /// rcl's logger name of the node (`cell1.tracer`), for its `/rosout` records.
+    logger_name: String,
     spinner: smol::Task<ros2_client::CreateResult<()>>,
 }
 
@@ -223,6 +225,7 @@ impl Entities {
             type_description,
             lifecycle,
             types_in_use,
+            logger_name: identity.logger_name(),
             spinner,
         })
     }
@@ -244,6 +247,7 @@ impl Entities {
             type_description,
             lifecycle,
             types_in_use: _,
+            logger_name: _,
             spinner,
         } = self;
         drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description, lifecycle));
@@ -311,9 +315,9 @@ impl Wire for Entities {
         self.node.set_parameter(name, value).map_err(|e| e.to_string())
     }
 
-    fn rosout(&self, level: LogLevel, msg: &str) {
+    fn rosout(&self, r: &RosoutRecord) {
         let node = &self.node;
-        node.rosout_raw(node.rosout_stamp(), level, node.base_name(), msg, file!(), "<unknown_func>", line!());
+        node.rosout_raw(node.rosout_stamp(), r.level, &self.logger_name, &r.msg, &r.file, &r.function, r.line);
     }
 
     fn use_sim_time(&self) -> bool {

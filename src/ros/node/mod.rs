@@ -142,6 +142,17 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         warn!("{w}");
     }
     let fqn = identity.fully_qualified_name();
+    crate::ros::logging::for_node(&args, &identity.logger_name());
+    // The node's records from here on queue for /rosout; its loop publishes them. None
+    // queue once `run` returns, however it does.
+    let rosout = crate::ros::logging::attach_rosout();
+    struct Detach;
+    impl Drop for Detach {
+        fn drop(&mut self) {
+            crate::ros::logging::detach_rosout();
+        }
+    }
+    let _detach = Detach;
     if !params.params_file.is_empty() {
         let removed = params_file::remove_stale_temp_files(std::path::Path::new(&params.params_file));
         if removed > 0 {
@@ -173,7 +184,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             let e = &entities;
             let mut extra: Vec<Loop<'_>> = vec![Box::pin(graph::run(e, &shared))];
             extra.extend(e.lifecycle.as_ref().map(|l| lifecycle_loop(l, &shared)));
-            serve(e, &shared, extra, shutdown, &fqn);
+            serve(e, &shared, extra, shutdown, &fqn, rosout);
             shared.qos_reports.lock().expect("qos reports lock").flush(&entities.node, Instant::now(), true);
             entities.close();
         }
@@ -194,7 +205,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             let e = &entities;
             let mut extra: Vec<Loop<'_>> = vec![Box::pin(e.run_graph_and_parameters(&shared))];
             extra.extend(e.lifecycle.as_ref().map(|l| lifecycle_loop(l, &shared)));
-            serve(e, &shared, extra, shutdown, &fqn);
+            serve(e, &shared, extra, shutdown, &fqn, rosout);
             entities.close();
         }
         #[cfg(not(feature = "zenoh"))]
@@ -220,13 +231,14 @@ fn lifecycle_loop<'a>(l: &'a impl lifecycle::LifecycleWire, shared: &'a Shared) 
 }
 
 /// Run the loops every middleware has, and its `extra` ones, until one ends or `shutdown`
-/// resolves.
+/// resolves. `rosout`: the node's log records to publish on `/rosout`.
 fn serve<'a>(
     e: &'a impl Wire,
     shared: &'a Shared,
     extra: Vec<Loop<'a>>,
     shutdown: impl std::future::Future<Output = ()> + 'a,
     fqn: &'a str,
+    rosout: Option<smol::channel::Receiver<crate::ros::logging::RosoutRecord>>,
 ) {
     // Each loop is a future of its own, with its own waker: a scan arriving wakes the
     // scan loop alone. (Under one `select!`, every wake-up polled every loop, the
@@ -255,5 +267,14 @@ fn serve<'a>(
         shutdown.await;
         info!("{fqn}: shutting down")
     }));
+    // The node's log records on /rosout ([`crate::ros::logging`]): what was logged since
+    // the node started, then each as it comes.
+    if let Some(records) = rosout {
+        loops.push(Box::pin(async move {
+            while let Ok(record) = records.recv().await {
+                e.rosout(&record);
+            }
+        }));
+    }
     smol::block_on(loops.next());
 }

@@ -6,9 +6,9 @@
 //!
 //! Errors are the middleware's, as text: the loops only count and log them.
 
+use crate::ros::logging::RosoutRecord;
 use futures::Stream;
 use ros2_client::ParameterValue;
-use ros2_client::ros2::LogLevel;
 
 use super::Shared;
 use crate::interfaces::{
@@ -59,8 +59,8 @@ pub(super) trait Wire {
     /// Set one of the node's ROS parameters from within (its validator and set action
     /// run as for a remote set).
     fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String>;
-    /// A record on `/rosout`.
-    fn rosout(&self, level: LogLevel, msg: &str);
+    /// A record on `/rosout`, under the node's rcl logger name.
+    fn rosout(&self, record: &RosoutRecord);
     /// Whether the node's clock is simulated (`use_sim_time`).
     fn use_sim_time(&self) -> bool;
     /// Once a second, from the diagnostics loop: what the middleware reports late

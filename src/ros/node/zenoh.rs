@@ -21,8 +21,8 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use crate::ros::logging::RosoutRecord;
 use futures::{Stream, StreamExt};
-use ros2_client::ros2::LogLevel;
 use ros2_client::zenoh::{Context, Node, Publisher, Server, Subscription};
 use ros2_client::{MessageTypeName, NodeOptions, ParameterValue, RmwRequestId, ServiceTypeName};
 
@@ -266,9 +266,10 @@ impl Wire for ZenohEntities {
         }
     }
 
-    fn rosout(&self, level: LogLevel, msg: &str) {
+    fn rosout(&self, r: &RosoutRecord) {
+        // The logger's name is rcl's logger name of the node (vendor/ros2-client/PATCHES.md).
         if let Some(logger) = self.node.logger() {
-            logger.log_at(level, msg, file!(), "<unknown_func>", line!());
+            logger.log_at(r.level, &r.msg, &r.file, &r.function, r.line);
         }
     }
 

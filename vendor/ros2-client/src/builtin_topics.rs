@@ -55,7 +55,9 @@ pub mod rosout {
       .deadline(Deadline(Duration::INFINITE))
       .ownership(Ownership::Shared)
       .reliable(Duration::ZERO)
-      .history(History::KeepLast { depth: 1 })
+      // PATCH (tracer_calib): depth 1000, as rcl's rosout profile
+      // (`rcl_qos_profile_rosout_default`): a late console gets the last 1000 records.
+      .history(History::KeepLast { depth: 1000 })
       .lifespan(Lifespan {
         duration: Duration::from_secs(10)
       })

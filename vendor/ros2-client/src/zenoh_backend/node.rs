@@ -692,7 +692,9 @@ impl Node {
   pub fn create_logger(&self) -> CreateResult<Logger> {
     let publisher = self.create_publisher::<Log>(&self.rosout_topic()?, None)?;
     Ok(Logger::new(
-      self.node_name.base_name().to_string(),
+      // PATCH (tracer_calib): rcl's logger name, the namespace and the node name joined
+      // by dots (`cell1.tracer`; `tracer` in the root namespace), not the base name alone.
+      rcl_logger_name(self.node_name.namespace(), self.node_name.base_name()),
       publisher,
       self.clock.clone(), // PATCH (tracer_calib): records stamped with the node's clock
     ))
@@ -708,7 +710,13 @@ impl Node {
     Ok(self.create_topic(
       &Name::new("/", "rosout").map_err(name_err)?,
       MessageTypeName::new("rcl_interfaces", "Log"),
-      &QosProfile::default(),
+      // PATCH (tracer_calib): rcl's rosout profile (`rcl_qos_profile_rosout_default`):
+      // reliable, transient local, keep last 1000, 10 s lifespan (was the subscription
+      // default: best effort, volatile, depth 1).
+      &QosProfile::publisher_default()
+        .durability(crate::qos::Durability::TransientLocal)
+        .history(crate::qos::History::KeepLast { depth: 1000 })
+        .lifespan(Some(std::time::Duration::from_secs(10))),
     ))
   }
 
@@ -948,4 +956,15 @@ pub(crate) fn advanced_publisher(
     }
   }
   Ok(builder.wait()?)
+}
+
+/// PATCH (tracer_calib): rcl's logger name of a node: its namespace's tokens and its name,
+/// joined by dots (`/cell1`, `tracer` -> `cell1.tracer`; `/`, `tracer` -> `tracer`).
+pub fn rcl_logger_name(namespace: &str, base_name: &str) -> String {
+  namespace
+    .split('/')
+    .filter(|t| !t.is_empty())
+    .chain(std::iter::once(base_name))
+    .collect::<Vec<_>>()
+    .join(".")
 }
