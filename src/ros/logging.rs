@@ -109,10 +109,10 @@ impl Log for NodeLogger {
         if self.stdout_logs {
             self.stderr.log(record);
         }
-        if let Some(tx) = self.rosout.lock().expect("rosout sender lock").as_ref() {
-            if tx.try_send(RosoutRecord::of(record)).is_err() {
-                self.dropped.fetch_add(1, Ordering::Relaxed);
-            }
+        if let Some(tx) = self.rosout.lock().expect("rosout sender lock").as_ref()
+            && tx.try_send(RosoutRecord::of(record)).is_err()
+        {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
         }
     }
 
@@ -263,15 +263,17 @@ mod tests {
 
     #[test]
     fn a_record_keeps_its_level_text_and_place() {
-        let record = Record::builder()
-            .level(log::Level::Warn)
-            .target("tracer_calib::cell")
-            .args(format_args!("scan {} refused", 7))
-            .file(Some("src/cell/scans.rs"))
-            .module_path(Some("tracer_calib::cell::scans"))
-            .line(Some(42))
-            .build();
-        let r = RosoutRecord::of(&record);
+        let id = 7;
+        let r = RosoutRecord::of(
+            &Record::builder()
+                .level(log::Level::Warn)
+                .target("tracer_calib::cell")
+                .args(format_args!("scan {id} refused"))
+                .file(Some("src/cell/scans.rs"))
+                .module_path(Some("tracer_calib::cell::scans"))
+                .line(Some(42))
+                .build(),
+        );
         assert_eq!(
             r,
             RosoutRecord {
