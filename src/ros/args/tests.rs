@@ -337,7 +337,9 @@ fn long_flags_and_ignored_flags() {
     assert_eq!(args.logger_levels, vec![("rustdds".to_string(), LogLevel::Error)]);
     assert_eq!(args.log_config_file.as_deref(), Some(Path::new("log.conf")));
     assert_eq!(args.enclave.as_deref(), Some("/enclave"));
-    assert_eq!(args.ignored.len(), 5);
+    // The last of each pair wins; the external-lib toggle and the log file name are ignored.
+    assert_eq!((args.rosout_logs, args.stdout_logs), (Some(false), Some(false)));
+    assert_eq!(args.ignored, vec!["--enable-external-lib-logs".to_string(), "--log-file-name x.log".to_string()]);
     assert_eq!(LogLevel::Warn.level_filter(), Some(log::LevelFilter::Warn));
     assert_eq!(LogLevel::Fatal.level_filter(), Some(log::LevelFilter::Error));
     assert_eq!(LogLevel::Unset.level_filter(), None);
