@@ -9,8 +9,14 @@ use crate::records;
 
 impl NodeState {
     /// The node's diagnostics at `now`: stamped with its ROS time; the calibration's age
-    /// is system time.
+    /// is system time. Two statuses: the calibration's (first), and the tracer driver's
+    /// ([`super::driver`]), at the monotonic time of the call.
     pub fn diagnostics(&self, now: Now) -> DiagnosticArray {
+        self.diagnostics_at(now, std::time::Instant::now())
+    }
+
+    /// [`Self::diagnostics`] with the driver's status at `instant`.
+    pub fn diagnostics_at(&self, now: Now, instant: std::time::Instant) -> DiagnosticArray {
         let p = &self.params;
         let last_failed = self.stats.calibrations_failed > 0 && self.stats.last_fit_message.contains("failed");
         let (level, message) = if !p.calibration_valid && last_failed {
@@ -73,60 +79,71 @@ impl NodeState {
         let s = &self.stats;
         DiagnosticArray {
             header: Header { stamp: now.ros, frame_id: String::new() },
-            status: vec![DiagnosticStatus {
-                level,
-                name: format!("tracer_calib: {}", self.fqn),
-                message,
-                hardware_id: p.output_frame_id.clone(),
-                values: vec![
-                    kv("calibrated", p.calibration_valid.to_string()),
-                    kv(
-                        "calibration_age_s",
-                        if p.calibration_valid { format!("{:.1}", age.as_secs_f64()) } else { "".into() },
-                    ),
-                    kv(
-                        "calibration_time",
-                        if p.calibration_valid { records::format_utc(self.in_force.applied_at) } else { "".into() },
-                    ),
-                    kv("calibration_age_days", if p.calibration_valid { format!("{age_days:.3}") } else { "".into() }),
-                    kv("calibration_source", self.in_force.source.to_string()),
-                    kv("calibration_scan_id", self.in_force.scan_id.to_string()),
-                    kv("max_age_days", p.max_age_days.to_string()),
-                    kv("drift_sigma", self.drift.map(|d| format!("{:.2}", d.worst().1)).unwrap_or_default()),
-                    kv("drift", self.drift.map(|d| d.describe()).unwrap_or_default()),
-                    kv("drift_warn_sigma", p.drift_warn_sigma.to_string()),
-                    kv("history_file", p.history_file.clone()),
-                    kv("history_records", self.history_records.to_string()),
-                    kv("history_problem", self.history_problem.clone()),
-                    kv("alpha0_deg", format!("{:.5}", p.calibration.alpha0.to_degrees())),
-                    kv("offset_mm", format!("{:.5}", p.calibration.offset * 1e3)),
-                    kv("delta_l_mm", format!("{:.5}", p.calibration.delta_l * 1e3)),
-                    kv("scale", format!("{:.7}", p.calibration.scale)),
-                    kv("model", p.model.to_string()),
-                    kv(
-                        "last_fit_rms_residual_mm",
-                        s.last_fit_rms.map(|r| format!("{:.5}", r * 1e3)).unwrap_or_default(),
-                    ),
-                    kv("last_fit", s.last_fit_message.clone()),
-                    kv("scans_received", s.scans_received.to_string()),
-                    kv("scans_rejected", s.scans_rejected.to_string()),
-                    kv("scans_held", s.scans_held.to_string()),
-                    kv("contours_published", s.contours_published.to_string()),
-                    kv("calibrations_applied", s.calibrations_applied.to_string()),
-                    kv("calibrations_failed", s.calibrations_failed.to_string()),
-                    kv("last_rejection", s.last_rejection.clone()),
-                    kv("plate_scans_kept", self.plates.len().to_string()),
-                    kv("qos_incompatible", s.qos_incompatible.to_string()),
-                    kv("requests_unreadable", s.requests_unreadable.to_string()),
-                    kv("last_qos_incompatible", s.last_qos_incompatible.clone()),
-                    kv("use_sim_time", p.use_sim_time.to_string()),
-                    kv("lifecycle_state", self.lifecycle_label().to_string()),
-                    kv("ros_time", format!("{:.3}", now.ros.to_nanos() as f64 * 1e-9)),
-                ]
-                .into_iter()
-                .chain(s.peers_refused_authentication.map(|n| kv("peers_refused_authentication", n.to_string())))
-                .collect(),
-            }],
+            status: vec![
+                DiagnosticStatus {
+                    level,
+                    name: format!("tracer_calib: {}", self.fqn),
+                    message,
+                    hardware_id: self.hardware_id().to_string(),
+                    values: vec![
+                        kv("calibrated", p.calibration_valid.to_string()),
+                        kv(
+                            "calibration_age_s",
+                            if p.calibration_valid { format!("{:.1}", age.as_secs_f64()) } else { "".into() },
+                        ),
+                        kv(
+                            "calibration_time",
+                            if p.calibration_valid { records::format_utc(self.in_force.applied_at) } else { "".into() },
+                        ),
+                        kv(
+                            "calibration_age_days",
+                            if p.calibration_valid { format!("{age_days:.3}") } else { "".into() },
+                        ),
+                        kv("calibration_source", self.in_force.source.to_string()),
+                        kv("calibration_scan_id", self.in_force.scan_id.to_string()),
+                        kv("max_age_days", p.max_age_days.to_string()),
+                        kv("drift_sigma", self.drift.map(|d| format!("{:.2}", d.worst().1)).unwrap_or_default()),
+                        kv("drift", self.drift.map(|d| d.describe()).unwrap_or_default()),
+                        kv("drift_warn_sigma", p.drift_warn_sigma.to_string()),
+                        kv("history_file", p.history_file.clone()),
+                        kv("history_records", self.history_records.to_string()),
+                        kv("history_problem", self.history_problem.clone()),
+                        kv("alpha0_deg", format!("{:.5}", p.calibration.alpha0.to_degrees())),
+                        kv("offset_mm", format!("{:.5}", p.calibration.offset * 1e3)),
+                        kv("delta_l_mm", format!("{:.5}", p.calibration.delta_l * 1e3)),
+                        kv("scale", format!("{:.7}", p.calibration.scale)),
+                        kv("model", p.model.to_string()),
+                        kv(
+                            "last_fit_rms_residual_mm",
+                            s.last_fit_rms.map(|r| format!("{:.5}", r * 1e3)).unwrap_or_default(),
+                        ),
+                        kv("last_fit", s.last_fit_message.clone()),
+                        kv("scans_received", s.scans_received.to_string()),
+                        kv("scans_rejected", s.scans_rejected.to_string()),
+                        kv("scans_held", s.scans_held.to_string()),
+                        kv("contours_published", s.contours_published.to_string()),
+                        kv("calibrations_applied", s.calibrations_applied.to_string()),
+                        kv("calibrations_failed", s.calibrations_failed.to_string()),
+                        kv("last_rejection", s.last_rejection.clone()),
+                        kv("plate_scans_kept", self.plates.len().to_string()),
+                        kv("qos_incompatible", s.qos_incompatible.to_string()),
+                        kv("requests_unreadable", s.requests_unreadable.to_string()),
+                        kv("last_qos_incompatible", s.last_qos_incompatible.clone()),
+                        kv("use_sim_time", p.use_sim_time.to_string()),
+                        kv("lifecycle_state", self.lifecycle_label().to_string()),
+                        kv("ros_time", format!("{:.3}", now.ros.to_nanos() as f64 * 1e-9)),
+                    ]
+                    .into_iter()
+                    .chain(s.peers_refused_authentication.map(|n| kv("peers_refused_authentication", n.to_string())))
+                    .collect(),
+                },
+                self.driver.status(instant, &self.fqn, self.hardware_id(), p.scan_timeout, s.scans_received),
+            ],
         }
+    }
+
+    /// The `hardware_id` of the node's statuses: the parameter, else `output_frame_id`.
+    fn hardware_id(&self) -> &str {
+        if self.params.hardware_id.is_empty() { &self.params.output_frame_id } else { &self.params.hardware_id }
     }
 }

@@ -29,6 +29,7 @@ use crate::records::{self, Drift, History, Record};
 
 pub mod calibrate;
 pub mod diagnostics;
+pub mod driver;
 pub mod in_force;
 pub mod intake;
 pub mod lifecycle;
@@ -87,6 +88,8 @@ pub struct NodeState {
     /// What is wrong with the node's clock (simulated time with no `/clock`), for
     /// /diagnostics; empty if nothing.
     pub clock_problem: String,
+    /// The tracer driver's health ([`driver`]).
+    pub driver: driver::DriverWatch,
     /// A managed node's life cycle (`managed: true`); `None`: unmanaged, always active.
     pub lifecycle: Option<lifecycle::Lifecycle>,
     corrector: Option<Corrector>,
@@ -112,6 +115,7 @@ impl NodeState {
             history_problem: String::new(),
             extra_params: Vec::new(),
             clock_problem: String::new(),
+            driver: driver::DriverWatch::new(std::time::Instant::now()),
             lifecycle: None,
             corrector: None,
             plates: VecDeque::new(),

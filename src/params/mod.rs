@@ -38,8 +38,10 @@ pub mod names {
     pub const DRIFT_WARN_SIGMA: &str = "calibration.drift_warn_sigma";
     pub const USE_SIM_TIME: &str = "use_sim_time";
     pub const MANAGED: &str = "managed";
+    pub const HARDWARE_ID: &str = "hardware_id";
+    pub const SCAN_TIMEOUT: &str = "driver.scan_timeout";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 22] = [
+    pub const ALL: [&str; 24] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -62,6 +64,8 @@ pub mod names {
         DRIFT_WARN_SIGMA,
         USE_SIM_TIME,
         MANAGED,
+        HARDWARE_ID,
+        SCAN_TIMEOUT,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
@@ -107,6 +111,10 @@ pub struct Parameters {
     pub use_sim_time: bool,
     /// A lifecycle (managed) node; read at start-up.
     pub managed: bool,
+    /// The tracer's serial, /diagnostics' `hardware_id`; empty: `output_frame_id`.
+    pub hardware_id: String,
+    /// /diagnostics warns when no scan came for this long (s); 0 = never.
+    pub scan_timeout: f64,
 }
 
 impl Default for Parameters {
@@ -130,6 +138,8 @@ impl Default for Parameters {
             drift_warn_sigma: 10.0,
             use_sim_time: false,
             managed: false,
+            hardware_id: String::new(),
+            scan_timeout: 0.0,
         }
     }
 }
@@ -166,6 +176,8 @@ impl Parameters {
             names::DRIFT_WARN_SIGMA => Double(self.drift_warn_sigma),
             names::USE_SIM_TIME => Bool(self.use_sim_time),
             names::MANAGED => Bool(self.managed),
+            names::HARDWARE_ID => String(self.hardware_id.clone()),
+            names::SCAN_TIMEOUT => Double(self.scan_timeout),
             _ => return None,
         })
     }
@@ -238,6 +250,8 @@ impl Parameters {
             names::DRIFT_WARN_SIGMA => next.drift_warn_sigma = double(value)?,
             names::USE_SIM_TIME => next.use_sim_time = boolean(value)?,
             names::MANAGED => next.managed = boolean(value)?,
+            names::HARDWARE_ID => next.hardware_id = string(value)?,
+            names::SCAN_TIMEOUT => next.scan_timeout = double(value)?,
             _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
@@ -297,7 +311,7 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 22);
+        assert_eq!(list.len(), 24);
         assert_eq!(p.get("calibration.covariance"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("use_sim_time"), Some(ParamValue::Bool(false)));
         assert_eq!(p.get("managed"), Some(ParamValue::Bool(false)));

@@ -91,7 +91,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 22] = [
+pub const SPECS: [Spec; 24] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -129,6 +129,9 @@ pub const SPECS: [Spec; 22] = [
     Spec::new(names::USE_SIM_TIME, "the node's clock follows /clock (rosgraph_msgs/msg/Clock) instead of the system clock"),
     Spec::new(names::MANAGED, "true: a lifecycle (managed) node that starts unconfigured; read at start-up")
         .read_only(),
+    Spec::new(names::HARDWARE_ID, "the tracer's serial: /diagnostics' hardware_id; empty = output_frame_id"),
+    Spec::new(names::SCAN_TIMEOUT, "/diagnostics warns when no raw scan came for this long (s); 0 = never (a tracer idles between jobs)")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.

@@ -22,7 +22,7 @@ import time
 
 from rclpy.parameter import Parameter
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped
 from tracer_calib_msgs.msg import Contour, RawScan
 from tracer_calib_msgs.srv import Calibrate
@@ -694,6 +694,55 @@ def test_rosout(peer):
         off.stop()
 
 
+def test_driver_health(peer):
+    """The tracer driver's health on /diagnostics, as diagnostic_updater lays a task out: a
+    status of its own (`tracer_calib: /ns/node: tracer driver`, the node's hardware_id)
+    that warns while nothing publishes raw_scan, is OK with the publishers counted and the
+    scan rate while scans come, and warns when they stop for longer than
+    driver.scan_timeout."""
+    node = NodeProcess(
+        "driver",
+        ["-r", "__ns:=/cell5", "-r", "__node:=tracer", "-r", "raw_scan:=/drv_scan", "-p", "driver.scan_timeout:=2.0", "-p", "hardware_id:=SN-42"],
+    )
+    try:
+        diags = peer.subscribe(DiagnosticArray, "/diagnostics")
+
+        def driver():
+            for d in reversed(diags):
+                for s in d.status:
+                    if s.name == "tracer_calib: /cell5/tracer: tracer driver":
+                        return s, {v.key: v.value for v in s.values}
+            return None, {}
+
+        def shows(level, text):
+            s, _ = driver()
+            return s is not None and s.level == level and text in s.message
+
+        peer.spin_until(lambda: shows(DiagnosticStatus.WARN, "no tracer driver"), 10, lambda: f"the missing driver: {driver()}")
+        s, kv = driver()
+        assert s.hardware_id == "SN-42" and kv["publishers"] == "0" and kv["topic"] == "/drv_scan", (s, kv)
+        pub = peer.publisher("/drv_scan")
+        steps, counts = simulate("drv_lens", "ellipse", seed=4)
+        t_end = time.monotonic() + 3.0
+        i = 0
+        while time.monotonic() < t_end:
+            pub.publish(raw_scan(100 + i, RawScan.TARGET_LENS, steps, counts))
+            i += 1
+            deadline = time.monotonic() + 0.2
+            while time.monotonic() < deadline:
+                peer.executor.spin_once(timeout_sec=0.05)
+        peer.spin_until(lambda: shows(DiagnosticStatus.OK, "1 publisher(s) on /drv_scan; last scan"), 5, lambda: f"the driver present: {driver()}")
+        s, kv = driver()
+        assert kv["publishers"] == "1" and float(kv["scan_rate_hz"]) > 1.0, kv
+        peer.spin_until(lambda: shows(DiagnosticStatus.WARN, "scans stopped"), 10, lambda: f"the driver stopped: {driver()}")
+        # The calibration's status is still the first, its keys unchanged.
+        d = diags[-1]
+        assert d.status[0].name == "tracer_calib: /cell5/tracer" and d.status[0].hardware_id == "SN-42", d.status[0]
+        assert any(v.key == "scans_received" for v in d.status[0].values), d.status[0]
+    finally:
+        node.stop()
+
+
 def tests(peer):
     """This file's tests as `(name, fn)` pairs, in order, against the rclpy `peer`
     (node_suite.py runs them)."""
@@ -711,4 +760,5 @@ def tests(peer):
         ("encoder_scale", lambda: test_encoder_scale(peer)),
         ("stylus_tip", lambda: test_stylus_tip(peer)),
         ("rosout", lambda: test_rosout(peer)),
+        ("driver_health", lambda: test_driver_health(peer)),
     ]

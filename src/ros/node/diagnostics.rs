@@ -56,8 +56,11 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
             ),
             _ => String::new(),
         };
+        let publishers = e.raw_scan_publishers();
         let msg = {
             let mut st = shared.state.lock().expect("state lock");
+            let received = st.stats.scans_received;
+            st.driver.tick(Instant::now(), publishers, received);
             st.clock_problem = clock_problem;
             st.stats.peers_refused_authentication = crate::rmw::security::peers_refused_authentication();
             st.diagnostics(now)

@@ -315,6 +315,10 @@ impl Wire for Entities {
         self.node.set_parameter(name, value).map_err(|e| e.to_string())
     }
 
+    fn raw_scan_publishers(&self) -> usize {
+        self.raw_scans.get_publisher_count(&self.node)
+    }
+
     fn rosout(&self, r: &RosoutRecord) {
         let node = &self.node;
         node.rosout_raw(node.rosout_stamp(), r.level, &self.logger_name, &r.msg, &r.file, &r.function, r.line);

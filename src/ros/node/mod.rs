@@ -162,6 +162,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     let endpoints = Endpoints::resolve(&args, &identity, &mut qos)?;
     let mut initial = initial_state(&fqn, &params);
     initial.extra_params = qos.to_list();
+    initial.driver.topic = endpoints.raw_scan.0.to_string();
     let state = Arc::new(Mutex::new(initial));
     let (calibration_changed, calibration_changes) = smol::channel::unbounded::<()>();
     let shared = Shared {

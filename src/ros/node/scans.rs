@@ -17,6 +17,7 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
     let mut stream = std::pin::pin!(e.raw_scans());
     let mut limit = RateLimit::new(Duration::from_secs(1));
     while let Some(item) = stream.next().await {
+        shared.state.lock().expect("state lock").driver.scan_arrived(Instant::now());
         let msg = match item {
             Ok(msg) => msg,
             Err(err) => {

@@ -59,6 +59,8 @@ pub(super) trait Wire {
     /// Set one of the node's ROS parameters from within (its validator and set action
     /// run as for a remote set).
     fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String>;
+    /// How many publishers the raw scan subscription has matched (the tracer driver).
+    fn raw_scan_publishers(&self) -> usize;
     /// A record on `/rosout`, under the node's rcl logger name.
     fn rosout(&self, record: &RosoutRecord);
     /// Whether the node's clock is simulated (`use_sim_time`).

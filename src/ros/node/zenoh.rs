@@ -266,6 +266,10 @@ impl Wire for ZenohEntities {
         }
     }
 
+    fn raw_scan_publishers(&self) -> usize {
+        self.raw_scans.get_publisher_count(&self.node)
+    }
+
     fn rosout(&self, r: &RosoutRecord) {
         // The logger's name is rcl's logger name of the node (vendor/ros2-client/PATCHES.md).
         if let Some(logger) = self.node.logger() {
