@@ -743,6 +743,52 @@ def test_driver_health(peer):
         node.stop()
 
 
+def test_parameter_events(peer):
+    """/parameter_events as a stock node publishes them, seen by rclpy's
+    ParameterEventHandler: the node's fully qualified name; one event for a request that
+    sets several parameters atomically, one for a calibration (its seven parameters
+    together), one for each parameter set alone."""
+    from rclpy.parameter_event_handler import ParameterEventHandler
+
+    events = []
+    handler = ParameterEventHandler(peer.node)
+    handle = handler.add_parameter_event_callback(events.append)
+    node = NodeProcess("param_events", ["-r", "__ns:=/cell6", "-r", "__node:=tracer", "-r", "raw_scan:=/pe_scan"])
+    try:
+        pc = peer.param_client("/cell6/tracer")
+        mine = lambda: [e for e in events if e.node == "/cell6/tracer"]  # noqa: E731
+        # Discovery of the event writer by the handler's reader: an event after it is matched.
+        peer.spin_until(lambda: peer.node.count_publishers("/parameter_events") > 0, 10, "the node's event writer")
+        time.sleep(0.5)
+        before = len(mine())
+        r = peer.param(lambda: pc.set_parameters_atomically(
+            [Parameter("output_frame_id", value="cell6_axis"), Parameter("calibration.max_age_days", value=30.0)]
+        )).result
+        assert r.successful, r.reason
+        peer.spin_until(lambda: len(mine()) > before, 5, "the event of an atomic set")
+        e = mine()[before]
+        assert sorted(p.name for p in e.changed_parameters) == ["calibration.max_age_days", "output_frame_id"], e
+        assert not e.new_parameters and not e.deleted_parameters, e
+
+        pub = peer.publisher("/pe_scan")
+        contours = peer.subscribe(Contour, "/cell6/contour")
+        peer.wait_matched(pub)
+        peer.send_scan(pub, raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *simulate("plate_pe", "plate", seed=4)), contours)
+        before = len(mine())
+        r = peer.call("/cell6/calibrate", Calibrate.Request(scan_id=1))
+        assert r.success, r.message
+        peer.spin_until(lambda: len(mine()) > before, 5, "the calibration's event")
+        time.sleep(0.5)
+        peer.executor.spin_once(timeout_sec=0.1)
+        cal = mine()[before:]
+        assert len(cal) == 1, [sorted(p.name for p in e.changed_parameters) for e in cal]
+        changed = {p.name for p in cal[0].changed_parameters}
+        assert {"calibration.alpha0", "calibration.offset", "calibration.delta_l", "calibration.valid"} <= changed, changed
+    finally:
+        node.stop()
+        handler.remove_parameter_event_callback(handle)
+
+
 def tests(peer):
     """This file's tests as `(name, fn)` pairs, in order, against the rclpy `peer`
     (node_suite.py runs them)."""
@@ -761,4 +807,5 @@ def tests(peer):
         ("stylus_tip", lambda: test_stylus_tip(peer)),
         ("rosout", lambda: test_rosout(peer)),
         ("driver_health", lambda: test_driver_health(peer)),
+        ("parameter_events", lambda: test_parameter_events(peer)),
     ]

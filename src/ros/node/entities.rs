@@ -311,8 +311,8 @@ impl Wire for Entities {
         self.types_in_use.names()
     }
 
-    fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String> {
-        self.node.set_parameter(name, value).map_err(|e| e.to_string())
+    fn set_parameters(&self, params: Vec<ros2_client::Parameter>) -> Result<(), String> {
+        self.node.set_parameters_atomically(params)
     }
 
     fn raw_scan_publishers(&self) -> usize {

@@ -120,7 +120,8 @@ pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) 
 /// Mirror a calibration `/calibrate` applied into the ROS parameters (already persisted:
 /// the set action sees equal values and writes nothing).
 pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, covariance: &[f64], tip_radius: f64) {
-    for (name, value) in [
+    // One change, one /parameter_events message: a calibration is one event.
+    let params = [
         (names::ALPHA0, RosValue::Double(m.alpha0)),
         (names::OFFSET, RosValue::Double(m.offset)),
         (names::DELTA_L, RosValue::Double(m.delta_l)),
@@ -128,9 +129,9 @@ pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, covariance:
         (names::VALID, RosValue::Boolean(true)),
         (names::COVARIANCE, RosValue::DoubleArray(covariance.to_vec())),
         (names::TIP_RADIUS, RosValue::Double(tip_radius)),
-    ] {
-        if let Err(err) = e.set_parameter(name, value) {
-            error!("cannot mirror {name} into the ROS parameters: {err}");
-        }
+    ]
+    .map(|(name, value)| ros2_client::Parameter { name: name.to_string(), value });
+    if let Err(err) = e.set_parameters(params.to_vec()) {
+        error!("cannot mirror the calibration into the ROS parameters: {err}");
     }
 }

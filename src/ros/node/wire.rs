@@ -8,7 +8,6 @@
 
 use crate::ros::logging::RosoutRecord;
 use futures::Stream;
-use ros2_client::ParameterValue;
 
 use super::Shared;
 use crate::interfaces::{
@@ -56,9 +55,10 @@ pub(super) trait Wire {
     /// The ROS types of the node's endpoints (`pkg/msg/Name`), which it describes.
     fn types_in_use(&self) -> Vec<String>;
 
-    /// Set one of the node's ROS parameters from within (its validator and set action
-    /// run as for a remote set).
-    fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String>;
+    /// Set several of the node's ROS parameters from within as one change, all or none
+    /// (their validator and set action run as for a remote set): one
+    /// `/parameter_events` message, as a remote `set_parameters_atomically` makes.
+    fn set_parameters(&self, params: Vec<ros2_client::Parameter>) -> Result<(), String>;
     /// How many publishers the raw scan subscription has matched (the tracer driver).
     fn raw_scan_publishers(&self) -> usize;
     /// A record on `/rosout`, under the node's rcl logger name.

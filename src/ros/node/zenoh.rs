@@ -259,11 +259,12 @@ impl Wire for ZenohEntities {
         self.types_in_use.names()
     }
 
-    fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String> {
+    fn set_parameters(&self, params: Vec<ros2_client::Parameter>) -> Result<(), String> {
         match self.node.parameter_server() {
-            Some(server) => server.set_parameter(name, value),
+            Some(server) => server.set_parameters_atomically(params),
             None => Err("the node has no parameter server".to_string()),
         }
+    }
     }
 
     fn raw_scan_publishers(&self) -> usize {

@@ -34,10 +34,12 @@ pub mod parameter_events {
   use super::*;
 
   lazy_static! {
+    // PATCH (tracer_calib): rcl's `rmw_qos_profile_parameter_events`: reliable,
+    // volatile, keep last 1000 (was transient local, keep last 1).
     pub static ref QOS: QosPolicies = QosPolicyBuilder::new()
-      .durability(Durability::TransientLocal)
+      .durability(Durability::Volatile)
       .reliable(Duration::ZERO)
-      .history(History::KeepLast { depth: 1 })
+      .history(History::KeepLast { depth: 1000 })
       .build();
   }
 

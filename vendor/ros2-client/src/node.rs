@@ -703,6 +703,12 @@ impl Node {
 
     node.suppress_node_info_updates(false);
 
+    // PATCH (tracer_calib): each declared parameter announced on /parameter_events as
+    // new, as rclcpp does as it declares them.
+    for changes in node.parameters.declarations() {
+      node.publish_parameter_changes(changes);
+    }
+
     Ok(node)
   }
 
@@ -925,6 +931,15 @@ impl Node {
   /// to `NotSet` deletes it.
   pub fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String> {
     let changes = self.parameters.set(name, value)?;
+    self.publish_parameter_changes(changes);
+    Ok(())
+  }
+
+  /// PATCH (tracer_calib): set several parameters from within as one all-or-nothing
+  /// change, published as one `ParameterEvent` (as a remote
+  /// `set_parameters_atomically` is): if any is refused, none changes.
+  pub fn set_parameters_atomically(&self, params: Vec<Parameter>) -> Result<(), String> {
+    let changes = self.parameters.set_atomically(params)?;
     self.publish_parameter_changes(changes);
     Ok(())
   }

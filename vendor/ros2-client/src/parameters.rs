@@ -510,6 +510,25 @@ impl ParameterStore {
     self.values.lock().unwrap().keys().cloned().collect()
   }
 
+  /// PATCH (tracer_calib): each parameter held, as the change that declared it (one
+  /// `new_parameters` entry each), in name order: what rclcpp publishes on
+  /// `/parameter_events` as each parameter is declared.
+  pub(crate) fn declarations(&self) -> Vec<ParameterChanges> {
+    let values = self.values.lock().unwrap();
+    let mut names: Vec<&String> = values.keys().collect();
+    names.sort();
+    names
+      .into_iter()
+      .map(|name| ParameterChanges {
+        new_parameters: vec![raw::Parameter {
+          name: name.clone(),
+          value: values[name].clone().into(),
+        }],
+        ..ParameterChanges::default()
+      })
+      .collect()
+  }
+
   /// Answer a `ListParameters` request, with the same semantics as rclcpp.
   ///
   /// With no `prefixes`, lists names with fewer than `depth` `.` separators

@@ -631,14 +631,16 @@ impl Node {
     let events_topic = self.create_topic(
       &Name::new("/", "parameter_events").map_err(name_err)?,
       MessageTypeName::new("rcl_interfaces", "ParameterEvent"),
-      &QosProfile::default(),
+      // PATCH (tracer_calib): rcl's parameter events profile: reliable, volatile, keep
+      // last 1000 (was the subscription default: best effort, depth 1).
+      &QosProfile::publisher_default().history(crate::qos::History::KeepLast { depth: 1000 }),
     );
     let events = self.create_publisher::<ParameterEvent>(&events_topic, None)?;
 
     // PATCH (tracer_calib): the clock reads `use_sim_time` from this store.
     let store = Arc::new(store);
     let _ = self.clock.parameters.set(Arc::clone(&store));
-    Ok(ParameterServer::new(
+    let server = ParameterServer::new(
       node_fqn,
       store,
       get_parameters,
@@ -648,7 +650,10 @@ impl Node {
       list_parameters,
       describe_parameters,
       events,
-    ))
+    );
+    // PATCH (tracer_calib): each declared parameter announced as new, as rclcpp does.
+    server.publish_declarations();
+    Ok(server)
   }
 
   /// Create a [`ParameterClient`] targeting `remote_node`'s parameter services.

@@ -106,6 +106,14 @@ impl ParameterServer {
     self.set_and_notify(name, value)
   }
 
+  /// PATCH (tracer_calib): set several parameters locally as one all-or-nothing change,
+  /// published as one `parameter_events` notification.
+  pub fn set_parameters_atomically(&self, params: Vec<Parameter>) -> Result<(), String> {
+    let changes = self.store.set_atomically(params)?;
+    self.publish_changes(changes);
+    Ok(())
+  }
+
   /// The names of all currently-set parameters.
   pub fn parameter_names(&self) -> Vec<String> {
     self.store.names()
@@ -132,6 +140,13 @@ impl ParameterServer {
     let changes = self.store.set(name, value)?;
     self.publish_changes(changes);
     Ok(())
+  }
+
+  /// PATCH (tracer_calib): each parameter held announced as new (one event each).
+  pub(crate) fn publish_declarations(&self) {
+    for changes in self.store.declarations() {
+      self.publish_changes(changes);
+    }
   }
 
   fn publish_changes(&self, changes: ParameterChanges) {
