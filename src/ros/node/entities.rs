@@ -37,7 +37,7 @@ use ros2_client::dds::{Context, Publisher, Server, ServiceMapping, Subscription}
 use ros2_client::rosout::RosoutRaw;
 use ros2_client::service::RmwRequestId;
 use ros2_client::{
-    Name, NodeOptions, ParameterValue, QosProfile,
+    Name, NodeOptions, QosProfile,
     qos::{Durability, History, WhenFull},
 };
 

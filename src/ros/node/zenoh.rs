@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 use crate::ros::logging::RosoutRecord;
 use futures::{Stream, StreamExt};
 use ros2_client::zenoh::{Context, Node, Publisher, Server, Subscription};
-use ros2_client::{MessageTypeName, NodeOptions, ParameterValue, RmwRequestId, ServiceTypeName};
+use ros2_client::{MessageTypeName, NodeOptions, RmwRequestId, ServiceTypeName};
 
 use super::entities::{Endpoints, latched_qos, private_name, reliable};
 use super::lifecycle::{Call, LifecycleWire, Reply, calls};
@@ -264,7 +264,6 @@ impl Wire for ZenohEntities {
             Some(server) => server.set_parameters_atomically(params),
             None => Err("the node has no parameter server".to_string()),
         }
-    }
     }
 
     fn raw_scan_publishers(&self) -> usize {
