@@ -351,6 +351,16 @@ def test_zenoh_node_calibrate():
 
         peer.spin_until(lambda: diags, 5, "/diagnostics")
         assert any("tracer_calibrator" in s.name for s in diags[-1].status), diags[-1]
+        # The tracer driver's status on Zenoh too: the peer's raw_scan publisher counted.
+
+        def driver_seen():
+            for s in diags[-1].status:
+                kv = {v.key: v.value for v in s.values}
+                if s.name == "tracer_calib: /tracer_calibrator: tracer driver" and kv.get("publishers") == "1":
+                    return True
+            return False
+
+        peer.spin_until(driver_seen, 5, lambda: f"the driver's status: {[s.name for s in diags[-1].status]}")
         peer.spin_until(lambda: any("calibrate:" in m.msg for m in logs), 5, "the calibration on /rosout")
         # As rcl publishes it: the logger name (root namespace: the node's name), the place.
         rec = next(m for m in logs if "calibrate:" in m.msg)
