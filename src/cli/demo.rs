@@ -193,6 +193,8 @@ fn demo(args: &Args) -> Result<(), String> {
         .arg(format!("params_file:={}", params_path.display()))
         .args(["-p", "model:=full_tip", "-p"])
         .arg(format!("ring.diameter:={}", cell.ring_diameter))
+        // The demo tells what happens; the node's INFO records would say it twice.
+        .args(["--log-level", "warn"])
         .env("ROS_DOMAIN_ID", args.domain_id.to_string())
         .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         .stdin(Stdio::null())
