@@ -747,26 +747,38 @@ def test_parameter_events(peer):
     """/parameter_events as a stock node publishes them, seen by rclpy's
     ParameterEventHandler: the node's fully qualified name; one event for a request that
     sets several parameters atomically, one for a calibration (its seven parameters
-    together), one for each parameter set alone."""
+    together); the declarations' announcements, where they arrive, name declared ones."""
     from rclpy.parameter_event_handler import ParameterEventHandler
 
     events = []
     handler = ParameterEventHandler(peer.node)
     handle = handler.add_parameter_event_callback(events.append)
+    writers = peer.node.count_publishers("/parameter_events")  # the peer's own
     node = NodeProcess("param_events", ["-r", "__ns:=/cell6", "-r", "__node:=tracer", "-r", "raw_scan:=/pe_scan"])
     try:
         pc = peer.param_client("/cell6/tracer")
         mine = lambda: [e for e in events if e.node == "/cell6/tracer"]  # noqa: E731
         # Discovery of the event writer by the handler's reader: an event after it is matched.
-        peer.spin_until(lambda: peer.node.count_publishers("/parameter_events") > 0, 10, "the node's event writer")
-        time.sleep(0.5)
-        before = len(mine())
+        peer.spin_until(lambda: peer.node.count_publishers("/parameter_events") > writers, 10, "the node's event writer")
+
+        def settle(seconds=0.5):
+            deadline = time.monotonic() + seconds
+            while time.monotonic() < deadline:
+                peer.executor.spin_once(timeout_sec=0.05)
+
+        def changing(name):
+            return [e for e in mine() if name in {p.name for p in e.changed_parameters}]
+
+        settle()  # the declarations' events, where they arrive (Zenoh: they do)
         r = peer.param(lambda: pc.set_parameters_atomically(
             [Parameter("output_frame_id", value="cell6_axis"), Parameter("calibration.max_age_days", value=30.0)]
         )).result
         assert r.successful, r.reason
-        peer.spin_until(lambda: len(mine()) > before, 5, "the event of an atomic set")
-        e = mine()[before]
+        peer.spin_until(lambda: changing("output_frame_id"), 5, "the event of an atomic set")
+        settle()
+        sets = changing("output_frame_id") + changing("calibration.max_age_days")
+        assert len(sets) == 2 and sets[0] is sets[1], [sorted(p.name for p in e.changed_parameters) for e in sets]
+        e = sets[0]
         assert sorted(p.name for p in e.changed_parameters) == ["calibration.max_age_days", "output_frame_id"], e
         assert not e.new_parameters and not e.deleted_parameters, e
 
@@ -774,16 +786,17 @@ def test_parameter_events(peer):
         contours = peer.subscribe(Contour, "/cell6/contour")
         peer.wait_matched(pub)
         peer.send_scan(pub, raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *simulate("plate_pe", "plate", seed=4)), contours)
-        before = len(mine())
         r = peer.call("/cell6/calibrate", Calibrate.Request(scan_id=1))
         assert r.success, r.message
-        peer.spin_until(lambda: len(mine()) > before, 5, "the calibration's event")
-        time.sleep(0.5)
-        peer.executor.spin_once(timeout_sec=0.1)
-        cal = mine()[before:]
-        assert len(cal) == 1, [sorted(p.name for p in e.changed_parameters) for e in cal]
+        peer.spin_until(lambda: changing("calibration.alpha0"), 5, "the calibration's event")
+        settle()
+        cal = changing("calibration.alpha0")
+        assert len(cal) == 1 and not changing("calibration.offset")[1:], [sorted(p.name for p in e.changed_parameters) for e in mine()]
         changed = {p.name for p in cal[0].changed_parameters}
         assert {"calibration.alpha0", "calibration.offset", "calibration.delta_l", "calibration.valid"} <= changed, changed
+        # Announcements of declared parameters, where they arrived, name declared ones.
+        declared = {p.name for e in mine() for p in e.new_parameters}
+        assert declared <= set(peer.param(lambda: pc.list_parameters()).result.names) | {"use_sim_time"}, declared
     finally:
         node.stop()
         handler.remove_parameter_event_callback(handle)
