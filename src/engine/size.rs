@@ -189,8 +189,8 @@ fn grid_unit() -> &'static [(f64, f64); GRID] {
     })
 }
 
-/// Points or radii taken together in the harmonic sums: independent rotations side by side
-/// (instruction-level parallelism, and SIMD where the compiler finds it).
+/// Points taken together in [`Smooth::squared_residuals`]: independent rotations side by
+/// side (instruction-level parallelism, and SIMD where the compiler finds it).
 const LANES: usize = 4;
 
 /// One step of `LANES` rotations: `(c, s) ← (c c1 - s s1, s c1 + c s1)`, i.e. from

@@ -123,17 +123,6 @@ impl Log for NodeLogger {
 
 static LOGGER: OnceLock<&'static NodeLogger> = OnceLock::new();
 
-/// The level a [`LogLevel`] sets (`None`: unset).
-fn filter(level: LogLevel) -> Option<LevelFilter> {
-    match level {
-        LogLevel::Unset => None,
-        LogLevel::Debug => Some(LevelFilter::Debug),
-        LogLevel::Info => Some(LevelFilter::Info),
-        LogLevel::Warn => Some(LevelFilter::Warn),
-        LogLevel::Error | LogLevel::Fatal => Some(LevelFilter::Error),
-    }
-}
-
 /// The node logger's level by rcl's rules (module docs), for the logger `name`
 /// (`None`: not known yet, the default level).
 pub fn level_for(args: &RosArgs, name: Option<&str>) -> LevelFilter {
@@ -141,7 +130,7 @@ pub fn level_for(args: &RosArgs, name: Option<&str>) -> LevelFilter {
         args.logger_levels
             .iter()
             .filter(|(logger, _)| name == logger || name.starts_with(&format!("{logger}.")))
-            .filter_map(|(logger, level)| filter(*level).map(|f| (logger.len(), f)))
+            .filter_map(|(logger, level)| level.level_filter().map(|f| (logger.len(), f)))
             // The nearest ancestor wins; of one logger, the last given.
             .fold(None, |best: Option<(usize, LevelFilter)>, (len, f)| match best {
                 Some((b, _)) if b > len => best,
@@ -149,7 +138,7 @@ pub fn level_for(args: &RosArgs, name: Option<&str>) -> LevelFilter {
             })
             .map(|(_, f)| f)
     });
-    specific.or_else(|| args.log_level.and_then(filter)).unwrap_or(LevelFilter::Info)
+    specific.or_else(|| args.log_level.and_then(LogLevel::level_filter)).unwrap_or(LevelFilter::Info)
 }
 
 /// Install the node's logger (once; later calls do nothing): stderr with the libraries'

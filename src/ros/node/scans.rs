@@ -17,11 +17,14 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
     let mut stream = std::pin::pin!(e.raw_scans());
     let mut limit = RateLimit::new(Duration::from_secs(1));
     while let Some(item) = stream.next().await {
-        shared.state.lock().expect("state lock").driver.scan_arrived(Instant::now());
         let msg = match item {
             Ok(msg) => msg,
             Err(err) => {
-                shared.state.lock().expect("state lock").reject_undecodable(&err);
+                {
+                    let mut st = shared.state.lock().expect("state lock");
+                    st.driver.scan_arrived(Instant::now());
+                    st.reject_undecodable(&err);
+                }
                 if let Some(held) = limit.allow(Instant::now()) {
                     warn!("rejected an undecodable raw scan: {err} ({held} more rejections not shown)");
                 }
@@ -32,6 +35,8 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
         let with_polygon = shared.polygon_wanted.load(Ordering::Relaxed);
         let outcome = {
             let mut st = shared.state.lock().expect("state lock");
+            // Anything that comes is the tracer driver alive (/diagnostics).
+            st.driver.scan_arrived(Instant::now());
             if !st.is_active() {
                 // A managed node not active: taken and counted, nothing published.
                 st.hold_raw_scan();
