@@ -15,7 +15,7 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use tracer_calib::cell::NodeState;
 use tracer_calib::engine::calibrate::{Options, calibrate};
-use tracer_calib::engine::correct::{Corrector, correct, default_max_gap, resample_radii};
+use tracer_calib::engine::correct::{Corrector, correct, default_max_gap, resample_radii, resample_radii_with_gain};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::lm::{self, Problem};
 use tracer_calib::engine::model::full::{self, FullModel};
@@ -139,11 +139,11 @@ fn bench(c: &mut Criterion) {
         b.iter(|| state.on_raw_scan(black_box(&raw), false).unwrap())
     });
     let contour_pts: Vec<Vector2<f64>> = pts.clone();
-    let radii = resample_radii(&contour_pts, 400, default_max_gap(400)).unwrap();
+    let (radii, gain) = resample_radii_with_gain(&contour_pts, 400, default_max_gap(400)).unwrap();
     let correction = size::Correction { mounting: m, tip_radius: 0.0, traced: tracer_calib::engine::Traced::Outside };
     let cov = tracer_calib::engine::calibrate::covariance_from_values(&state.params.covariance).unwrap();
     c.bench_function("size/uncertainty_400 (smooth fit, C, A, B, FED, U95, radii U95)", |b| {
-        b.iter(|| size::uncertainty(black_box(&contour_pts), &radii, &correction, Some(&cov)).unwrap())
+        b.iter(|| size::uncertainty(black_box(&contour_pts), &radii, &gain, &correction, Some(&cov)).unwrap())
     });
     let out = state.on_raw_scan(&raw, true).unwrap();
     c.bench_function("node/encode Contour + PolygonStamped (CDR)", |b| {

@@ -109,7 +109,8 @@ impl NodeState {
             return Err(self.reject(msg, e));
         }
         let max_gap = default_max_gap(steps_per_rev);
-        let radii = polar.and_then(|polar| polar.resample(self.params.resample_points, max_gap)).unwrap_or_default();
+        let (radii, radii_gain) =
+            polar.and_then(|polar| polar.resample_with_gain(self.params.resample_points, max_gap)).unwrap_or_default();
         // The size figures, when the contour goes all the way round (engine::size), with the
         // calibration's whole covariance when it is known.
         let surface: Vec<Vector2<f64>> = points.iter().map(|p| Vector2::new(p.x, p.y)).collect();
@@ -117,7 +118,7 @@ impl NodeState {
         let sized = if radii.is_empty() { resampled.as_deref() } else { Some(radii.as_slice()) };
         let covariance = calibration.and_then(|_| covariance_from_values(&self.params.covariance).ok());
         let correction = Correction { mounting, tip_radius: tip, traced };
-        let report = sized.and_then(|r| size::uncertainty(&surface, r, &correction, covariance.as_ref()));
+        let report = sized.and_then(|r| size::uncertainty(&surface, r, &radii_gain, &correction, covariance.as_ref()));
         let header = Header { stamp: msg.header.stamp, frame_id: self.params.output_frame_id.clone() };
         let polygon = with_polygon.then(|| PolygonStamped {
             header: header.clone(),

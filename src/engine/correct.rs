@@ -115,6 +115,11 @@ pub fn correct(scan: &Scan, mounting: &Mounting) -> Vec<Vector2<f64>> {
 /// has fewer than 3 points, or `m` is 0. ([`PolarContour`] point by point, then
 /// [`PolarContour::resample`].)
 pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option<Vec<f64>> {
+    resample_radii_with_gain(points, m, max_gap).map(|(radii, _)| radii)
+}
+
+/// [`resample_radii`] with each radius' noise gain ([`PolarContour::resample_with_gain`]).
+pub fn resample_radii_with_gain(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option<(Vec<f64>, Vec<f64>)> {
     if m == 0 {
         return None;
     }
@@ -122,7 +127,7 @@ pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option
     for p in points {
         polar.push(*p);
     }
-    polar.resample(m, max_gap)
+    polar.resample_with_gain(m, max_gap)
 }
 
 /// Knots of padding on each side of the points in [`PolarContour`]: the last two
@@ -197,6 +202,23 @@ impl PolarContour {
     /// slopes `S_i = (h_i d_{i-1} + h_{i-1} d_i) / (h_{i-1} + h_i)`. The walk keeps the
     /// secants of three segments as it goes: two divisions a knot.
     pub fn resample(self, m: usize, max_gap: f64) -> Option<Vec<f64>> {
+        self.resample_into(m, max_gap, None)
+    }
+
+    /// [`Self::resample`], and each radius' noise gain: the variance it gets per unit
+    /// variance of the points' radii (independent), `Σ w²` over its interpolation weights.
+    /// With equal knot widths the cubic's slopes are `m_0 = (r_{i+1} - r_{i-1})/2`,
+    /// `m_1 = (r_{i+2} - r_i)/2`, so with the Hermite basis `h_00, h_10, h_01, h_11` at `s`
+    /// the weights on `r_{i-1}, r_i, r_{i+1}, r_{i+2}` are `-h_10/2`, `h_00 - h_11/2`,
+    /// `h_01 + h_10/2`, `h_11/2`: a gain of 1 at a knot, 0.64 half-way (a scan's knots are
+    /// equal to within the mounting's small distortion; that is the gain taken).
+    pub fn resample_with_gain(self, m: usize, max_gap: f64) -> Option<(Vec<f64>, Vec<f64>)> {
+        let mut gain = Vec::with_capacity(m);
+        let radii = self.resample_into(m, max_gap, Some(&mut gain))?;
+        Some((radii, gain))
+    }
+
+    fn resample_into(self, m: usize, max_gap: f64, mut gain: Option<&mut Vec<f64>>) -> Option<Vec<f64>> {
         if m == 0 || self.len() < 3 {
             return None;
         }
@@ -247,9 +269,19 @@ impl PolarContour {
             // Between a point near the axis and a far one the cubic can dip below zero; a
             // radius is a distance, and the contour there is at the axis.
             out.push(if r < 0.0 { 0.0 } else { r });
+            if let Some(gain) = gain.as_deref_mut() {
+                gain.push(noise_gain(s));
+            }
         }
         Some(out)
     }
+}
+
+/// [`PolarContour::resample_with_gain`]'s gain at `s` between two knots.
+fn noise_gain(s: f64) -> f64 {
+    let (s2, s3) = (s * s, s * s * s);
+    let (h00, h10, h01, h11) = (2.0 * s3 - 3.0 * s2 + 1.0, s3 - 2.0 * s2 + s, 3.0 * s2 - 2.0 * s3, s3 - s2);
+    [-h10 / 2.0, h00 - h11 / 2.0, h01 + h10 / 2.0, h11 / 2.0].iter().map(|w| w * w).sum()
 }
 
 /// Sort `(angle, radius)` pairs by angle and merge those at the same angle (within
@@ -352,7 +384,7 @@ const ATAN_EIGHTHS: [f64; 9] = [
 /// Why not `f64::atan2`: the resampler calls this for every sample of every scan, and
 /// in the node, where other processes evict the caches between scans, libm's atan2
 /// took ~34 ns a call (13.5 µs of a 400-sample scan), this small function ~26 ns.
-fn polar_angle(y: f64, x: f64) -> f64 {
+pub(crate) fn polar_angle(y: f64, x: f64) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
     let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
     if !(den > 0.0 && den.is_finite()) {
@@ -401,6 +433,21 @@ mod tests {
     fn std_angle(y: f64, x: f64) -> f64 {
         let a = y.atan2(x);
         if a < 0.0 { a + TAU } else { a }
+    }
+
+    #[test]
+    fn a_radius_noise_gain_is_its_weights_squares() {
+        // At a knot the radius is the sample; half-way the cubic averages four of them.
+        assert!((noise_gain(0.0) - 1.0).abs() < 1e-15 && (noise_gain(1.0) - 1.0).abs() < 1e-15);
+        assert!((noise_gain(0.5) - 0.640625).abs() < 1e-15, "{}", noise_gain(0.5));
+        // What the resampler reports: the gain of each radius by its place between samples.
+        let pts: Vec<Vector2<f64>> =
+            (0..8).map(|k| Vector2::new((TAU * k as f64 / 8.0).cos(), (TAU * k as f64 / 8.0).sin())).collect();
+        let (_, gain) = resample_radii_with_gain(&pts, 16, 1.0).unwrap();
+        for (k, g) in gain.iter().enumerate() {
+            let want = if k % 2 == 0 { 1.0 } else { 0.640625 };
+            assert!((g - want).abs() < 1e-9, "radius {k}: {g}");
+        }
     }
 
     #[test]

@@ -7,7 +7,7 @@ use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use tracer_calib::engine::calibrate::{Options, Ring, calibrate_with_ring};
-use tracer_calib::engine::correct::{correct, resample_radii};
+use tracer_calib::engine::correct::{correct, resample_radii, resample_radii_with_gain};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::model::tip::RingSpec;
 use tracer_calib::engine::model::{ModelKind, PlateSpec};
@@ -24,6 +24,8 @@ pub struct Coverage {
     pub bias: [f64; 4],
     pub u95: [f64; 4],
     pub n: usize,
+    /// Share of the resampled radii (all trials) whose U95 covers the noise-free chain's.
+    pub radii_covered: f64,
 }
 
 /// The circumference of a closed contour given as points, from 3600 resampled radii (a
@@ -60,7 +62,15 @@ pub fn run(
     let opt = |noise: f64, inside: bool| SimOptions { noise, tip_radius: tip, inside, ..SimOptions::default() };
     // The truth: the surface touched, noise-free, through the same smooth fit.
     let gauge = Ellipse { center: Vector2::new(-0.0006, 0.0004), a: 0.02, b: 0.02, angle: 0.0 };
-    let mut c = Coverage { covered: [0; 4], bias: [0.0; 4], u95: [0.0; 4], n: 0 };
+    let mut c = Coverage { covered: [0; 4], bias: [0.0; 4], u95: [0.0; 4], n: 0, radii_covered: 0.0 };
+    // Each radius' truth: the noise-free trace through the same chain, at the truth.
+    let true_radii = {
+        let scan = simulate(shape, &m, &opt(0.0, inside), &mut rng).unwrap().scan;
+        let mut points = correct(&scan, &m);
+        touched_surface(&mut points, tip, traced, true);
+        resample_radii(&points, 400, 0.2).unwrap()
+    };
+    let (mut radii_in, mut radii_all) = (0usize, 0usize);
     for _ in 0..trials {
         let plate = simulate(&PLATE.at(Vector2::new(0.0008, -0.0005)), &m, &opt(sigma, false), &mut rng).unwrap();
         let ring = simulate(&gauge, &m, &opt(sigma, true), &mut rng).unwrap();
@@ -69,9 +79,9 @@ pub fn run(
         let scan = simulate(shape, &m, &opt(sigma, inside), &mut rng).unwrap().scan;
         let mut points = correct(&scan, &cal.mounting);
         touched_surface(&mut points, cal.tip_radius, traced, true);
-        let radii = resample_radii(&points, 400, 0.2).unwrap();
+        let (radii, gain) = resample_radii_with_gain(&points, 400, 0.2).unwrap();
         let correction = Correction { mounting: cal.mounting, tip_radius: cal.tip_radius, traced };
-        let report = uncertainty(&points, &radii, &correction, Some(&cal.covariance)).unwrap();
+        let report = uncertainty(&points, &radii, &gain, &correction, Some(&cal.covariance)).unwrap();
         let got = report.sizes.figures();
         for f in 0..4 {
             let e = got[f] - truth[f];
@@ -82,7 +92,12 @@ pub fn run(
             }
         }
         c.n += 1;
+        for ((r, t), u) in radii.iter().zip(&true_radii).zip(&report.radii_u95) {
+            radii_in += usize::from((r - t).abs() <= *u);
+            radii_all += 1;
+        }
     }
+    c.radii_covered = radii_in as f64 / radii_all.max(1) as f64;
     c.bias = c.bias.map(|b| b / c.n as f64);
     c.u95 = c.u95.map(|u| u / c.n as f64);
     c
