@@ -12,8 +12,8 @@
 #      command line and `ros2 launch` (tests/interop/run.sh); for Jazzy also with peers on
 #      Cyclone DDS (secure and not) and, on Zenoh, the node under
 #      RMW_IMPLEMENTATION=rmw_zenoh_cpp with rmw_zenoh_cpp peers through rmw_zenohd
-#      (the stock peers built from ../shared/ros2-src/, docs/ros2-sources.md, into
-#      ~/.cache/tracer_calib/).
+#      (the stock peers built from ../shared/ros2-src/, or downloaded by the hashes of
+#      ros2-sources.lock, docs/ros2-sources.md, into ~/.cache/tracer_calib/).
 # The release build has the cargo feature `security` (SROS2; needs libssl-dev and
 # pkg-config, installed first if missing): with security off it behaves as the default
 # build, and test_security.py tests it secure.
@@ -32,6 +32,7 @@ part() {
 . tests/interop/lib.sh
 part "build dependencies" apt_install_missing test.sh target/build_deps.log libssl-dev pkg-config
 part "format" cargo fmt --check
+part "ROS 2 sources by hash" python3 tests/ros2_sources_test.py
 part "cargo build" cargo build --release --locked --features security --bins
 part "cargo test build" cargo test --release --locked --features security --no-run
 # The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags

@@ -40,8 +40,6 @@ set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
-SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
-TARBALL=$SRC_DIR/rmw_cyclonedds.tar.gz
 CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
 JOBS=${ROS_SETUP_JOBS:-2}
 # Bump when the way it is built changes.
@@ -58,7 +56,8 @@ for a in "$@"; do
     esac
 done
 [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
-[ -f "$TARBALL" ] || { echo "cyclone.sh: no $TARBALL (set TRACER_ROS2_SRC)" >&2; exit 1; }
+# The source, checked against ros2-sources.lock (downloaded by its hash if absent).
+TARBALL=$(python3 "$ROOT/scripts/ros2_sources.py" path rmw_cyclonedds) || exit 1
 
 # Work in a clean environment even when a target/ros/*/env.sh is sourced in this shell.
 clean_ros_env

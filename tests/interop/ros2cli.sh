@@ -30,10 +30,9 @@ set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
-SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
 JOBS=${ROS_SETUP_JOBS:-2}
 REQ=$HERE/requirements-cli.txt
-TARBALLS=(ros2cli launch launch_ros rosidl_runtime_py rcl_interfaces)
+SOURCES=(ros2cli launch launch_ros rosidl_runtime_py rcl_interfaces)
 # The Python packages, in dependency order: folder in the unpacked sources.
 PY_PKGS=(
     rosidl_runtime_py
@@ -55,9 +54,9 @@ for a in "$@"; do
     esac
 done
 [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
-for t in "${TARBALLS[@]}"; do
-    [ -f "$SRC_DIR/$t.tar.gz" ] || { echo "ros2cli.sh: no $SRC_DIR/$t.tar.gz (set TRACER_ROS2_SRC)" >&2; exit 1; }
-done
+# The sources, checked against ros2-sources.lock (downloaded by their hashes if absent).
+mapfile -t TARBALLS < <(python3 "$ROOT/scripts/ros2_sources.py" path "${SOURCES[@]}") || exit 1
+[ "${#TARBALLS[@]}" = "${#SOURCES[@]}" ] || exit 1
 
 clean_ros_env
 
@@ -71,7 +70,7 @@ for d in "${DISTROS[@]}"; do
     mkdir -p "$ROS_DIR/stamps" "$ROS_DIR/logs"
     exec 9>"$ROOT/target/ros/.setup.lock"   # the lock setup.sh takes: not while it remakes the venv
     flock 9
-    KEY=$({ for t in "${TARBALLS[@]}"; do sha256sum <"$SRC_DIR/$t.tar.gz"; done
+    KEY=$({ for t in "${TARBALLS[@]}"; do sha256sum <"$t"; done
             cat "$REQ" "$0"; stat -c 'venv %i %Y' "$VENV/pyvenv.cfg"; } | sha256sum | cut -c1-64)
     STAMP=$ROS_DIR/stamps/cli
     if [ "$FORCE" = 0 ] && [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$KEY" ] && [ -x "$VENV/bin/ros2" ]; then
@@ -84,7 +83,7 @@ for d in "${DISTROS[@]}"; do
     work=$ROS_DIR/build/ros2cli
     rm -rf "$work"
     mkdir -p "$work/src"
-    for t in "${TARBALLS[@]}"; do tar -xzf "$SRC_DIR/$t.tar.gz" -C "$work/src"; done
+    for t in "${TARBALLS[@]}"; do tar -xzf "$t" -C "$work/src"; done
     if ! ( export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
            libdirs=$VENV/lib$(cd "$VENV/lib/python3.11/site-packages" && for x in ros_*.libs; do [ -d "$x" ] && printf ':%s' "$PWD/$x"; done; true)
            export LD_LIBRARY_PATH=$libdirs

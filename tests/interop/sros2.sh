@@ -17,9 +17,7 @@ set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
-SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
 REQ=$HERE/requirements-sros2.txt
-TARBALL=$SRC_DIR/sros2.tar.gz
 
 FORCE=0
 DISTROS=()
@@ -32,7 +30,8 @@ for a in "$@"; do
     esac
 done
 [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
-[ -f "$TARBALL" ] || { echo "sros2.sh: no $TARBALL (set TRACER_ROS2_SRC)" >&2; exit 1; }
+# The source, checked against ros2-sources.lock (downloaded by its hash if absent).
+TARBALL=$(python3 "$ROOT/scripts/ros2_sources.py" path sros2) || exit 1
 
 clean_ros_env
 

@@ -59,8 +59,6 @@ set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
 ROOT=$(cd "$HERE/../.." && pwd)
-SRC_DIR=${TRACER_ROS2_SRC:-$(cd "$ROOT/.." && pwd)/shared/ros2-src}
-TARBALLS=("$SRC_DIR/rmw_zenoh.tar.gz" "$SRC_DIR/zenoh-c.tar.gz" "$SRC_DIR/zenoh-cpp.tar.gz")
 CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
 JOBS=${ROS_SETUP_JOBS:-2}
 # Bump when the way it is built changes.
@@ -78,9 +76,9 @@ for a in "$@"; do
     esac
 done
 [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] jazzy" >&2; exit 2; }
-for t in "${TARBALLS[@]}"; do
-    [ -f "$t" ] || { echo "zenoh.sh: no $t (set TRACER_ROS2_SRC)" >&2; exit 1; }
-done
+# The sources, checked against ros2-sources.lock (downloaded by their hashes if absent).
+mapfile -t TARBALLS < <(python3 "$ROOT/scripts/ros2_sources.py" path rmw_zenoh zenoh-c zenoh-cpp) || exit 1
+[ "${#TARBALLS[@]}" = 3 ] || exit 1
 
 # Work in a clean environment even when a target/ros/*/env.sh is sourced in this shell.
 clean_ros_env
