@@ -61,7 +61,9 @@ pub use name::{InterfaceKind, InterfaceName};
 // Every standard type at this level: the generated code names field types
 // `crate::interfaces::Type`.
 pub use standard::*;
-pub use tracer_calib_msgs::{Calibrate, CalibrateRequest, CalibrateResponse, Calibration, Contour, RawScan};
+pub use tracer_calib_msgs::{
+    Calibrate, CalibrateEvent, CalibrateRequest, CalibrateResponse, Calibration, Contour, RawScan,
+};
 
 /// A Rust mirror of a ROS 2 interface type, with the definition it mirrors.
 ///

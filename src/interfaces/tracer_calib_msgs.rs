@@ -28,3 +28,19 @@ impl Default for CalibrateResponse {
         }
     }
 }
+
+/// `tracer_calib_msgs/srv/Calibrate_Event`: one event of the `calibrate` service's
+/// introspection, as rosidl generates a service's `_Event` message (Iron and later):
+/// published on `<service>/_service_event`; the request or response present (one element)
+/// when the introspection shows contents, empty when it shows metadata only. Its type
+/// description and hash are rosidl's ([`super::type_hash`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CalibrateEvent {
+    pub info: crate::interfaces::ServiceEventInfo,
+    /// At most one.
+    pub request: Vec<CalibrateRequest>,
+    /// At most one.
+    pub response: Vec<CalibrateResponse>,
+}
+
+impl ros2_client::Message for CalibrateEvent {}

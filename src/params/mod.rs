@@ -40,8 +40,9 @@ pub mod names {
     pub const MANAGED: &str = "managed";
     pub const HARDWARE_ID: &str = "hardware_id";
     pub const SCAN_TIMEOUT: &str = "driver.scan_timeout";
+    pub const INTROSPECTION: &str = "calibrate.introspection";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 24] = [
+    pub const ALL: [&str; 25] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -66,6 +67,7 @@ pub mod names {
         MANAGED,
         HARDWARE_ID,
         SCAN_TIMEOUT,
+        INTROSPECTION,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
@@ -115,6 +117,46 @@ pub struct Parameters {
     pub hardware_id: String,
     /// /diagnostics warns when no scan came for this long (s); 0 = never.
     pub scan_timeout: f64,
+    /// What the `calibrate` service's introspection shows.
+    pub introspection: Introspection,
+}
+
+/// What a service's introspection shows on `<service>/_service_event`, as rclcpp's
+/// `configure_introspection` states: nothing, each request and response's metadata
+/// (client, sequence number, time), or their contents too.
+///
+/// `off` is also `disabled` (rclcpp's demo's word): YAML, which `ros2 param set`, `-p` and
+/// params files read values with, types a bare `off` as the boolean false. In a params file
+/// and with `-p`, that false is taken as `off`; a running node's parameter keeps its
+/// string type (`ros2 param set NODE calibrate.introspection disabled`, or `"'off'"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Introspection {
+    #[default]
+    Off,
+    Metadata,
+    Contents,
+}
+
+impl Introspection {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Introspection::Off => "off",
+            Introspection::Metadata => "metadata",
+            Introspection::Contents => "contents",
+        }
+    }
+}
+
+impl std::str::FromStr for Introspection {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "off" | "disabled" => Ok(Introspection::Off),
+            "metadata" => Ok(Introspection::Metadata),
+            "contents" => Ok(Introspection::Contents),
+            other => Err(format!("'{other}' is not one of: off (or disabled), metadata, contents")),
+        }
+    }
 }
 
 impl Default for Parameters {
@@ -140,6 +182,7 @@ impl Default for Parameters {
             managed: false,
             hardware_id: String::new(),
             scan_timeout: 0.0,
+            introspection: Introspection::Off,
         }
     }
 }
@@ -178,6 +221,7 @@ impl Parameters {
             names::MANAGED => Bool(self.managed),
             names::HARDWARE_ID => String(self.hardware_id.clone()),
             names::SCAN_TIMEOUT => Double(self.scan_timeout),
+            names::INTROSPECTION => String(self.introspection.as_str().into()),
             _ => return None,
         })
     }
@@ -252,6 +296,14 @@ impl Parameters {
             names::MANAGED => next.managed = boolean(value)?,
             names::HARDWARE_ID => next.hardware_id = string(value)?,
             names::SCAN_TIMEOUT => next.scan_timeout = double(value)?,
+            names::INTROSPECTION if *value == ParamValue::Bool(false) => next.introspection = Introspection::Off,
+            names::INTROSPECTION => {
+                next.introspection = string(value)
+                    .map_err(|_| {
+                        format!("expected a string ({}), got {} '{}'", spec.constraints, value.type_name(), value)
+                    })?
+                    .parse()?
+            }
             _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
@@ -311,7 +363,8 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 24);
+        assert_eq!(list.len(), 25);
+        assert_eq!(p.get("calibrate.introspection"), Some(ParamValue::String("off".into())));
         assert_eq!(p.get("calibration.covariance"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("use_sim_time"), Some(ParamValue::Bool(false)));
         assert_eq!(p.get("managed"), Some(ParamValue::Bool(false)));
@@ -326,6 +379,26 @@ mod tests {
         assert_eq!(p.get("output_frame_id"), Some(ParamValue::String("tracer_axis".into())));
         assert_eq!(p.get("resample_points"), Some(ParamValue::Integer(400)));
         assert_eq!(p.get("calibration.valid"), Some(ParamValue::Bool(false)));
+    }
+
+    #[test]
+    fn introspection_takes_rclcpps_states_and_yamls_off() {
+        let mut p = Parameters::default();
+        for (value, state) in [
+            (ParamValue::String("contents".into()), Introspection::Contents),
+            (ParamValue::String("metadata".into()), Introspection::Metadata),
+            (ParamValue::String("disabled".into()), Introspection::Off),
+            (ParamValue::String("contents".into()), Introspection::Contents),
+            // `-p calibrate.introspection:=off`: rcl's YAML typing makes it false.
+            (ParamValue::Bool(false), Introspection::Off),
+        ] {
+            p.set(names::INTROSPECTION, &value).unwrap();
+            assert_eq!(p.introspection, state, "{value:?}");
+        }
+        let e = p.set(names::INTROSPECTION, &ParamValue::String("loud".into())).unwrap_err();
+        assert_eq!(e, "'loud' is not one of: off (or disabled), metadata, contents");
+        assert!(p.set(names::INTROSPECTION, &ParamValue::Bool(true)).is_err());
+        assert_eq!(p.introspection, Introspection::Off);
     }
 
     #[test]

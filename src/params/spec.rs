@@ -91,7 +91,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 24] = [
+pub const SPECS: [Spec; 25] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -132,6 +132,8 @@ pub const SPECS: [Spec; 24] = [
     Spec::new(names::HARDWARE_ID, "the tracer's serial: /diagnostics' hardware_id; empty = output_frame_id"),
     Spec::new(names::SCAN_TIMEOUT, "/diagnostics warns when no raw scan came for this long (s); 0 = never (a tracer idles between jobs)")
         .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::INTROSPECTION, "service introspection of calibrate, as rclcpp's configure_introspection: off, metadata (each request and response's client, sequence number and time on calibrate/_service_event) or contents (with the request and response: what `ros2 service echo` shows)")
+        .constraints("one of: off (or disabled), metadata, contents"),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.

@@ -216,7 +216,7 @@ pub fn participant_from_env(env: &RosEnv, security: &Security) -> Result<DomainP
 pub type TypeHashes = Arc<dyn Fn(&str) -> Option<String> + Send + Sync>;
 
 /// The ROS types of the endpoints made through a context (`pkg/msg/Type`, and for a
-/// service's two topics the service, `pkg/srv/Service`), as their hashes were asked for:
+/// service's topics, its introspection events' too, the service, `pkg/srv/Service`), as their hashes were asked for:
 /// the types `~/get_type_description` answers for (rcl's type cache).
 #[derive(Debug, Clone, Default)]
 pub struct TypesInUse(Arc<Mutex<BTreeSet<String>>>);
@@ -225,7 +225,10 @@ impl TypesInUse {
     fn record(&self, ros_type: &str) {
         let name = match ros_type.rsplit_once('/') {
             Some((prefix, name)) if prefix.ends_with("/srv") => {
-                let service = name.strip_suffix("_Request").or_else(|| name.strip_suffix("_Response")).unwrap_or(name);
+                let service = ["_Request", "_Response", "_Event"]
+                    .iter()
+                    .find_map(|suffix| name.strip_suffix(suffix))
+                    .unwrap_or(name);
                 format!("{prefix}/{service}")
             }
             _ => ros_type.to_string(),

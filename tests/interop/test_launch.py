@@ -31,7 +31,11 @@ types them:
 - yaml_include: a YAML launch file (launch_yaml) including tracer_calib.launch.xml;
 - lifecycle_node_launch: launch_ros' `LifecycleNode` in a Python launch file, its event
   handlers configuring and then activating the node on its transition events;
-- daemon: `ros2 daemon start`, `ros2 node list` through it, `ros2 daemon stop`.
+- daemon: `ros2 daemon start`, `ros2 node list` through it, `ros2 daemon stop`;
+- service_echo: `ros2 service echo /calibrate` (service introspection) while
+  `ros2 service call` calls it, with `calibrate.introspection` `contents`, then `metadata`,
+  then `off` (`ros2 param set`), and a value refused; `ros2 service echo` starts a daemon
+  (it has no --no-daemon): the test stops it.
 
 Ctrl-C is SIGINT to the process group of `ros2 launch` (or `ros2 run`), as a terminal sends
 it to its foreground job: the launch and every process it started must be gone within 5 s.
@@ -825,6 +829,104 @@ def generate_launch_description():
     return f"(started to active: {to_active:.1f} s; Ctrl-C: {took:.2f} s)"
 
 
+class ServiceEcho:
+    """`ros2 service echo SERVICE TYPE` (the stock verb) for the length of a test; each
+    event it prints, as a dict."""
+
+    def __init__(self, label, service, service_type):
+        self.events = []
+        self.log_path = os.path.join(WORK, f"{label}_service_echo.out")
+        self.proc = subprocess.Popen(["ros2", "service", "echo", service, service_type], stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        self.thread = threading.Thread(target=self._read, daemon=True)
+        self.thread.start()
+
+    def _read(self):
+        doc = []
+        with open(self.log_path, "w") as log:
+            for line in self.proc.stdout:
+                log.write(line)
+                log.flush()
+                if line.rstrip("\n") == "---":
+                    self.events.append(yaml.safe_load("".join(doc)))
+                    doc = []
+                elif not line.startswith("No publishers on topic"):
+                    doc.append(line)
+
+    def output(self):
+        with open(self.log_path) as f:
+            return f.read()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+
+
+def test_service_echo():
+    """Service introspection of /calibrate: `ros2 service echo` shows each call's request
+    received and response sent, with the client's GID and sequence number, and with
+    `contents` the request and response themselves; `metadata` leaves them out, `off`
+    publishes nothing; `ros2 param set` switches it at run time."""
+    args = ["--ros-args", "-r", "__ns:=/intro", "-r", "__node:=tracer", "-p", "calibrate.introspection:=contents"]
+    try:
+        with launched("service_echo", "run", "tracer_calib", "tracer_calib_node", *args) as run:
+            node_listed("/intro/tracer", run)
+            assert param_get("/intro/tracer", "calibrate.introspection") == ("String value is", "contents")
+            with ServiceEcho("intro", "/intro/calibrate", CALIBRATE) as echo:
+                # The echo's subscription matches the node's event publisher before a call counts.
+                wait_for(lambda: "/intro/calibrate/_service_event" in ros2(
+                    "topic", "list", "--no-daemon", "--include-hidden-topics").stdout.split(), 20,
+                    "the event topic in the graph", [run])
+                time.sleep(2.0)
+                r = calibrate("/intro/calibrate", "{scan_id: 7}")
+                assert not r["success"], r
+                wait_for(lambda: len(echo.events) >= 2, 20, "two events of the first call", [run])
+                received, sent = echo.events[:2]
+                assert received["info"]["event_type"] == "REQUEST_RECEIVED", (received, echo.output())
+                assert sent["info"]["event_type"] == "RESPONSE_SENT", sent
+                gid = received["info"]["client_gid"]
+                assert len(gid) == 16 and any(gid) and sent["info"]["client_gid"] == gid, (received, sent)
+                seq = received["info"]["sequence_number"]
+                assert seq >= 1 and sent["info"]["sequence_number"] == seq, (received, sent)
+                stamp = lambda e: e["info"]["stamp"]["sec"] + e["info"]["stamp"]["nanosec"] * 1e-9
+                assert abs(stamp(received) - time.time()) < 60 and stamp(sent) >= stamp(received), (received, sent)
+                (req,) = received["request"]
+                assert req["scan_id"] == 7 and req["dry_run"] is False and received["response"] == [], received
+                (resp,) = sent["response"]
+                assert resp["success"] is False and resp["message"] == r["message"] and sent["request"] == [], sent
+
+                out = ros2("param", "set", "--no-daemon", "/intro/tracer", "calibrate.introspection", "metadata").stdout
+                assert "Set parameter successful" in out, out
+                r = calibrate("/intro/calibrate", "{scan_id: 8}")
+                wait_for(lambda: len(echo.events) >= 4, 20, "two events of the second call", [run])
+                received, sent = echo.events[2:4]
+                assert [received["info"]["event_type"], sent["info"]["event_type"]] == [
+                    "REQUEST_RECEIVED", "RESPONSE_SENT"], (received, sent)
+                assert received["info"]["client_gid"] != gid, "a new `ros2 service call` is a new client"
+                assert [received["request"], received["response"], sent["request"], sent["response"]] == [[]] * 4
+
+                out = ros2("param", "set", "--no-daemon", "/intro/tracer", "calibrate.introspection", "loud", ok=False)
+                assert "Setting parameter failed" in out.text and "off (or disabled), metadata, contents" in out.text, out.text
+                # `off` is YAML's false to `ros2 param set`: `disabled` is its other name.
+                out = ros2("param", "set", "--no-daemon", "/intro/tracer", "calibrate.introspection", "disabled").stdout
+                assert "Set parameter successful" in out, out
+                calibrate("/intro/calibrate", "{scan_id: 9}")
+                time.sleep(2.0)
+                assert len(echo.events) == 4, echo.events[4:]
+            took = run.interrupt()
+    finally:
+        stop_daemons()
+    return f"(4 events; Ctrl-C: {took:.2f} s)"
+
+
 def test_daemon():
     """The ros2 daemon, started on purpose: `ros2 node list` through it sees the node;
     `ros2 daemon stop` ends it."""
@@ -860,6 +962,7 @@ def main():
         ("yaml_include", test_yaml_include),
         ("lifecycle_node_launch", test_lifecycle_node_launch),
         ("daemon", test_daemon),
+        ("service_echo", test_service_echo),
     ]
     tests = [(name, no_daemon_left(fn)) for name, fn in tests]
     only = [a.removeprefix("test_") for a in sys.argv[1:]]

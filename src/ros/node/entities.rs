@@ -6,6 +6,7 @@
 //! | subscription | `raw_scan` | reliable, keep last 100, volatile |
 //! | publisher | `contour`, `contour_polygon` | reliable, keep last 10, volatile |
 //! | service | `calibrate` (Fast DDS "Enhanced" mapping) | reliable, keep last 1000 |
+//! | publisher | `calibrate/_service_event` (its introspection, when `calibrate.introspection` is not `off`) | reliable, keep last 10, volatile (ROS's services default) |
 //! | publisher | `/diagnostics`, 1 Hz | reliable, keep last 10 |
 //! | publisher | `calibration` (the calibration in force) | reliable, transient local, keep last 1 |
 //! | service | `~/get_type_description` (REP-2016) | reliable, keep last 10 |
@@ -44,7 +45,7 @@ use ros2_client::{
 use super::lifecycle::LifecycleEntities;
 use super::{Shared, Wire};
 use crate::interfaces::{
-    Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
+    Calibrate, CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
     tracer_calib_msgs as msgs,
 };
@@ -95,6 +96,8 @@ pub(super) struct Endpoints {
     pub diagnostics: Name,
     pub calibration: Name,
     pub calibrate: Name,
+    /// `<calibrate>/_service_event`, its introspection.
+    pub calibrate_event: Name,
 }
 
 impl Endpoints {
@@ -127,6 +130,7 @@ impl Endpoints {
             let resolved = args.resolve_service("calibrate", identity).map_err(|e| e.to_string())?;
             ros2_name(&resolved).map_err(|e| e.to_string())?
         };
+        let calibrate_event = ros2_name(&format!("{calibrate}/_service_event")).map_err(|e| e.to_string())?;
         Ok(Endpoints {
             raw_scan: (raw, raw_qos),
             contour: (contour, contour_qos),
@@ -134,6 +138,7 @@ impl Endpoints {
             diagnostics: topic("/diagnostics")?,
             calibration: topic("calibration")?,
             calibrate,
+            calibrate_event,
         })
     }
 }
@@ -148,6 +153,7 @@ pub(super) struct Entities {
     pub diagnostics: Publisher<DiagnosticArray>,
     pub calibration: Publisher<msgs::Calibration>,
     pub calibrate: Server<CalibrateRequest, CalibrateResponse>,
+    pub calibrate_events: Publisher<CalibrateEvent>,
     pub type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
     /// The lifecycle services and events of a managed node.
     pub lifecycle: Option<LifecycleEntities>,
@@ -177,7 +183,7 @@ impl Entities {
         let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
         let mut node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node: {e:?}"))?;
         let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
-        let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate } = endpoints;
+        let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate, calibrate_event } = endpoints;
         let raw_topic = node.create_topic(&raw_scan.0, RawScan::NAME.message_type_name(), &raw_scan.1).map_err(mk)?;
         let contour_topic = node.create_topic(&contour.0, Contour::NAME.message_type_name(), &contour.1).map_err(mk)?;
         let polygon_topic =
@@ -200,6 +206,9 @@ impl Entities {
                 reliable(CALIBRATE_QUEUE),
             )
             .map_err(mk)?;
+        let event_type = Calibrate::type_name().event_message_type_name();
+        let event_topic = node.create_topic(calibrate_event, event_type, &reliable(10)).map_err(mk)?;
+        let calibrate_events = node.create_publisher::<CalibrateEvent>(&event_topic, None).map_err(mk)?;
         let type_description_name = private_name(&identity.fully_qualified_name(), "get_type_description")?;
         let type_description = node
             .create_server::<GetTypeDescriptionRequest, GetTypeDescriptionResponse>(
@@ -222,6 +231,7 @@ impl Entities {
             diagnostics,
             calibration,
             calibrate,
+            calibrate_events,
             type_description,
             lifecycle,
             types_in_use,
@@ -244,13 +254,15 @@ impl Entities {
             diagnostics,
             calibration,
             calibrate,
+            calibrate_events,
             type_description,
             lifecycle,
             types_in_use: _,
             logger_name: _,
             spinner,
         } = self;
-        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description, lifecycle));
+        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, calibrate_events));
+        drop((type_description, lifecycle));
         drop(node);
         std::thread::sleep(Duration::from_millis(150));
         smol::block_on(spinner.cancel());
@@ -291,6 +303,10 @@ impl Wire for Entities {
 
     async fn answer_calibrate(&self, id: RmwRequestId, response: CalibrateResponse) -> Result<(), String> {
         self.calibrate.async_send_response(id, response).await.map_err(|e| format!("{e:?}"))
+    }
+
+    async fn publish_calibrate_event(&self, msg: CalibrateEvent) -> Result<(), String> {
+        self.calibrate_events.async_publish(msg).await.map_err(|e| format!("{e:?}"))
     }
 
     fn type_description_requests(

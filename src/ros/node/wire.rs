@@ -11,14 +11,15 @@ use futures::Stream;
 
 use super::Shared;
 use crate::interfaces::{
-    CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescriptionRequest,
+    CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescriptionRequest,
     GetTypeDescriptionResponse, PolygonStamped, RawScan, tracer_calib_msgs as msgs,
 };
 
 /// A middleware's endpoints of the node.
 pub(super) trait Wire {
-    /// A service request's identity, to answer it with.
-    type RequestId: std::fmt::Debug + Copy;
+    /// A service request's identity, to answer it with (the client's GID and the
+    /// request's sequence number, which its introspection events name).
+    type RequestId: std::fmt::Debug + Copy + Into<ros2_client::RmwRequestId>;
 
     /// The raw scans, as they arrive; an `Err` is a message that did not decode.
     fn raw_scans(&self) -> impl Stream<Item = Result<RawScan, String>> + '_;
@@ -41,6 +42,9 @@ pub(super) trait Wire {
         id: Self::RequestId,
         response: CalibrateResponse,
     ) -> impl Future<Output = Result<(), String>> + '_;
+    /// Publish an event of the `calibrate` service's introspection
+    /// (`calibrate/_service_event`).
+    fn publish_calibrate_event(&self, msg: CalibrateEvent) -> impl Future<Output = Result<(), String>> + '_;
 
     /// The `~/get_type_description` requests.
     fn type_description_requests(

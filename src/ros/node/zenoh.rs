@@ -30,7 +30,7 @@ use super::entities::{Endpoints, latched_qos, private_name, reliable};
 use super::lifecycle::{Call, LifecycleWire, Reply, calls};
 use super::{RateLimit, Shared, Wire};
 use crate::interfaces::{
-    Calibrate, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
+    Calibrate, CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
     tracer_calib_msgs as msgs,
 };
@@ -54,6 +54,7 @@ pub(super) struct ZenohEntities {
     diagnostics: Publisher<DiagnosticArray>,
     calibration: Publisher<msgs::Calibration>,
     calibrate: Server<CalibrateRequest, CalibrateResponse>,
+    calibrate_events: Publisher<CalibrateEvent>,
     type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
     /// The lifecycle services and events of a managed node.
     pub lifecycle: Option<ZenohLifecycle>,
@@ -88,7 +89,7 @@ impl ZenohEntities {
         let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
         let node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node on Zenoh: {e}"))?;
         let mk = |e: ros2_client::CreateError| format!("cannot create a Zenoh entity: {e}");
-        let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate } = endpoints;
+        let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate, calibrate_event } = endpoints;
         let raw_topic = node.create_topic(&raw_scan.0, type_name::<RawScan>(), &raw_scan.1);
         let contour_topic = node.create_topic(&contour.0, type_name::<Contour>(), &contour.1);
         let polygon_topic = node.create_topic(&polygon.0, type_name::<PolygonStamped>(), &polygon.1);
@@ -100,6 +101,9 @@ impl ZenohEntities {
         let diagnostics = node.create_publisher::<DiagnosticArray>(&diag_topic, None).map_err(mk)?;
         let calibration = node.create_publisher::<msgs::Calibration>(&calibration_topic, None).map_err(mk)?;
         let calibrate = node.create_server(calibrate, &service_type::<Calibrate>()).map_err(mk)?;
+        let event_type = service_type::<Calibrate>().event_message_type_name();
+        let event_topic = node.create_topic(calibrate_event, event_type, &reliable(10));
+        let calibrate_events = node.create_publisher::<CalibrateEvent>(&event_topic, None).map_err(mk)?;
         let type_description_name = private_name(&identity.fully_qualified_name(), "get_type_description")?;
         let type_description =
             node.create_server(&type_description_name, &service_type::<GetTypeDescription>()).map_err(mk)?;
@@ -114,6 +118,7 @@ impl ZenohEntities {
             diagnostics,
             calibration,
             calibrate,
+            calibrate_events,
             type_description,
             lifecycle,
             types_in_use,
@@ -160,13 +165,15 @@ impl ZenohEntities {
             diagnostics,
             calibration,
             calibrate,
+            calibrate_events,
             type_description,
             lifecycle,
             types_in_use: _,
             calibrate_unreadable: _,
             unreadable_log: _,
         } = self;
-        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, type_description, lifecycle));
+        drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, calibrate_events));
+        drop((type_description, lifecycle));
         drop(node);
         // Zenoh waits up to 10 s for its links to close; on a lossy link (TCP retransmitting
         // to the router) that held the node's exit past a supervisor's SIGTERM grace (the
@@ -239,6 +246,10 @@ impl Wire for ZenohEntities {
 
     async fn answer_calibrate(&self, id: RmwRequestId, response: CalibrateResponse) -> Result<(), String> {
         self.calibrate.send_response(id, response).map_err(|e| e.to_string())
+    }
+
+    async fn publish_calibrate_event(&self, msg: CalibrateEvent) -> Result<(), String> {
+        self.calibrate_events.async_publish(msg).await.map_err(|e| e.to_string())
     }
 
     fn type_description_requests(

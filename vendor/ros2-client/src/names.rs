@@ -369,6 +369,20 @@ impl ServiceTypeName {
     self.msg.type_name()
   }
 
+  // PATCH (tracer_calib): the service's event message type, for introspection
+  /// The message type of the service's introspection events (`pkg/srv/Name_Event`,
+  /// DDS `pkg::srv::dds_::Name_Event_`), which a server or client publishes on
+  /// `<service>/_service_event` when introspection is on (rcl's
+  /// `rcl_service_configure_service_introspection`).
+  pub fn event_message_type_name(&self) -> MessageTypeName {
+    MessageTypeName::new_prefix(
+      self.package_name(),
+      &(self.type_name().to_owned() + "_Event"),
+      self.prefix.clone(),
+    )
+  }
+  // PATCH (tracer_calib): end
+
   /// The base DDS-form service type name, e.g.
   /// `example_interfaces::srv::dds_::AddTwoInts_` — used as the `<type>`
   /// component of a Zenoh service key expression.
