@@ -42,7 +42,10 @@ then joins as `/planner`, Enforce.
   permissions.p7s signed by another CA; governance.p7s changed after signing): the node,
   Enforce, exits non-zero at once with one line naming the enclave, the file and the reason.
 - permissive_missing_enclave: the same under Permissive: one warning, and the node runs
-  (unsecured).
+  (unsecured);
+- permissions_without_introspection: the node's permissions signed from the policy before
+  calibrate's introspection (enclave /old_tracer: no grant for calibrate/_service_event),
+  introspection asked for: the node runs, warns once, and answers /calibrate.
 
 Prints one line per test and a closing 'N passed, N skipped, N failed'.
 """
@@ -61,13 +64,24 @@ POLICY = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "c
 ENCLAVES = ("/tracer_calibrator", "/planner", "/hmi")
 
 
+def old_policy(work):
+    """The node's permissions as signed before calibrate's introspection (no grant for
+    calibrate/_service_event), for an enclave /old_tracer."""
+    path = os.path.join(work, "old_policy.xml")
+    with open(POLICY) as f:
+        text = f.read().replace('<enclave path="/tracer_calibrator">', '<enclave path="/old_tracer">', 1)
+    with open(path, "w") as f:
+        f.write("\n".join(line for line in text.splitlines() if "calibrate/_service_event" not in line))
+    return path
+
+
 def make_keystore(work):
     ks = os.path.join(work, "keystore")
     env = {k: v for k, v in os.environ.items() if not k.startswith("ROS_SECURITY_")}
     argvs = [["ros2", "security", "create_keystore", ks]]
-    for e in ENCLAVES:
+    for e, policy in [(e, POLICY) for e in ENCLAVES] + [("/old_tracer", old_policy(work))]:
         argvs.append(["ros2", "security", "create_enclave", ks, e])
-        argvs.append(["ros2", "security", "create_permission", ks, e, POLICY])
+        argvs.append(["ros2", "security", "create_permission", ks, e, policy])
     for argv in argvs:
         out = subprocess.run(argv, capture_output=True, text=True, timeout=120, env=env)
         if out.returncode != 0:
@@ -154,6 +168,22 @@ def test_secure_calibrate(peer, label="secure_calibrate"):
         f"scan->contour median {times[len(times) // 2] * 1e3:.1f} ms (20), calibrated, parameters answered; "
         f"{len(errors)} ERROR lines in the node's log"
     )
+
+
+def test_permissions_without_introspection(peer):
+    """A secure cell whose node permissions were signed before calibrate's introspection
+    (no grant for calibrate/_service_event): the node runs, says once at start-up that it
+    cannot publish the events, and serves /calibrate."""
+    node = SecureNode("old_permissions", ["--enclave", "/old_tracer", "-p", "calibrate.introspection:=contents"])
+    try:
+        r = peer.call("/calibrate", Calibrate.Request(), timeout=30)
+        assert not r.success and "no calibration-plate scan" in r.message, r.message
+    finally:
+        node.stop()
+    out = node.output()
+    warned = [line for line in out.splitlines() if "/calibrate/_service_event cannot be published" in line]
+    assert len(warned) == 1 and " WARN " in warned[0], out
+    return "ran, warned once, answered /calibrate"
 
 
 # A peer that watches for SECONDS (argv[1]) as node NAME (argv[2]), in ENCLAVE (argv[3], if
@@ -653,6 +683,7 @@ TESTS = {
     "enforce_missing_enclave": lambda peer: test_enforce_missing_enclave(peer),
     "enforce_bad_credentials": lambda peer: test_enforce_bad_credentials(peer),
     "permissive_missing_enclave": lambda peer: test_permissive_missing_enclave(peer),
+    "permissions_without_introspection": lambda peer: test_permissions_without_introspection(peer),
 }
 
 

@@ -143,6 +143,17 @@ impl Endpoints {
     }
 }
 
+/// Why an introspection event was not published: its publisher was refused at start-up.
+pub(super) const NO_EVENT_PUBLISHER: &str =
+    "no publisher on the service's _service_event topic (refused at start-up: see the warning then)";
+
+/// Log that the middleware refused `calibrate`'s introspection publisher (`topic`).
+pub(super) fn introspection_refused(topic: &Name, reason: String) {
+    warn!(
+        "{reason}: {topic} cannot be published (for a secure cell: not in the enclave's permissions); calibrate.introspection will publish nothing"
+    );
+}
+
 /// The node's DDS entities: what the loops read from and write to.
 pub(super) struct Entities {
     pub ctx: Context,
@@ -153,7 +164,8 @@ pub(super) struct Entities {
     pub diagnostics: Publisher<DiagnosticArray>,
     pub calibration: Publisher<msgs::Calibration>,
     pub calibrate: Server<CalibrateRequest, CalibrateResponse>,
-    pub calibrate_events: Publisher<CalibrateEvent>,
+    /// `None` if the middleware refused it (a secure cell's permissions without the topic).
+    pub calibrate_events: Option<Publisher<CalibrateEvent>>,
     pub type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
     /// The lifecycle services and events of a managed node.
     pub lifecycle: Option<LifecycleEntities>,
@@ -206,9 +218,14 @@ impl Entities {
                 reliable(CALIBRATE_QUEUE),
             )
             .map_err(mk)?;
+        // Optional: a secure cell whose permissions were signed before the node had it
+        // (no grant for the topic) keeps its node; introspection then publishes nothing.
         let event_type = Calibrate::type_name().event_message_type_name();
-        let event_topic = node.create_topic(calibrate_event, event_type, &reliable(10)).map_err(mk)?;
-        let calibrate_events = node.create_publisher::<CalibrateEvent>(&event_topic, None).map_err(mk)?;
+        let calibrate_events = node
+            .create_topic(calibrate_event, event_type, &reliable(10))
+            .and_then(|topic| node.create_publisher::<CalibrateEvent>(&topic, None))
+            .map_err(|e| introspection_refused(calibrate_event, mk(e)))
+            .ok();
         let type_description_name = private_name(&identity.fully_qualified_name(), "get_type_description")?;
         let type_description = node
             .create_server::<GetTypeDescriptionRequest, GetTypeDescriptionResponse>(
@@ -306,7 +323,10 @@ impl Wire for Entities {
     }
 
     async fn publish_calibrate_event(&self, msg: CalibrateEvent) -> Result<(), String> {
-        self.calibrate_events.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+        match &self.calibrate_events {
+            Some(p) => p.async_publish(msg).await.map_err(|e| format!("{e:?}")),
+            None => Err(NO_EVENT_PUBLISHER.to_string()),
+        }
     }
 
     fn type_description_requests(

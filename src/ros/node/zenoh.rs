@@ -26,7 +26,7 @@ use futures::{Stream, StreamExt};
 use ros2_client::zenoh::{Context, Node, Publisher, Server, Subscription};
 use ros2_client::{MessageTypeName, NodeOptions, RmwRequestId, ServiceTypeName};
 
-use super::entities::{Endpoints, latched_qos, private_name, reliable};
+use super::entities::{Endpoints, NO_EVENT_PUBLISHER, introspection_refused, latched_qos, private_name, reliable};
 use super::lifecycle::{Call, LifecycleWire, Reply, calls};
 use super::{RateLimit, Shared, Wire};
 use crate::interfaces::{
@@ -54,7 +54,8 @@ pub(super) struct ZenohEntities {
     diagnostics: Publisher<DiagnosticArray>,
     calibration: Publisher<msgs::Calibration>,
     calibrate: Server<CalibrateRequest, CalibrateResponse>,
-    calibrate_events: Publisher<CalibrateEvent>,
+    /// `None` if it could not be made (as on DDS).
+    calibrate_events: Option<Publisher<CalibrateEvent>>,
     type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
     /// The lifecycle services and events of a managed node.
     pub lifecycle: Option<ZenohLifecycle>,
@@ -103,7 +104,10 @@ impl ZenohEntities {
         let calibrate = node.create_server(calibrate, &service_type::<Calibrate>()).map_err(mk)?;
         let event_type = service_type::<Calibrate>().event_message_type_name();
         let event_topic = node.create_topic(calibrate_event, event_type, &reliable(10));
-        let calibrate_events = node.create_publisher::<CalibrateEvent>(&event_topic, None).map_err(mk)?;
+        let calibrate_events = node
+            .create_publisher::<CalibrateEvent>(&event_topic, None)
+            .map_err(|e| introspection_refused(calibrate_event, mk(e)))
+            .ok();
         let type_description_name = private_name(&identity.fully_qualified_name(), "get_type_description")?;
         let type_description =
             node.create_server(&type_description_name, &service_type::<GetTypeDescription>()).map_err(mk)?;
@@ -249,7 +253,10 @@ impl Wire for ZenohEntities {
     }
 
     async fn publish_calibrate_event(&self, msg: CalibrateEvent) -> Result<(), String> {
-        self.calibrate_events.async_publish(msg).await.map_err(|e| e.to_string())
+        match &self.calibrate_events {
+            Some(p) => p.async_publish(msg).await.map_err(|e| e.to_string()),
+            None => Err(NO_EVENT_PUBLISHER.to_string()),
+        }
     }
 
     fn type_description_requests(
