@@ -179,18 +179,17 @@ def scan_yaml(scan_id, target, steps, counts):
                            steps_per_revolution=400, step=steps, counts=counts))
 
 
-class ContourEcho:
-    """`ros2 topic echo --no-arr TOPIC tracer_calib_msgs/msg/Contour`, running for the
-    test (started early: the node's contour writer has long matched its reader when a scan
-    comes); each message it prints, as a dict (arrays as their lengths)."""
+class YamlEcho:
+    """A stock `ros2 ... echo` command running for the length of a test (output to
+    WORK/NAME); each YAML document it prints (up to its `---`), as a dict, in `docs`.
+    Lines starting with one of `skip` (the command's own notices) are left out."""
 
-    def __init__(self, label, topic):
-        self.topic = topic
-        self.messages = []
-        self.log_path = os.path.join(WORK, f"{label}_echo.out")
-        self.proc = subprocess.Popen(["ros2", "topic", "echo", "--no-daemon", "--no-arr", topic,
-                                      "tracer_calib_msgs/msg/Contour"], stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    def __init__(self, name, argv, skip=()):
+        self.docs = []
+        self.skip = tuple(skip)
+        self.log_path = os.path.join(WORK, name)
+        self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     start_new_session=True)
         self.thread = threading.Thread(target=self._read, daemon=True)
         self.thread.start()
 
@@ -201,10 +200,14 @@ class ContourEcho:
                 log.write(line)
                 log.flush()
                 if line.rstrip("\n") == "---":
-                    self.messages.append(yaml.safe_load("".join(doc)))
+                    self.docs.append(yaml.safe_load("".join(doc)))
                     doc = []
-                else:
+                elif not (self.skip and line.startswith(self.skip)):
                     doc.append(line)
+
+    def output(self):
+        with open(self.log_path) as f:
+            return f.read()
 
     def stop(self):
         if self.proc.poll() is None:
@@ -220,6 +223,18 @@ class ContourEcho:
 
     def __exit__(self, *exc):
         self.stop()
+
+
+class ContourEcho(YamlEcho):
+    """`ros2 topic echo --no-arr TOPIC tracer_calib_msgs/msg/Contour`, running for the
+    test (started early: the node's contour writer has long matched its reader when a scan
+    comes); each message it prints, as a dict (arrays as their lengths), in `messages`."""
+
+    def __init__(self, label, topic):
+        self.topic = topic
+        super().__init__(f"{label}_echo.out", ["ros2", "topic", "echo", "--no-daemon", "--no-arr", topic,
+                                                "tracer_calib_msgs/msg/Contour"])
+        self.messages = self.docs
 
 
 def publish_scan(topic, scan_id, target, scan, echo, launch, timeout=15):
@@ -829,45 +844,14 @@ def generate_launch_description():
     return f"(started to active: {to_active:.1f} s; Ctrl-C: {took:.2f} s)"
 
 
-class ServiceEcho:
+class ServiceEcho(YamlEcho):
     """`ros2 service echo SERVICE TYPE` (the stock verb) for the length of a test; each
-    event it prints, as a dict."""
+    event it prints, as a dict, in `events`."""
 
     def __init__(self, label, service, service_type):
-        self.events = []
-        self.log_path = os.path.join(WORK, f"{label}_service_echo.out")
-        self.proc = subprocess.Popen(["ros2", "service", "echo", service, service_type], stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True, start_new_session=True)
-        self.thread = threading.Thread(target=self._read, daemon=True)
-        self.thread.start()
-
-    def _read(self):
-        doc = []
-        with open(self.log_path, "w") as log:
-            for line in self.proc.stdout:
-                log.write(line)
-                log.flush()
-                if line.rstrip("\n") == "---":
-                    self.events.append(yaml.safe_load("".join(doc)))
-                    doc = []
-                elif not line.startswith("No publishers on topic"):
-                    doc.append(line)
-
-    def output(self):
-        with open(self.log_path) as f:
-            return f.read()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+        super().__init__(f"{label}_service_echo.out", ["ros2", "service", "echo", service, service_type],
+                         skip=["No publishers on topic"])
+        self.events = self.docs
 
 
 def test_service_echo():
