@@ -254,6 +254,10 @@ impl Parameters {
             ParamValue::String(s) => Ok(s.clone()),
             v => Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
         };
+        // A string naming one of a few values: a wrong type is told with what they are.
+        let one_of = |v: &ParamValue| {
+            string(v).map_err(|_| format!("expected a string ({}), got {} '{}'", spec.constraints, v.type_name(), v))
+        };
         // `[]` (what `ros2 param dump` writes for it) has no element type: any empty list
         // is the empty covariance; whole numbers are doubles, as for a double parameter.
         let covariance = |v: &ParamValue| {
@@ -279,13 +283,7 @@ impl Parameters {
             names::RING_DIAMETER => next.ring_diameter = double(value)?,
             names::DIAMETER_UNCERTAINTY => next.ring_diameter_uncertainty = double(value)?,
             names::METERS_PER_COUNT => next.meters_per_count = double(value)?,
-            names::MODEL => {
-                next.model = string(value)
-                    .map_err(|_| {
-                        format!("expected a string ({}), got {} '{}'", spec.constraints, value.type_name(), value)
-                    })?
-                    .parse()?
-            }
+            names::MODEL => next.model = one_of(value)?.parse()?,
             names::OUTPUT_FRAME_ID => next.output_frame_id = string(value)?,
             names::RESAMPLE_POINTS => next.resample_points = integer(value)? as usize,
             names::PARAMS_FILE => next.params_file = string(value)?,
@@ -297,13 +295,7 @@ impl Parameters {
             names::HARDWARE_ID => next.hardware_id = string(value)?,
             names::SCAN_TIMEOUT => next.scan_timeout = double(value)?,
             names::INTROSPECTION if *value == ParamValue::Bool(false) => next.introspection = Introspection::Off,
-            names::INTROSPECTION => {
-                next.introspection = string(value)
-                    .map_err(|_| {
-                        format!("expected a string ({}), got {} '{}'", spec.constraints, value.type_name(), value)
-                    })?
-                    .parse()?
-            }
+            names::INTROSPECTION => next.introspection = one_of(value)?.parse()?,
             _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
