@@ -115,19 +115,21 @@ pub fn correct(scan: &Scan, mounting: &Mounting) -> Vec<Vector2<f64>> {
 /// has fewer than 3 points, or `m` is 0. ([`PolarContour`] point by point, then
 /// [`PolarContour::resample`].)
 pub fn resample_radii(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option<Vec<f64>> {
-    resample_radii_with_gain(points, m, max_gap).map(|(radii, _)| radii)
+    polar_of(points).resample(m, max_gap)
 }
 
 /// [`resample_radii`] with each radius' noise gain ([`PolarContour::resample_with_gain`]).
 pub fn resample_radii_with_gain(points: &[Vector2<f64>], m: usize, max_gap: f64) -> Option<(Vec<f64>, Vec<f64>)> {
-    if m == 0 {
-        return None;
-    }
+    polar_of(points).resample_with_gain(m, max_gap)
+}
+
+/// `points` as a [`PolarContour`].
+fn polar_of(points: &[Vector2<f64>]) -> PolarContour {
     let mut polar = PolarContour::with_capacity(points.len());
     for p in points {
         polar.push(*p);
     }
-    polar.resample_with_gain(m, max_gap)
+    polar
 }
 
 /// Knots of padding on each side of the points in [`PolarContour`]: the last two

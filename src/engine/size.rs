@@ -191,6 +191,13 @@ fn grid_unit() -> &'static [(f64, f64); GRID] {
     })
 }
 
+/// Where a place `x` on the grid, counted in grid steps from angle 0, lies: between grid
+/// angles `i` and `i + 1` (round the end), the fraction `f` of the way (what the readings
+/// between grid angles interpolate with).
+fn grid_place(x: f64) -> (usize, f64) {
+    (x.floor() as usize % GRID, x - x.floor())
+}
+
 /// Points taken together in [`Smooth::squared_residuals`]: independent rotations side by
 /// side (instruction-level parallelism, and SIMD where the compiler finds it).
 const LANES: usize = 4;
@@ -432,8 +439,7 @@ impl Sizes {
             let coords: [&Coordinates; 4] = [&|p| (p.x, p.y), &|p| (-p.x, p.y), &|p| (p.y, p.x), &|p| (-p.y, p.x)];
             // The smooth between grid angles, linearly (a point's choice needs no more).
             let r_at = |t: f64| {
-                let x = t.rem_euclid(TAU) / h;
-                let (i, f) = (x.floor() as usize % GRID, x - x.floor());
+                let (i, f) = grid_place(t.rem_euclid(TAU) / h);
                 grid[i].0 * (1.0 - f) + grid[(i + 1) % GRID].0 * f
             };
             for (side, coord) in sides.iter_mut().zip(coords) {
@@ -481,9 +487,7 @@ impl Sizes {
             dc += (r * d[i] + rp * ddr) / (r * r + rp * rp).sqrt();
         }
         let at = |t: f64| {
-            let x = t.rem_euclid(TAU) / h;
-            let i = (x.floor() as usize) % GRID;
-            let f = x - x.floor();
+            let (i, f) = grid_place(t.rem_euclid(TAU) / h);
             d[i] * (1.0 - f) + d[(i + 1) % GRID] * f
         };
         self.extremes_response(dc * h, at)
@@ -745,8 +749,7 @@ pub fn uncertainty(
         }
         // Each radius' own, read off the grid between its neighbours.
         for (i, v) in radii_var_cal.iter_mut().enumerate() {
-            let x = i as f64 * GRID as f64 / m as f64;
-            let (j, f) = (x.floor() as usize % GRID, x - x.floor());
+            let (j, f) = grid_place(i as f64 * GRID as f64 / m as f64);
             let (a, b) = (&table[j], &table[(j + 1) % GRID]);
             *v = quadratic(&[0, 1, 2, 3, 4].map(|p| a[p] * (1.0 - f) + b[p] * f));
         }
