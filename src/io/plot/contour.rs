@@ -8,7 +8,7 @@ use nalgebra::Vector2;
 use super::ContourPlot;
 use super::axes::{Axis, Frame, decimals, draw_axes, nice_step, no_data, ticks};
 use super::legend::{Marker, draw_legend, plus_path};
-use super::svg::{C_CORRECTED, M_BOTTOM, M_LEFT, M_RIGHT, M_TOP, PANEL_H, PANEL_W, svg_open};
+use super::svg::{C_CORRECTED, M_BOTTOM, M_LEFT, M_RIGHT, M_TOP, one_panel};
 
 const C_RAW: &str = "#ff7f0e";
 const C_REFERENCE: &str = "#222222";
@@ -16,11 +16,7 @@ const C_REFERENCE: &str = "#222222";
 /// The raw and corrected contours (and the reference outline) in one plot, equal scaling,
 /// axes in mm.
 pub fn contours_svg(plot: &ContourPlot<'_>) -> String {
-    let mut out = String::new();
-    svg_open(&mut out, PANEL_W, PANEL_H);
-    contour_panel(&mut out, 0.0, 0.0, PANEL_W, PANEL_H, plot);
-    out.push_str("</svg>\n");
-    out
+    one_panel(|out, x0, y0, w, h| contour_panel(out, x0, y0, w, h, plot))
 }
 
 fn finite(p: &Vector2<f64>) -> bool {

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 
 use super::axes::{Axis, Frame, decimals, draw_axes, nice_step, no_data, ticks, time_ticks};
 use super::legend::{Marker, draw_marker};
-use super::svg::{C_CORRECTED, M_LEFT, M_RIGHT, M_TOP, summary_box, svg_open, wrap, xml_escape};
+use super::svg::{C_CORRECTED, M_LEFT, M_RIGHT, M_TOP, summary_box, titled, wrap, xml_escape};
 use super::{HistoryPlot, HistoryPoint};
 
 pub(super) const C_FLAGGED: &str = "#d62728";
@@ -24,14 +24,7 @@ pub fn history_svg(plot: &HistoryPlot<'_>) -> String {
     let lines = wrap(plot.summary, ((HISTORY_W - 40.0) / 7.3) as usize);
     let text_h = if lines.is_empty() { 0.0 } else { 16.0 + line_h * lines.len() as f64 };
     let height = header + 3.0 * HISTORY_PANEL_H + legend_h + text_h;
-    let mut out = String::new();
-    svg_open(&mut out, HISTORY_W, height);
-    let _ = writeln!(
-        out,
-        r#"<text class="title" x="{:.1}" y="28" text-anchor="middle" font-size="20" font-weight="bold">{}</text>"#,
-        HISTORY_W / 2.0,
-        xml_escape(plot.title)
-    );
+    let mut out = titled(HISTORY_W, height, 28, plot.title);
     let shown: Vec<&HistoryPoint> =
         plot.points.iter().filter(|p| p.time.is_finite() && p.values.iter().all(|v| v.is_finite())).collect();
     // One time axis for all three panels, with a margin; a single calibration gets a day.

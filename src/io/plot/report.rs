@@ -1,12 +1,10 @@
 //! The calibration report: the contour and residual panels side by side, the fit summary
 //! under them, in one picture.
 
-use std::fmt::Write as _;
-
 use super::CalibrationReport;
 use super::contour::contour_panel;
 use super::residuals::residual_panel;
-use super::svg::{PANEL_H, PANEL_W, summary_box, svg_open, wrap, xml_escape};
+use super::svg::{PANEL_H, PANEL_W, summary_box, titled, wrap};
 
 /// Contours and residuals side by side, the summary text below, in one SVG.
 pub fn calibration_report_svg(report: &CalibrationReport<'_>) -> String {
@@ -18,14 +16,7 @@ pub fn calibration_report_svg(report: &CalibrationReport<'_>) -> String {
     let lines = wrap(report.summary, max_chars);
     let text_h = if lines.is_empty() { 10.0 } else { 16.0 + line_h * lines.len() as f64 };
     let height = header + PANEL_H + text_h;
-    let mut out = String::new();
-    svg_open(&mut out, width, height);
-    let _ = writeln!(
-        out,
-        r#"<text class="title" x="{:.1}" y="27" text-anchor="middle" font-size="20" font-weight="bold">{}</text>"#,
-        width / 2.0,
-        xml_escape(report.title)
-    );
+    let mut out = titled(width, height, 27, report.title);
     contour_panel(&mut out, 0.0, header, PANEL_W, PANEL_H, &report.contours);
     residual_panel(&mut out, PANEL_W, header, PANEL_W, PANEL_H, &report.residuals);
     if !lines.is_empty() {

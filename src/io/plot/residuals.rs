@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use super::ResidualPlot;
 use super::axes::{Axis, Frame, decimals, draw_axes, nice_step, no_data, ticks};
 use super::legend::{Marker, cross_path, draw_legend, triangle_path};
-use super::svg::{M_BOTTOM, M_LEFT, M_RIGHT, M_TOP, PANEL_H, PANEL_W, svg_open};
+use super::svg::{M_BOTTOM, M_LEFT, M_RIGHT, M_TOP, one_panel};
 
 const C_USED: &str = "#1f77b4";
 const C_REJECTED: &str = "#d62728";
@@ -15,11 +15,7 @@ const C_SIGMA: &str = "#d62728";
 /// Residuals (µm) against angle (degrees): used samples as dots, rejected ones as crosses,
 /// zero and ±3σ lines; the title gives the RMS of the used residuals.
 pub fn residuals_svg(plot: &ResidualPlot<'_>) -> String {
-    let mut out = String::new();
-    svg_open(&mut out, PANEL_W, PANEL_H);
-    residual_panel(&mut out, 0.0, 0.0, PANEL_W, PANEL_H, plot);
-    out.push_str("</svg>\n");
-    out
+    one_panel(|out, x0, y0, w, h| residual_panel(out, x0, y0, w, h, plot))
 }
 
 pub(super) fn residual_panel(out: &mut String, x0: f64, y0: f64, w: f64, h: f64, plot: &ResidualPlot<'_>) {

@@ -55,6 +55,28 @@ pub(super) fn summary_box(out: &mut String, top: f64, w: f64, h: f64, line_h: f6
     out.push_str("</g>\n");
 }
 
+/// One panel of `PANEL_W` × `PANEL_H` as a whole picture, drawn by `panel(out, x0, y0, w, h)`.
+pub(super) fn one_panel(panel: impl FnOnce(&mut String, f64, f64, f64, f64)) -> String {
+    let mut out = String::new();
+    svg_open(&mut out, PANEL_W, PANEL_H);
+    panel(&mut out, 0.0, 0.0, PANEL_W, PANEL_H);
+    out.push_str("</svg>\n");
+    out
+}
+
+/// A picture `w` wide, `h` high, opened (`svg_open`) with its title centred at `y`.
+pub(super) fn titled(w: f64, h: f64, y: u32, title: &str) -> String {
+    let mut out = String::new();
+    svg_open(&mut out, w, h);
+    let _ = writeln!(
+        out,
+        r#"<text class="title" x="{:.1}" y="{y}" text-anchor="middle" font-size="20" font-weight="bold">{}</text>"#,
+        w / 2.0,
+        xml_escape(title)
+    );
+    out
+}
+
 pub(super) fn svg_open(out: &mut String, w: f64, h: f64) {
     let _ = writeln!(out, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
     let _ = writeln!(
