@@ -55,8 +55,8 @@ for a in "$@"; do
 done
 [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
 # The sources, checked against ros2-sources.lock (downloaded by their hashes if absent).
-mapfile -t TARBALLS < <(python3 "$ROOT/scripts/ros2_sources.py" path "${SOURCES[@]}") || exit 1
-[ "${#TARBALLS[@]}" = "${#SOURCES[@]}" ] || exit 1
+paths=$(python3 "$ROOT/scripts/ros2_sources.py" path "${SOURCES[@]}") || exit 1
+mapfile -t TARBALLS <<<"$paths"
 
 clean_ros_env
 

@@ -173,16 +173,12 @@ def peer(name, script, *args):
     )
 
 
-# rmw_zenoh_cpp 0.2.10's known failure as a process leaves, after its work is done
-# (docs/ros2-peer.md: zenoh-c's "close operation timed out!", 10 s, exit 1).
-CLOSE_TIMEOUT = "Failed to close the session"
-
 
 def ros2(*args):
     """The stock `ros2` command on rmw_zenoh_cpp, without its daemon: its output; a failure
     fails the test, but for rmw_zenoh's own session-close timeout as the command exits."""
     out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=CLI_ENV, capture_output=True, text=True)
-    closing = out.returncode == 1 and any(m in out.stdout + out.stderr for m in (CLOSE_TIMEOUT, "close operation timed out"))
+    closing = tn.zenoh_close_timed_out(out)
     assert out.returncode == 0 or closing, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
     if closing:
         print(f"    ros2 {' '.join(args)}: done, then rmw_zenoh's session close timed out (exit 1)", flush=True)

@@ -77,8 +77,8 @@ for a in "$@"; do
 done
 [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] jazzy" >&2; exit 2; }
 # The sources, checked against ros2-sources.lock (downloaded by their hashes if absent).
-mapfile -t TARBALLS < <(python3 "$ROOT/scripts/ros2_sources.py" path rmw_zenoh zenoh-c zenoh-cpp) || exit 1
-[ "${#TARBALLS[@]}" = 3 ] || exit 1
+paths=$(python3 "$ROOT/scripts/ros2_sources.py" path rmw_zenoh zenoh-c zenoh-cpp) || exit 1
+mapfile -t TARBALLS <<<"$paths"
 
 # Work in a clean environment even when a target/ros/*/env.sh is sourced in this shell.
 clean_ros_env
