@@ -24,6 +24,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "ros2_sources.py"
+sys.path.insert(0, str(SCRIPT.parent))
+import ros2_sources  # noqa: E402  (its files' digest, the one the lock holds)
 LOCK = tomllib.loads((ROOT / "ros2-sources.lock").read_text())
 SHIPPED = Path(os.environ.get("TRACER_ROS2_SRC") or ROOT.parent / "shared" / "ros2-src")
 # Three sources with every feature of the lock: include (mcap), exclude (yaml-cpp), two
@@ -104,9 +106,6 @@ def sha256(path):
 
 
 def tree_of(path):
-    sys.path.insert(0, str(SCRIPT.parent))
-    import ros2_sources
-
     return ros2_sources.tarball_tree(path)
 
 
