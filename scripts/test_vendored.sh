@@ -5,7 +5,8 @@
 # under cargo's target directory, with the dev-dependencies its tests use and the
 # versions of vendor/rustdds/tests.Cargo.lock. The crates are fetched first; the tests
 # then run offline, in a private network namespace whose loopback carries multicast (some
-# tests open sockets and send SPDP).
+# tests open sockets and send SPDP). Built with the feature `security`, as the node's
+# secure build uses the crate: its security tests run too (722 tests, 2026-11-26).
 #   bash scripts/test_vendored.sh [TESTNAME_FILTER]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -32,7 +33,7 @@ TOML
 } >"$work/Cargo.toml"
 export CARGO_TARGET_DIR=$TRACER_TARGET_DIR/vendored-tests/target
 (cd "$work" && cargo fetch --locked)
-(cd "$work" && cargo test --locked --lib --no-run)
+(cd "$work" && cargo test --locked --lib --features security --no-run)
 # Multicast on the namespace's loopback (the crate's discovery and socket tests use it).
 tests/interop/netns.sh bash -c "ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo &&
-    cd '$work' && cargo test --locked --offline --lib -- ${1:-}"
+    cd '$work' && cargo test --locked --offline --lib --features security -- ${1:-}"

@@ -51,7 +51,8 @@ def run_tests_and_exit(script, tests, argv, label, summary, work, log_dir=None, 
     """A test script's end: the tests `argv` names (all if none; `summary` itself names all
     of them, a `test_` prefix is dropped), run as `run_tests` does; an unknown name exits 2
     listing the tests there are. `at_end()`, if given, runs after them (what the tests
-    shared, stopped). `work` (the script's scratch folder) is removed when all passed.
+    shared, stopped). `work` (the script's scratch folder) is removed when all passed, unless
+    TRACER_INTEROP_KEEP is set (to read the node logs of a passing run).
     Exits 0 or 1 without rclpy's shutdown, which can hang (docs/ros2-peer.md)."""
     only = [a.removeprefix("test_") for a in argv if a != summary]
     unknown = sorted(set(only) - {name for name, _ in tests})
@@ -61,8 +62,10 @@ def run_tests_and_exit(script, tests, argv, label, summary, work, log_dir=None, 
     failed = run_tests(tests, only, label, summary, log_dir=log_dir)
     if at_end:
         at_end()
-    if failed == 0:
+    if failed == 0 and not os.environ.get("TRACER_INTEROP_KEEP"):
         shutil.rmtree(work, ignore_errors=True)
+    elif os.environ.get("TRACER_INTEROP_KEEP"):
+        print(f"{script}: scratch folder kept (TRACER_INTEROP_KEEP): {work}", flush=True)
     sys.stdout.flush()
     os._exit(0 if failed == 0 else 1)
 

@@ -308,6 +308,23 @@ impl<E> Timer<E> {
     }
   }
 
+  /// tracer_calib patch: the pending events `is_it` picks, brought forward to `when` if
+  /// they are due later (none pending: nothing is set).
+  #[allow(dead_code)]
+  pub(crate) fn bring_forward(&mut self, when: Instant, is_it: impl Fn(&E) -> bool) {
+    let later: Vec<(Instant, u64)> = self
+      .deadlines
+      .iter()
+      .filter(|((at, _), event)| *at > when && is_it(event))
+      .map(|(key, _)| *key)
+      .collect();
+    for key in later {
+      if let Some(event) = self.deadlines.remove(&key) {
+        self.deadlines.insert((when, key.1), event);
+      }
+    }
+  }
+
   pub(crate) fn next_deadline(&self) -> Option<Instant> {
     self.deadlines.keys().next().map(|(when, _)| *when)
   }
@@ -332,5 +349,34 @@ pub(crate) fn timeout_until(deadline: Option<Instant>, cap: Duration) -> Duratio
       }
     }
     None => cap,
+  }
+}
+
+// tracer_calib patch
+#[cfg(test)]
+mod bring_forward_tests {
+  use super::*;
+
+  #[derive(Debug, PartialEq)]
+  enum Event {
+    A,
+    B,
+  }
+
+  #[test]
+  fn bring_forward_moves_only_the_later_events_it_picks() {
+    let mut timer = Timer::new();
+    timer.set_timeout(Duration::from_secs(1), Event::A);
+    timer.set_timeout(Duration::from_secs(2), Event::B);
+    let soon = Instant::now() + Duration::from_millis(10);
+    timer.bring_forward(soon, |e| *e == Event::A);
+    assert_eq!(timer.next_deadline(), Some(soon));
+    // Not later than `when`: left as it is.
+    timer.bring_forward(soon + Duration::from_secs(5), |e| *e == Event::A);
+    assert_eq!(timer.next_deadline(), Some(soon));
+    std::thread::sleep(Duration::from_millis(15));
+    assert_eq!(timer.poll(), Some(Event::A));
+    assert_eq!(timer.poll(), None); // B still 2 s away
+    assert!(timer.next_deadline().unwrap() > Instant::now() + Duration::from_secs(1));
   }
 }

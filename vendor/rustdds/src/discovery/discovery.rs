@@ -745,6 +745,15 @@ impl Discovery {
 
     let mut events = Events::with_capacity(32);
     loop {
+      // tracer_calib patch (security): a handshake message stored since the resend timer
+      // was set is sent again on its own schedule (the first time 125 ms on), not at the
+      // timer's next tick (up to a second on).
+      #[cfg(feature = "security")]
+      if let Some(when) = self.security_opt.as_ref().and_then(|s| s.next_authentication_resend()) {
+        self.discovery_timer.borrow_mut().bring_forward(when, |event| {
+          matches!(event, DiscoveryTimerEvent::CachedSecureMessageResend)
+        });
+      }
       let poll_timeout = timeout_until(
         self.discovery_timer.borrow().next_deadline(),
         std::time::Duration::from_millis(5000),
@@ -916,9 +925,10 @@ impl Discovery {
                 }
                 #[cfg(feature = "security")]
                 DiscoveryTimerEvent::CachedSecureMessageResend => {
-                  self.on_secure_discovery_message_resend_triggered();
+                  // tracer_calib patch (security): at the time the resends ask for
+                  let next = self.on_secure_discovery_message_resend_triggered();
                   self.discovery_timer.borrow_mut().set_timeout(
-                    Self::CACHED_SECURE_DISCOVERY_MESSAGE_RESEND_PERIOD,
+                    next,
                     DiscoveryTimerEvent::CachedSecureMessageResend,
                   );
                 }
@@ -1632,7 +1642,11 @@ impl Discovery {
       {
         Ok(dr_iter) => {
           for msg in dr_iter {
-            security.volatile_message_secure_read(&msg);
+            // tracer_calib patch (security): the writer, to answer a remote's tokens
+            security.volatile_message_secure_read(
+              &msg,
+              &self.dcps_participant_volatile_message_secure.writer,
+            );
           }
         }
         Err(e) => {
@@ -1773,16 +1787,24 @@ impl Discovery {
     }
   }
 
+  // tracer_calib patch (security): returns how long until the next call (the resends'
+  // own schedule; the old fixed period without security).
   #[cfg(feature = "security")]
-  fn on_secure_discovery_message_resend_triggered(&mut self) {
+  fn on_secure_discovery_message_resend_triggered(&mut self) -> StdDuration {
     if let Some(security) = self.security_opt.as_mut() {
       // Security is enabled
-      security.resend_cached_secure_discovery_messages(
+      let next = security.resend_cached_secure_discovery_messages(
         &self.dcps_participant_stateless_message.writer,
         &self.dcps_participant_volatile_message_secure.writer,
       );
       // Note: the resend timer is rescheduled by the shared-timer dispatch loop
       // after this method returns, so we must not reschedule it here.
+      // (At least a millisecond on: the timer's resolution.)
+      next
+        .saturating_duration_since(std::time::Instant::now())
+        .max(StdDuration::from_millis(1))
+    } else {
+      Self::CACHED_SECURE_DISCOVERY_MESSAGE_RESEND_PERIOD
     }
   }
 

@@ -1,6 +1,7 @@
 use std::{
   collections::{HashMap, HashSet},
   sync::{Arc, RwLock},
+  time::{Duration, Instant}, // tracer_calib patch (security)
 };
 
 #[allow(unused_imports)]
@@ -63,11 +64,51 @@ pub enum AuthenticationStatus {
 }
 
 // How many times an authentication message is resent if we don't get an answer
-const STORED_AUTH_MESSAGE_MAX_RESEND_COUNT: u8 = 10;
+// tracer_calib patch (security): 9 (it was 10), so that a request is sent 10 times in all,
+// as Fast DDS's `max_handshake_requests`, over about 9.4 s (it was 11 over 10 s).
+const STORED_AUTH_MESSAGE_MAX_RESEND_COUNT: u8 = 9;
+
+// tracer_calib patch (security): an unanswered handshake message is sent again after
+// 125 ms, then after each wait × 1.5 (10 sends over about 9.4 s), as Fast DDS does
+// (`dds.sec.auth.builtin.PKI-DH.initial_handshake_resend_period` 125 ms,
+// `handshake_resend_period_gain` 1.5, `max_handshake_requests` 10). It was sent again
+// once a second: a request that reached the remote before the remote had discovered us
+// (dropped: the remote knows no such participant yet), which is most starts, held the
+// whole handshake, and so discovery, a second.
+const STORED_AUTH_MESSAGE_FIRST_RESEND: Duration = Duration::from_millis(125);
+const STORED_AUTH_MESSAGE_RESEND_GAIN: f64 = 1.5;
+
+// tracer_calib patch (security): when a message is sent again, and the wait after that.
+#[derive(Clone, Copy, Debug)]
+struct ResendSchedule {
+  next_send: Instant,
+  period: Duration,
+}
+
+impl ResendSchedule {
+  // Sent at `now`: first sent again `STORED_AUTH_MESSAGE_FIRST_RESEND` later.
+  fn new(now: Instant) -> Self {
+    Self {
+      next_send: now + STORED_AUTH_MESSAGE_FIRST_RESEND,
+      period: STORED_AUTH_MESSAGE_FIRST_RESEND,
+    }
+  }
+
+  // Whether it is due at `now`; if so, the next send is planned the wait × the gain later.
+  fn due(&mut self, now: Instant) -> bool {
+    if now < self.next_send {
+      return false;
+    }
+    self.period = self.period.mul_f64(STORED_AUTH_MESSAGE_RESEND_GAIN);
+    self.next_send = now + self.period;
+    true
+  }
+}
 
 struct StoredAuthenticationMessage {
   message: ParticipantStatelessMessage,
   remaining_resend_counter: u8,
+  schedule: ResendSchedule, // tracer_calib patch (security)
 }
 
 impl StoredAuthenticationMessage {
@@ -75,6 +116,7 @@ impl StoredAuthenticationMessage {
     Self {
       message,
       remaining_resend_counter: STORED_AUTH_MESSAGE_MAX_RESEND_COUNT,
+      schedule: ResendSchedule::new(Instant::now()), // tracer_calib patch (security)
     }
   }
 }
@@ -112,7 +154,12 @@ pub(crate) struct SecureDiscovery {
   // writer; Cyclone DDS then drops them, and its reader, VOLATILE, never asks for
   // them again: no participant key, every RTPS-protected message from us refused
   // ("decoding rtps message ... failed"), discovery stuck (about 1 start in 5 here).
-  repeated_key_exchange_messages: Vec<(ParticipantVolatileMessageSecure, u8)>,
+  // The flag: sent again already on the remote's participant tokens
+  // (`repeat_key_exchange_on_remote_tokens`).
+  repeated_key_exchange_messages: Vec<(ParticipantVolatileMessageSecure, u8, bool)>,
+  // tracer_calib patch (security): when the key exchange messages are next sent again
+  // (`resend_cached_secure_discovery_messages`)
+  next_key_exchange_resend: Instant,
 
   // In the key, first GUID is local endpoint's, second is remote endpoint's
   cached_received_key_exchange_messages: HashMap<(GUID, GUID), ParticipantVolatileMessageSecure>,
@@ -268,6 +315,7 @@ impl SecureDiscovery {
       handshake_states: HashMap::new(),
       cached_key_exchange_messages_for_resend: HashSet::new(),
       repeated_key_exchange_messages: Vec::new(), // tracer_calib patch (security)
+      next_key_exchange_resend: Instant::now() + KEY_EXCHANGE_RESEND_PERIOD, // tracer_calib patch (security)
       stored_authentication_messages: HashMap::new(),
       cached_received_key_exchange_messages: HashMap::new(),
       user_data_endpoints_with_keys_already_sent_to: HashSet::new(),
@@ -1531,17 +1579,38 @@ impl SecureDiscovery {
     self.update_handshake_state(remote_guid_prefix, DiscHandshakeState::PendingReplyMessage);
   }
 
+  // tracer_calib patch (security): when the next handshake message is due to be sent
+  // again, if any is waiting for an answer.
+  pub fn next_authentication_resend(&self) -> Option<Instant> {
+    self
+      .stored_authentication_messages
+      .iter()
+      .filter(|(guid_prefix, _)| {
+        self.handshake_states.get(*guid_prefix)
+          != Some(&DiscHandshakeState::CompletedWithFinalMessageSent)
+      })
+      .map(|(_, message)| message.schedule.next_send)
+      .min()
+  }
+
+  // tracer_calib patch (security): called whenever the returned instant has come (it was
+  // called once a second): the handshake messages are sent again each on its own
+  // schedule (`StoredAuthenticationMessage::due`), the key exchange work once a second
+  // (`next_key_exchange_resend`). Returns when to be called next.
   pub fn resend_cached_secure_discovery_messages(
     &mut self,
     auth_msg_writer: &no_key::DataWriter<ParticipantStatelessMessage>,
     key_exchange_writer: &no_key::DataWriter<ParticipantVolatileMessageSecure>,
-  ) {
+  ) -> Instant {
+    let now = Instant::now();
     // First resend authentication messages
     for (guid_prefix, stored_message) in self.stored_authentication_messages.iter_mut() {
       // Resend the message unless it's a final message (which needs to be requested
       // from us)
       if self.handshake_states.get(guid_prefix)
         != Some(&DiscHandshakeState::CompletedWithFinalMessageSent)
+        && stored_message.schedule.due(now)
+      // tracer_calib patch (security): the line above
       {
         match auth_msg_writer.write(stored_message.message.clone(), None) {
           Ok(()) => {
@@ -1580,13 +1649,23 @@ impl SecureDiscovery {
     for guid_prefix in unanswered {
       self.count_refused_authentication(
         guid_prefix,
-        &format!("no answer to our handshake message after {STORED_AUTH_MESSAGE_MAX_RESEND_COUNT} sends"),
+        &format!(
+          "no answer to our handshake message after {} sends",
+          STORED_AUTH_MESSAGE_MAX_RESEND_COUNT + 1
+        ),
       );
     }
     // Remove authentication messages with no more resends
     self
       .stored_authentication_messages
       .retain(|_guid_prefix, message| message.remaining_resend_counter > 0);
+
+    // tracer_calib patch (security): the key exchange, once a second
+    let next_auth = self.next_authentication_resend();
+    if now < self.next_key_exchange_resend {
+      return next_auth.map_or(self.next_key_exchange_resend, |t| t.min(self.next_key_exchange_resend));
+    }
+    self.next_key_exchange_resend = now + KEY_EXCHANGE_RESEND_PERIOD;
 
     // Then try to send those key exchange messages that we haven't been able to
     // send yet
@@ -1613,13 +1692,15 @@ impl SecureDiscovery {
 
     // tracer_calib patch (security): the built-in key exchange, once more per tick
     let mut repeats = std::mem::take(&mut self.repeated_key_exchange_messages);
-    for (msg, left) in repeats.iter_mut() {
+    for (msg, left, _) in repeats.iter_mut() {
       if self.send_key_exchange_message(key_exchange_writer, msg).is_ok() {
         *left -= 1;
       }
     }
-    repeats.retain(|(_, left)| *left > 0);
+    repeats.retain(|(_, left, _)| *left > 0);
     self.repeated_key_exchange_messages = repeats;
+    // tracer_calib patch (security)
+    next_auth.map_or(self.next_key_exchange_resend, |t| t.min(self.next_key_exchange_resend))
   }
 
   fn reset_stored_message_resend_counter(&mut self, remote_guid_prefix: &GuidPrefix) {
@@ -1977,7 +2058,13 @@ impl SecureDiscovery {
     }
   }
 
-  pub fn volatile_message_secure_read(&mut self, msg: &ParticipantVolatileMessageSecure) {
+  // tracer_calib patch (security): `key_exchange_writer` added, to send our key exchange
+  // again when the remote's participant tokens arrive (`repeat_key_exchange_on_remote_tokens`).
+  pub fn volatile_message_secure_read(
+    &mut self,
+    msg: &ParticipantVolatileMessageSecure,
+    key_exchange_writer: &no_key::DataWriter<ParticipantVolatileMessageSecure>,
+  ) {
     // Check is the message meant to us (see 7.4.4.4 Destination of the
     // ParticipantVolatileMessageSecure of the spec)
     let dest_guid = msg.generic.destination_participant_guid;
@@ -2010,11 +2097,12 @@ impl SecureDiscovery {
         }
 
         let remote_participant_guidp = msg.generic.message_identity.writer_guid.prefix;
-        if let Err(e) = self
+        // tracer_calib patch (security): the plugins' lock released before the else branch
+        let set_result = self
           .security_plugins
           .get_plugins()
-          .set_remote_participant_crypto_tokens(remote_participant_guidp, crypto_tokens)
-        {
+          .set_remote_participant_crypto_tokens(remote_participant_guidp, crypto_tokens);
+        if let Err(e) = set_result {
           create_security_error_and_log!(
             "Failed to set remote participant crypto tokens: {}. Remote: {:?}",
             e,
@@ -2022,6 +2110,8 @@ impl SecureDiscovery {
           );
         } else {
           info!("Set crypto tokens for remote participant {remote_participant_guidp:?}");
+          // tracer_calib patch (security)
+          self.repeat_key_exchange_on_remote_tokens(remote_participant_guidp, key_exchange_writer);
         }
       }
 
@@ -2087,6 +2177,30 @@ impl SecureDiscovery {
         debug!("Unknown message_class_id in a volatile message: {other}");
       }
     }
+  }
+
+  // tracer_calib patch (security): the remote's participant crypto tokens are the sign
+  // that it has processed the handshake's end and matched its volatile secure reader with
+  // our writer (a replier sends them once it has validated our final message). Our own
+  // tokens, sent at our end of the handshake, may have reached it before that and been
+  // dropped (see `repeated_key_exchange_messages`): they are sent again now, once, instead
+  // of at the next resend tick (up to a second later). If they were taken the first time,
+  // the remote sets the same keys again.
+  fn repeat_key_exchange_on_remote_tokens(
+    &mut self,
+    remote_guid_prefix: GuidPrefix,
+    key_exchange_writer: &no_key::DataWriter<ParticipantVolatileMessageSecure>,
+  ) {
+    let mut repeats = std::mem::take(&mut self.repeated_key_exchange_messages);
+    let mut sent = 0;
+    for (message, _left, resent) in repeats.iter_mut() {
+      if !*resent && message.generic.destination_participant_guid.prefix == remote_guid_prefix {
+        *resent = self.send_key_exchange_message(key_exchange_writer, message).is_ok();
+        sent += usize::from(*resent);
+      }
+    }
+    self.repeated_key_exchange_messages = repeats;
+    debug!("Sent {sent} key exchange messages again to {remote_guid_prefix:?}, on its tokens");
   }
 
   fn store_received_volatile_message(&mut self, msg: ParticipantVolatileMessageSecure) {
@@ -2257,7 +2371,7 @@ impl SecureDiscovery {
         } else {
           debug!("Sent participant crypto tokens to {remote_guid_prefix:?}.");
           // tracer_calib patch (security): and again on the next ticks
-          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS));
+          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS, false));
         }
       }
     }
@@ -2303,7 +2417,7 @@ impl SecureDiscovery {
                  {remote_guid_prefix:?}."
               );
           // tracer_calib patch (security): and again on the next ticks
-          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS));
+          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS, false));
             }
           }
         }
@@ -2351,7 +2465,7 @@ impl SecureDiscovery {
                  {remote_guid_prefix:?}."
               );
           // tracer_calib patch (security): and again on the next ticks
-          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS));
+          self.repeated_key_exchange_messages.push((message, KEY_EXCHANGE_REPEATS, false));
             }
           }
         }
@@ -2917,3 +3031,33 @@ impl ParticipantGenericMessageHelper {
 // tracer_calib patch (security): how many times the built-in key exchange is sent
 // again, one resend tick (a second) apart; see `repeated_key_exchange_messages`.
 const KEY_EXCHANGE_REPEATS: u8 = 2;
+// tracer_calib patch (security): how often cached key exchange messages are sent again
+// (the period of the resend timer before the handshake's own schedule).
+const KEY_EXCHANGE_RESEND_PERIOD: Duration = Duration::from_secs(1);
+
+// tracer_calib patch (security)
+#[cfg(test)]
+mod resend_schedule_tests {
+  use super::*;
+
+  // An unanswered handshake message: sent again 125 ms on, then each wait 1.5 times the
+  // last, as Fast DDS's defaults; the sends (10 in all, with the first) span about 9.4 s.
+  #[test]
+  fn handshake_resends_back_off_as_fast_dds() {
+    let t0 = Instant::now();
+    let mut schedule = ResendSchedule::new(t0);
+    assert!(!schedule.due(t0 + Duration::from_millis(124)));
+    let mut sends = vec![];
+    let mut now = t0;
+    while sends.len() < usize::from(STORED_AUTH_MESSAGE_MAX_RESEND_COUNT) {
+      now += Duration::from_millis(1);
+      if schedule.due(now) {
+        sends.push((now - t0).as_millis());
+      }
+    }
+    assert_eq!(sends[0], 125);
+    assert_eq!(sends[1], 125 + 188); // 187.5 ms, on a 1 ms step
+    let last = *sends.last().unwrap();
+    assert!((9300..9500).contains(&last), "{sends:?}");
+  }
+}
