@@ -16,7 +16,8 @@
 //! - [`stats`]: the counts it reports (every rejection counted in one place);
 //! - [`in_force`]: what is known of the calibration in force;
 //! - [`lifecycle`]: the managed node's state machine (rcl_lifecycle's), and [`managed`]: what
-//!   each state lets through, and the node's callbacks.
+//!   each state lets through, and the node's callbacks; [`bond`]: the heartbeat nav2's
+//!   lifecycle manager keeps with a managed node.
 
 use std::collections::VecDeque;
 use std::path::Path;
@@ -27,6 +28,7 @@ use crate::interfaces::{Header, Time, tracer_calib_msgs as msgs};
 use crate::params::{Parameters, file as params_file};
 use crate::records::{self, Drift, History, Record};
 
+pub mod bond;
 pub mod calibrate;
 pub mod diagnostics;
 pub mod driver;
