@@ -42,8 +42,8 @@ use ros2_client::{
     qos::{Durability, History, WhenFull},
 };
 
+use super::Wire;
 use super::lifecycle::LifecycleEntities;
-use super::{Shared, Wire};
 use crate::interfaces::{
     Calibrate, CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
@@ -362,9 +362,5 @@ impl Wire for Entities {
 
     fn use_sim_time(&self) -> bool {
         self.node.clock().use_sim_time()
-    }
-
-    fn tick(&self, shared: &Shared) {
-        shared.qos_reports.lock().expect("qos reports lock").flush(&self.node, std::time::Instant::now(), false);
     }
 }

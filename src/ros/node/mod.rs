@@ -10,7 +10,7 @@
 //! | [`calibration`] | the calibration in force, latched, at start-up and on each change |
 //! | [`diagnostics`] | `/diagnostics` at 1 Hz |
 //! | [`type_description`] | `~/get_type_description` (REP-2016) |
-//! | [`graph`] | DDS: matches (polygons only when someone listens) and incompatible QoS |
+//! | [`graph`] | DDS: matches (polygons only when someone listens) and incompatible QoS (reported once a second) |
 //! | [`lifecycle`] | a managed node's lifecycle services and transition events |
 //! | [`zenoh`] | Zenoh: the graph (polygons only when someone listens), the parameter services |
 //!

@@ -9,7 +9,6 @@
 use crate::ros::logging::RosoutRecord;
 use futures::Stream;
 
-use super::Shared;
 use crate::interfaces::{
     CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescriptionRequest,
     GetTypeDescriptionResponse, PolygonStamped, RawScan, tracer_calib_msgs as msgs,
@@ -69,7 +68,4 @@ pub(super) trait Wire {
     fn rosout(&self, record: &RosoutRecord);
     /// Whether the node's clock is simulated (`use_sim_time`).
     fn use_sim_time(&self) -> bool;
-    /// Once a second, from the diagnostics loop: what the middleware reports late
-    /// (DDS: incompatible QoS whose peer node is known by now).
-    fn tick(&self, shared: &Shared);
 }

@@ -298,8 +298,6 @@ impl Wire for ZenohEntities {
     fn use_sim_time(&self) -> bool {
         self.node.clock().use_sim_time()
     }
-
-    fn tick(&self, _shared: &Shared) {}
 }
 
 type TransitionsServer = Server<GetAvailableTransitionsRequest, GetAvailableTransitionsResponse>;
