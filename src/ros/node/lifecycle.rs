@@ -23,11 +23,8 @@ use log::{debug, error, info, warn};
 use ros2_client::dds::{Node, Publisher, Server, ServiceMapping};
 use ros2_client::{Name, service::RmwRequestId};
 
-use super::{
-    Shared,
-    entities::{private_name, reliable},
-    log_history_read,
-};
+use super::endpoints::{private_name, reliable};
+use super::{Shared, log_history_read};
 use crate::cell::lifecycle::{self, STATES, TRANSITIONS, Transition};
 use crate::interfaces::{
     ChangeState, ChangeStateRequest, ChangeStateResponse, GetAvailableStates, GetAvailableStatesRequest,

@@ -1,5 +1,5 @@
 //! The node's endpoints on Zenoh (`RMW_IMPLEMENTATION=rmw_zenoh_cpp`): the same names and
-//! QoS as on DDS ([`super::entities::Endpoints`]), through ros2-client's Zenoh backend,
+//! QoS as on DDS ([`super::endpoints::Endpoints`]), through ros2-client's Zenoh backend,
 //! which speaks rmw_zenoh_cpp's protocol:
 //!
 //! - a liveliness token under `@ros2_lv/<domain>/...` for the node and each endpoint
@@ -26,7 +26,7 @@ use futures::{Stream, StreamExt};
 use ros2_client::zenoh::{Context, Node, Publisher, Server, Subscription};
 use ros2_client::{MessageTypeName, NodeOptions, RmwRequestId, ServiceTypeName};
 
-use super::entities::{Endpoints, NO_EVENT_PUBLISHER, introspection_refused, latched_qos, private_name, reliable};
+use super::endpoints::{Endpoints, NO_EVENT_PUBLISHER, introspection_refused, latched, private_name, reliable};
 use super::lifecycle::{Call, LifecycleWire, Reply, calls};
 use super::{RateLimit, Shared, Wire};
 use crate::interfaces::{
@@ -95,7 +95,7 @@ impl ZenohEntities {
         let contour_topic = node.create_topic(&contour.0, type_name::<Contour>(), &contour.1);
         let polygon_topic = node.create_topic(&polygon.0, type_name::<PolygonStamped>(), &polygon.1);
         let diag_topic = node.create_topic(diagnostics, type_name::<DiagnosticArray>(), &reliable(10));
-        let calibration_topic = node.create_topic(calibration, type_name::<msgs::Calibration>(), &latched_qos());
+        let calibration_topic = node.create_topic(calibration, type_name::<msgs::Calibration>(), &latched());
         let raw_scans = node.create_subscription::<RawScan>(&raw_topic, None).map_err(mk)?;
         let contours = node.create_publisher::<Contour>(&contour_topic, None).map_err(mk)?;
         let polygons = node.create_publisher::<PolygonStamped>(&polygon_topic, None).map_err(mk)?;
