@@ -10,14 +10,16 @@ use futures::StreamExt;
 use log::{error, warn};
 use ros2_client::dds::{Context, NodeEvent};
 
-use super::{Entities, RateLimit, Shared};
+use super::dds::Dds;
+use super::entities::Entities;
+use super::{RateLimit, Shared};
 use crate::cell::NodeState;
 
 /// Keeps [`Shared::polygon_wanted`] from the polygon writer's match events (the scan loop
 /// only reads the flag, so the first scan after a subscriber matched gets its polygon), and
 /// hands incompatible-QoS events to the reports; once a second, reports those whose peer
 /// node is known by now (or that waited long enough). Ends when the events do.
-pub(super) async fn run(e: &Entities, shared: &Shared) {
+pub(super) async fn run(e: &Entities<Dds>, shared: &Shared) {
     let node = &e.node;
     let wanted = || e.polygons.get_subscription_count(node) > 0;
     let Some(events) = node.status_receiver() else {

@@ -1,8 +1,8 @@
 //! The seam between the node's loops and a middleware: what the loops read from and
-//! write to, and nothing of how it travels. [`super::entities`] implements it on DDS,
-//! [`super::zenoh`] on Zenoh; the loops ([`super::scans`], [`super::calibrate`],
-//! [`super::calibration`], [`super::diagnostics`], [`super::type_description`]) are written
-//! once, against this trait.
+//! write to, and nothing of how it travels. [`super::entities::Entities`] implements it
+//! once, over either middleware ([`super::backend`]); the loops ([`super::scans`],
+//! [`super::calibrate`], [`super::calibration`], [`super::diagnostics`],
+//! [`super::type_description`]) are written once, against this trait.
 //!
 //! Errors are the middleware's, as text: the loops only count and log them.
 
