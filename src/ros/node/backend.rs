@@ -125,3 +125,53 @@ pub(super) trait Backend: Sized + 'static {
     /// The node's clock.
     fn clock(node: &Self::Node) -> RosClock;
 }
+
+/// The operations whose code is the same on both backends, word for word: ros2-client's DDS
+/// and Zenoh types have methods of the same names and meanings but no trait in common, so
+/// this one text serves both impls (`same_on_both_backends!();` inside `impl Backend for
+/// ...`), each with its own types and its own error text ([`Backend::text`]).
+macro_rules! same_on_both_backends {
+    () => {
+        fn publisher<M: $crate::ros::node::backend::Msg>(
+            node: &mut Self::Node,
+            topic: &Self::Topic,
+        ) -> Result<Self::Publisher<M>, ros2_client::CreateError> {
+            node.create_publisher(topic, None)
+        }
+
+        fn subscription<M: $crate::ros::node::backend::Msg>(
+            node: &mut Self::Node,
+            topic: &Self::Topic,
+        ) -> Result<Self::Subscription<M>, ros2_client::CreateError> {
+            node.create_subscription(topic, None)
+        }
+
+        async fn publish<M: $crate::ros::node::backend::Msg>(
+            publisher: &Self::Publisher<M>,
+            msg: M,
+        ) -> Result<(), String> {
+            publisher.async_publish(msg).await.map_err(|e| Self::text(&e))
+        }
+
+        fn messages<M: $crate::ros::node::backend::Msg>(
+            subscription: &Self::Subscription<M>,
+        ) -> impl futures::Stream<Item = Result<M, String>> + '_ {
+            futures::StreamExt::map(subscription.async_stream(), |r| {
+                r.map(|(msg, _info)| msg).map_err(|e| Self::text(&e))
+            })
+        }
+
+        fn publisher_count<M: $crate::ros::node::backend::Msg>(
+            subscription: &Self::Subscription<M>,
+            node: &Self::Node,
+        ) -> usize {
+            subscription.get_publisher_count(node)
+        }
+
+        fn use_sim_time(node: &Self::Node) -> bool {
+            node.clock().use_sim_time()
+        }
+    };
+}
+
+pub(super) use same_on_both_backends;

@@ -9,16 +9,16 @@ use std::fmt::{Debug, Display};
 use std::time::Duration;
 
 use futures::{Stream, StreamExt};
-use ros2_client::dds::{Context, Node, Publisher, Server, ServiceMapping, Subscription};
+use ros2_client::dds::{Context, Node, ServiceMapping};
 use ros2_client::rosout::RosoutRaw;
 use ros2_client::{CreateError, MessageTypeName, Name, NodeOptions, QosProfile, RmwRequestId};
+use rustdds::Topic;
 
 use super::RosClock;
-use super::backend::{Backend, Msg, Opened, Service};
+use super::backend::{Backend, Msg, Opened, Service, same_on_both_backends};
 use crate::names::NodeIdentity;
 use crate::rmw::{RosEnv, Security};
 use crate::ros::logging::RosoutRecord;
-use rustdds::Topic;
 
 /// ros2-client's DDS backend.
 pub(super) struct Dds;
@@ -41,16 +41,18 @@ impl Dds {
 }
 
 impl Backend for Dds {
-    type Context = Context;
-    type Node = Node;
-    type Topic = Topic;
-    type Publisher<M: Msg> = Publisher<M>;
-    type Subscription<M: Msg> = Subscription<M>;
-    type Server<S: Service> = Server<S::Request, S::Response>;
+    type Context = ros2_client::dds::Context;
+    type Node = ros2_client::dds::Node;
+    type Topic = rustdds::Topic;
+    type Publisher<M: Msg> = ros2_client::dds::Publisher<M>;
+    type Subscription<M: Msg> = ros2_client::dds::Subscription<M>;
+    type Server<S: Service> = ros2_client::dds::Server<S::Request, S::Response>;
     type Spinner = smol::Task<ros2_client::CreateResult<()>>;
 
     const ENTITY: &'static str = "a DDS entity";
     const LIFECYCLE_ENTITY: &'static str = "a lifecycle entity";
+
+    same_on_both_backends!();
 
     fn text<E: Debug + Display>(e: &E) -> String {
         format!("{e:?}")
@@ -58,14 +60,6 @@ impl Backend for Dds {
 
     fn topic(node: &mut Node, name: &Name, type_name: MessageTypeName, qos: &QosProfile) -> Result<Topic, CreateError> {
         node.create_topic(name, type_name, qos)
-    }
-
-    fn publisher<M: Msg>(node: &mut Node, topic: &Topic) -> Result<Publisher<M>, CreateError> {
-        node.create_publisher(topic, None)
-    }
-
-    fn subscription<M: Msg>(node: &mut Node, topic: &Topic) -> Result<Subscription<M>, CreateError> {
-        node.create_subscription(topic, None)
     }
 
     fn server<S: Service>(node: &mut Node, name: &Name, qos: QosProfile) -> Result<Self::Server<S>, CreateError> {
@@ -85,18 +79,6 @@ impl Backend for Dds {
         std::thread::sleep(Duration::from_millis(150));
         smol::block_on(spinner.cancel());
         drop(ctx);
-    }
-
-    async fn publish<M: Msg>(publisher: &Publisher<M>, msg: M) -> Result<(), String> {
-        publisher.async_publish(msg).await.map_err(|e| Self::text(&e))
-    }
-
-    fn messages<M: Msg>(subscription: &Subscription<M>) -> impl Stream<Item = Result<M, String>> + '_ {
-        subscription.async_stream().map(|r| r.map(|(msg, _info)| msg).map_err(|e| Self::text(&e)))
-    }
-
-    fn publisher_count<M: Msg>(subscription: &Subscription<M>, node: &Node) -> usize {
-        subscription.get_publisher_count(node)
     }
 
     fn requests<S: Service>(
@@ -123,10 +105,6 @@ impl Backend for Dds {
 
     fn rosout(node: &Node, logger_name: &str, r: &RosoutRecord) {
         node.rosout_raw(node.rosout_stamp(), r.level, logger_name, &r.msg, &r.file, &r.function, r.line);
-    }
-
-    fn use_sim_time(node: &Node) -> bool {
-        node.clock().use_sim_time()
     }
 
     fn clock(node: &Node) -> RosClock {

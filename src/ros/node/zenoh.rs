@@ -22,11 +22,11 @@
 use std::fmt::{Debug, Display};
 use std::sync::atomic::Ordering;
 
-use futures::{Stream, StreamExt};
-use ros2_client::zenoh::{Context, Node, Publisher, Server, Subscription, Topic};
+use futures::Stream;
+use ros2_client::zenoh::{Context, Node, Topic};
 use ros2_client::{CreateError, MessageTypeName, Name, NodeOptions, QosProfile, RmwRequestId};
 
-use super::backend::{Backend, Msg, Opened, Service};
+use super::backend::{Backend, Msg, Opened, Service, same_on_both_backends};
 use super::entities::Entities;
 use super::{RosClock, Shared};
 use crate::names::NodeIdentity;
@@ -59,16 +59,18 @@ impl Zenoh {
 const CLOSE_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 
 impl Backend for Zenoh {
-    type Context = Context;
-    type Node = Node;
-    type Topic = Topic;
-    type Publisher<M: Msg> = Publisher<M>;
-    type Subscription<M: Msg> = Subscription<M>;
-    type Server<S: Service> = Server<S::Request, S::Response>;
+    type Context = ros2_client::zenoh::Context;
+    type Node = ros2_client::zenoh::Node;
+    type Topic = ros2_client::zenoh::Topic;
+    type Publisher<M: Msg> = ros2_client::zenoh::Publisher<M>;
+    type Subscription<M: Msg> = ros2_client::zenoh::Subscription<M>;
+    type Server<S: Service> = ros2_client::zenoh::Server<S::Request, S::Response>;
     type Spinner = ();
 
     const ENTITY: &'static str = "a Zenoh entity";
     const LIFECYCLE_ENTITY: &'static str = "a lifecycle entity on Zenoh";
+
+    same_on_both_backends!();
 
     fn text<E: Debug + Display>(e: &E) -> String {
         e.to_string()
@@ -76,14 +78,6 @@ impl Backend for Zenoh {
 
     fn topic(node: &mut Node, name: &Name, type_name: MessageTypeName, qos: &QosProfile) -> Result<Topic, CreateError> {
         Ok(node.create_topic(name, type_name, qos))
-    }
-
-    fn publisher<M: Msg>(node: &mut Node, topic: &Topic) -> Result<Publisher<M>, CreateError> {
-        node.create_publisher(topic, None)
-    }
-
-    fn subscription<M: Msg>(node: &mut Node, topic: &Topic) -> Result<Subscription<M>, CreateError> {
-        node.create_subscription(topic, None)
     }
 
     /// A queryable; its QoS is rmw_zenoh's for services, whatever `_qos` says.
@@ -112,18 +106,6 @@ impl Backend for Zenoh {
             Ok(Err(e)) => log::debug!("closing the Zenoh session: {e}"),
             Err(_) => log::warn!("the Zenoh session did not close within {CLOSE_WAIT:?}: leaving without it"),
         }
-    }
-
-    async fn publish<M: Msg>(publisher: &Publisher<M>, msg: M) -> Result<(), String> {
-        publisher.async_publish(msg).await.map_err(|e| Self::text(&e))
-    }
-
-    fn messages<M: Msg>(subscription: &Subscription<M>) -> impl Stream<Item = Result<M, String>> + '_ {
-        subscription.async_stream().map(|r| r.map(|(msg, _info)| msg).map_err(|e| Self::text(&e)))
-    }
-
-    fn publisher_count<M: Msg>(subscription: &Subscription<M>, node: &Node) -> usize {
-        subscription.get_publisher_count(node)
     }
 
     /// ros2-client's Zenoh server has an async receive: its requests as a stream.
@@ -161,10 +143,6 @@ impl Backend for Zenoh {
         if let Some(logger) = node.logger() {
             logger.log_at(r.level, &r.msg, &r.file, &r.function, r.line);
         }
-    }
-
-    fn use_sim_time(node: &Node) -> bool {
-        node.clock().use_sim_time()
     }
 
     fn clock(node: &Node) -> RosClock {
