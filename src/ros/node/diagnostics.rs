@@ -37,14 +37,13 @@ fn release_freed_memory() {
 /// warns that its time stands at 0.
 const CLOCK_PATIENCE: Duration = Duration::from_secs(3);
 
-/// Every second: the QoS reports that are due, the cell's diagnostics published; every
-/// 5 s the freed memory released. Never ends.
+/// Every second the cell's diagnostics published; every 5 s the freed memory released.
+/// Never ends.
 pub(super) async fn run(e: &impl Wire, shared: &Shared) {
     let mut tick = 0u64;
     // Since when the node has been on simulated time with no /clock.
     let mut clock_silent_since: Option<Instant> = None;
     loop {
-        e.tick(shared);
         let now = shared.now();
         let waiting = e.use_sim_time() && now.ros.to_nanos() == 0;
         let silent_since = if waiting { *clock_silent_since.get_or_insert_with(Instant::now) } else { Instant::now() };

@@ -1,19 +1,19 @@
-//! The node's endpoints: their names (after namespace and remaps), their QoS (with the
-//! `qos_overrides.*` in force), and the DDS entities made from them.
+//! The node's entities, on either middleware ([`super::backend`]): its endpoints (names and
+//! QoS resolved by [`super::endpoints`]), made by the same code on both.
 //!
 //! | kind | name | QoS |
 //! |---|---|---|
 //! | subscription | `raw_scan` | reliable, keep last 100, volatile |
 //! | publisher | `contour`, `contour_polygon` | reliable, keep last 10, volatile |
-//! | service | `calibrate` (Fast DDS "Enhanced" mapping) | reliable, keep last 1000 |
+//! | service | `calibrate` (on DDS, Fast DDS' "Enhanced" mapping) | reliable, keep last 1000 |
 //! | publisher | `calibrate/_service_event` (its introspection, when `calibrate.introspection` is not `off`) | reliable, keep last 10, volatile (ROS's services default) |
 //! | publisher | `/diagnostics`, 1 Hz | reliable, keep last 10 |
 //! | publisher | `calibration` (the calibration in force) | reliable, transient local, keep last 1 |
 //! | service | `~/get_type_description` (REP-2016) | reliable, keep last 10 |
 //! | services, publisher | `~/change_state`, ... `~/transition_event` (managed only: [`super::lifecycle`]) | reliable, keep last 10 |
 //!
-//! Every endpoint, ros2-client's own included, announces its type's hash
-//! ([`crate::rmw::dds::context`]).
+//! Every endpoint, ros2-client's own included, announces its type's hash (DDS:
+//! [`crate::rmw::dds::context`]; Zenoh: [`super::zenoh`]).
 //!
 //! Why: every scan is a measurement an edger acts on, so delivery is reliable (as the
 //! ROS default a tracer driver publishes with; a best-effort "sensor data" publisher
@@ -24,36 +24,30 @@
 //! old one. The calibration in force is latched: whoever joins later must know which
 //! calibration the contours it receives were corrected with.
 //!
-//! Memory is bounded by these depths at any scan rate: the patched rustdds
+//! On DDS, memory is bounded by these depths at any scan rate: the patched rustdds
 //! (`vendor/rustdds/PATCHES.md`) releases a written contour once it is out of the
 //! depth and acknowledged by every reliable subscriber, and the `raw_scan` reader's
 //! cache keeps at most its depth (BENCHMARKS.md, "Throughput and memory").
 
-use std::time::Duration;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
-use crate::ros::logging::RosoutRecord;
 use futures::{Stream, StreamExt};
-use log::{info, warn};
-use ros2_client::dds::{Context, Publisher, Server, ServiceMapping, Subscription};
-use ros2_client::rosout::RosoutRaw;
-use ros2_client::service::RmwRequestId;
-use ros2_client::{
-    Name, NodeOptions, QosProfile,
-    qos::{Durability, History, WhenFull},
-};
+use ros2_client::{MessageTypeName, Name, QosProfile, RmwRequestId};
 
-use super::lifecycle::LifecycleEntities;
-use super::{Shared, Wire};
+use super::backend::{Backend, Opened};
+use super::endpoints::{Endpoints, NO_EVENT_PUBLISHER, introspection_refused, latched, private_name, reliable};
+use super::lifecycle::Lifecycle;
+use super::{RateLimit, RosClock, Wire};
 use crate::interfaces::{
     Calibrate, CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescription,
     GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, RosMsg, RosService,
     tracer_calib_msgs as msgs,
 };
-use crate::names::{NodeIdentity, ros2_name};
+use crate::names::NodeIdentity;
 use crate::rmw::dds::TypesInUse;
-use crate::rmw::{RosEnv, Security};
-use crate::ros::args::RosArgs;
-use crate::ros::qos_overrides::{QosOverrides, Side};
+use crate::ros::logging::RosoutRecord;
 
 /// Calibrate requests waiting for the one-at-a-time fit. The DDS reader drops the
 /// oldest unread sample past this depth, and a dropped request is a caller waiting
@@ -61,184 +55,89 @@ use crate::ros::qos_overrides::{QosOverrides, Side};
 /// would lose one. A request is a few bytes, so the bound is generous.
 const CALIBRATE_QUEUE: usize = 1000;
 
-pub(super) fn reliable(depth: usize) -> QosProfile {
-    QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth })
-}
-
-/// The `calibration` topic: reliable, transient local, depth 1, so a subscriber that
-/// joins later gets the calibration in force at once.
-fn latched() -> QosProfile {
-    QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::TransientLocal)
-        .history(History::KeepLast { depth: 1 })
-}
-
-/// A name in the node's private namespace (`~/suffix`, the node being `fqn`): its
-/// type description and lifecycle services, on either middleware.
-pub(super) fn private_name(fqn: &str, suffix: &str) -> Result<Name, String> {
-    ros2_name(&format!("{fqn}/{suffix}")).map_err(|e| e.to_string())
-}
-
-/// The `latched` QoS (for the Zenoh shell, which maps it as rmw_zenoh does).
-pub(super) fn latched_qos() -> QosProfile {
-    latched()
-}
-
-/// The node's endpoints, resolved: names and QoS.
-pub(super) struct Endpoints {
-    pub raw_scan: (Name, QosProfile),
-    pub contour: (Name, QosProfile),
-    pub polygon: (Name, QosProfile),
-    pub diagnostics: Name,
-    pub calibration: Name,
-    pub calibrate: Name,
-    /// `<calibrate>/_service_event`, its introspection.
-    pub calibrate_event: Name,
-}
-
-impl Endpoints {
-    /// Names resolved for `identity` with the remaps of `args`; the QoS overrides applied
-    /// to the topics they are for (one warning for each that names no endpoint of the node;
-    /// `qos` keeps only those in force).
-    pub fn resolve(args: &RosArgs, identity: &NodeIdentity, qos: &mut QosOverrides) -> Result<Self, String> {
-        let topic = |name: &str| -> Result<Name, String> {
-            let resolved = args.resolve_topic(name, identity).map_err(|e| e.to_string())?;
-            ros2_name(&resolved).map_err(|e| e.to_string())
-        };
-        let (raw, contour, polygon) = (topic("raw_scan")?, topic("contour")?, topic("contour_polygon")?);
-        let (raw_fq, contour_fq, polygon_fq) = (raw.to_string(), contour.to_string(), polygon.to_string());
-        let overridable = [
-            (raw_fq.as_str(), Side::Subscription),
-            (contour_fq.as_str(), Side::Publisher),
-            (polygon_fq.as_str(), Side::Publisher),
-        ];
-        for w in qos.unused(&overridable) {
-            warn!("{w}");
-        }
-        qos.retain_for(&overridable);
-        let raw_qos = qos.apply(&raw_fq, Side::Subscription, reliable(100));
-        let contour_qos = qos.apply(&contour_fq, Side::Publisher, reliable(10));
-        let polygon_qos = qos.apply(&polygon_fq, Side::Publisher, reliable(10));
-        if !qos.is_empty() {
-            info!("QoS overrides: {:?}", qos.to_list());
-        }
-        let calibrate = {
-            let resolved = args.resolve_service("calibrate", identity).map_err(|e| e.to_string())?;
-            ros2_name(&resolved).map_err(|e| e.to_string())?
-        };
-        let calibrate_event = ros2_name(&format!("{calibrate}/_service_event")).map_err(|e| e.to_string())?;
-        Ok(Endpoints {
-            raw_scan: (raw, raw_qos),
-            contour: (contour, contour_qos),
-            polygon: (polygon, polygon_qos),
-            diagnostics: topic("/diagnostics")?,
-            calibration: topic("calibration")?,
-            calibrate,
-            calibrate_event,
-        })
-    }
-}
-
-/// Why an introspection event was not published: its publisher was refused at start-up.
-pub(super) const NO_EVENT_PUBLISHER: &str =
-    "no publisher on the service's _service_event topic (refused at start-up: see the warning then)";
-
-/// Log that the middleware refused `calibrate`'s introspection publisher (`topic`).
-pub(super) fn introspection_refused(topic: &Name, reason: String) {
-    warn!(
-        "{reason}: {topic} cannot be published (for a secure cell: not in the enclave's permissions); calibrate.introspection will publish nothing"
-    );
-}
-
-/// The node's DDS entities: what the loops read from and write to.
-pub(super) struct Entities {
-    pub ctx: Context,
-    pub node: ros2_client::dds::Node,
-    pub raw_scans: Subscription<RawScan>,
-    pub contours: Publisher<Contour>,
-    pub polygons: Publisher<PolygonStamped>,
-    pub diagnostics: Publisher<DiagnosticArray>,
-    pub calibration: Publisher<msgs::Calibration>,
-    pub calibrate: Server<CalibrateRequest, CalibrateResponse>,
+/// The node's entities on the backend `B`: what the loops read from and write to.
+pub(super) struct Entities<B: Backend> {
+    pub ctx: B::Context,
+    pub node: B::Node,
+    pub raw_scans: B::Subscription<RawScan>,
+    pub contours: B::Publisher<Contour>,
+    pub polygons: B::Publisher<PolygonStamped>,
+    pub diagnostics: B::Publisher<DiagnosticArray>,
+    pub calibration: B::Publisher<msgs::Calibration>,
+    pub calibrate: B::Server<Calibrate>,
     /// `None` if the middleware refused it (a secure cell's permissions without the topic).
-    pub calibrate_events: Option<Publisher<CalibrateEvent>>,
-    pub type_description: Server<GetTypeDescriptionRequest, GetTypeDescriptionResponse>,
+    pub calibrate_events: Option<B::Publisher<CalibrateEvent>>,
+    pub type_description: B::Server<GetTypeDescription>,
     /// The lifecycle services and events of a managed node.
-    pub lifecycle: Option<LifecycleEntities>,
+    pub lifecycle: Option<Lifecycle<B>>,
     /// The types of the node's endpoints, which `type_description` describes.
     pub types_in_use: TypesInUse,
     /// rcl's logger name of the node (`cell1.tracer`), for its `/rosout` records.
     logger_name: String,
-    spinner: smol::Task<ros2_client::CreateResult<()>>,
+    /// The `calibrate` requests that could not be read, where the backend does not count
+    /// them itself ([`Backend::unreadable_requests`]).
+    calibrate_unreadable: Unreadable,
+    spinner: B::Spinner,
 }
 
-impl Entities {
-    /// The DDS participant (`ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE` and
-    /// `ROS_STATIC_PEERS` as rmw_fastrtps reads them: [`crate::rmw::dds`]; secured with
-    /// `security`'s enclave: [`crate::rmw::security`]), the node with its
-    /// parameters (`options`), its endpoints (and the lifecycle's if `managed`), and its
-    /// spinner running.
+/// Requests that could not be read (a payload that is no request, no attachment), counted
+/// by the shell, and the limit on warning of them (one a second).
+struct Unreadable {
+    count: AtomicU64,
+    log: Mutex<RateLimit>,
+}
+
+impl Unreadable {
+    /// One more, warned of if the limit allows.
+    fn add(&self, err: &str) {
+        let n = self.count.fetch_add(1, Ordering::Relaxed) + 1;
+        if let Some(held) = self.log.lock().expect("rate limit lock").allow(Instant::now()) {
+            log::warn!("an unreadable calibrate request, not answered: {err} ({n} so far, {held} not shown)");
+        }
+    }
+}
+
+/// The topic `name` for messages of type `M` with `qos`.
+fn topic<B: Backend, M: RosMsg>(node: &mut B::Node, name: &Name, qos: &QosProfile) -> Result<B::Topic, String> {
+    B::topic(node, name, M::NAME.message_type_name(), qos).map_err(|e| B::cannot_create(B::ENTITY, e))
+}
+
+impl<B: Backend> Entities<B> {
+    /// On the node `opened` (`identity`), its endpoints (and the lifecycle's if
+    /// `managed`), and its traffic moving ([`Backend::spin`]).
     pub fn create(
-        env: &RosEnv,
-        security: &Security,
+        opened: Opened<B>,
         identity: &NodeIdentity,
-        options: NodeOptions,
         endpoints: &Endpoints,
         managed: bool,
     ) -> Result<Self, String> {
-        let participant = crate::rmw::dds::participant_from_env(env, security)?;
-        let (ctx, types_in_use) = crate::rmw::dds::context(participant)?;
-        let node_name = identity.ros2_node_name().map_err(|e| e.to_string())?;
-        let mut node = ctx.new_node(node_name, options).map_err(|e| format!("cannot create the node: {e:?}"))?;
-        let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
+        let Opened { ctx, mut node, types_in_use } = opened;
+        let mk = |e: ros2_client::CreateError| B::cannot_create(B::ENTITY, e);
         let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate, calibrate_event } = endpoints;
-        let raw_topic = node.create_topic(&raw_scan.0, RawScan::NAME.message_type_name(), &raw_scan.1).map_err(mk)?;
-        let contour_topic = node.create_topic(&contour.0, Contour::NAME.message_type_name(), &contour.1).map_err(mk)?;
-        let polygon_topic =
-            node.create_topic(&polygon.0, PolygonStamped::NAME.message_type_name(), &polygon.1).map_err(mk)?;
-        let diag_topic =
-            node.create_topic(diagnostics, DiagnosticArray::NAME.message_type_name(), &reliable(10)).map_err(mk)?;
-        let calibration_topic =
-            node.create_topic(calibration, msgs::Calibration::NAME.message_type_name(), &latched()).map_err(mk)?;
-        let raw_scans = node.create_subscription::<RawScan>(&raw_topic, None).map_err(mk)?;
-        let contours = node.create_publisher::<Contour>(&contour_topic, None).map_err(mk)?;
-        let polygons = node.create_publisher::<PolygonStamped>(&polygon_topic, None).map_err(mk)?;
-        let diagnostics = node.create_publisher::<DiagnosticArray>(&diag_topic, None).map_err(mk)?;
-        let calibration = node.create_publisher::<msgs::Calibration>(&calibration_topic, None).map_err(mk)?;
-        let calibrate = node
-            .create_server::<<Calibrate as RosService>::Request, <Calibrate as RosService>::Response>(
-                ServiceMapping::Enhanced,
-                calibrate,
-                &Calibrate::type_name(),
-                reliable(CALIBRATE_QUEUE),
-                reliable(CALIBRATE_QUEUE),
-            )
-            .map_err(mk)?;
+        let raw_topic = topic::<B, RawScan>(&mut node, &raw_scan.0, &raw_scan.1)?;
+        let contour_topic = topic::<B, Contour>(&mut node, &contour.0, &contour.1)?;
+        let polygon_topic = topic::<B, PolygonStamped>(&mut node, &polygon.0, &polygon.1)?;
+        let diag_topic = topic::<B, DiagnosticArray>(&mut node, diagnostics, &reliable(10))?;
+        let calibration_topic = topic::<B, msgs::Calibration>(&mut node, calibration, &latched())?;
+        let raw_scans = B::subscription::<RawScan>(&mut node, &raw_topic).map_err(mk)?;
+        let contours = B::publisher::<Contour>(&mut node, &contour_topic).map_err(mk)?;
+        let polygons = B::publisher::<PolygonStamped>(&mut node, &polygon_topic).map_err(mk)?;
+        let diagnostics = B::publisher::<DiagnosticArray>(&mut node, &diag_topic).map_err(mk)?;
+        let calibration = B::publisher::<msgs::Calibration>(&mut node, &calibration_topic).map_err(mk)?;
+        let calibrate = B::server::<Calibrate>(&mut node, calibrate, reliable(CALIBRATE_QUEUE)).map_err(mk)?;
         // Optional: a secure cell whose permissions were signed before the node had it
         // (no grant for the topic) keeps its node; introspection then publishes nothing.
-        let event_type = Calibrate::type_name().event_message_type_name();
-        let calibrate_events = node
-            .create_topic(calibrate_event, event_type, &reliable(10))
-            .and_then(|topic| node.create_publisher::<CalibrateEvent>(&topic, None))
+        let event_type: MessageTypeName = Calibrate::type_name().event_message_type_name();
+        let calibrate_events = B::topic(&mut node, calibrate_event, event_type, &reliable(10))
+            .and_then(|topic| B::publisher::<CalibrateEvent>(&mut node, &topic))
             .map_err(|e| introspection_refused(calibrate_event, mk(e)))
             .ok();
         let type_description_name = private_name(&identity.fully_qualified_name(), "get_type_description")?;
-        let type_description = node
-            .create_server::<GetTypeDescriptionRequest, GetTypeDescriptionResponse>(
-                ServiceMapping::Enhanced,
-                &type_description_name,
-                &GetTypeDescription::type_name(),
-                reliable(10),
-                reliable(10),
-            )
-            .map_err(mk)?;
+        let type_description =
+            B::server::<GetTypeDescription>(&mut node, &type_description_name, reliable(10)).map_err(mk)?;
         let lifecycle =
-            if managed { Some(LifecycleEntities::create(&mut node, &identity.fully_qualified_name())?) } else { None };
-        let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
+            if managed { Some(Lifecycle::create(&mut node, &identity.fully_qualified_name())?) } else { None };
+        let spinner = B::spin(&mut node).map_err(mk)?;
         Ok(Entities {
             ctx,
             node,
@@ -253,14 +152,23 @@ impl Entities {
             lifecycle,
             types_in_use,
             logger_name: identity.logger_name(),
+            calibrate_unreadable: Unreadable {
+                count: AtomicU64::new(0),
+                log: Mutex::new(RateLimit::new(Duration::from_secs(1))),
+            },
             spinner,
         })
     }
 
-    /// Tear down in order: dropping each endpoint makes discovery announce it gone; the
-    /// participant's event loop must still be running to send that, so it goes last,
-    /// after a moment. Without this, peers keep the node's topics and services in their
-    /// graphs for the lease duration.
+    /// The node's clock (simulated under `use_sim_time`).
+    pub fn clock(&self) -> RosClock {
+        B::clock(&self.node)
+    }
+
+    /// Tear down in order: each endpoint dropped first (DDS: discovery announces it gone;
+    /// Zenoh: its liveliness token undeclared, so peers see it gone at once), then the node
+    /// and the connection ([`Backend::close`]). Without this, DDS peers keep the node's
+    /// topics and services in their graphs for the lease duration.
     pub fn close(self) {
         let Entities {
             ctx,
@@ -276,55 +184,67 @@ impl Entities {
             lifecycle,
             types_in_use: _,
             logger_name: _,
+            calibrate_unreadable: _,
             spinner,
         } = self;
         drop((raw_scans, contours, polygons, diagnostics, calibration, calibrate, calibrate_events));
         drop((type_description, lifecycle));
-        drop(node);
-        std::thread::sleep(Duration::from_millis(150));
-        smol::block_on(spinner.cancel());
-        drop(ctx);
+        B::close(ctx, node, spinner);
     }
 }
 
-impl Wire for Entities {
+impl<B: Backend> Wire for Entities<B> {
     type RequestId = RmwRequestId;
 
     fn raw_scans(&self) -> impl Stream<Item = Result<RawScan, String>> + '_ {
-        self.raw_scans.async_stream().map(|r| r.map(|(msg, _info)| msg).map_err(|e| format!("{e:?}")))
+        B::messages(&self.raw_scans)
     }
 
-    async fn publish_contour(&self, msg: Contour) -> Result<(), String> {
-        self.contours.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+    fn publish_contour(&self, msg: Contour) -> impl Future<Output = Result<(), String>> + '_ {
+        B::publish(&self.contours, msg)
     }
 
-    async fn publish_polygon(&self, msg: PolygonStamped) -> Result<(), String> {
-        self.polygons.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+    fn publish_polygon(&self, msg: PolygonStamped) -> impl Future<Output = Result<(), String>> + '_ {
+        B::publish(&self.polygons, msg)
     }
 
-    async fn publish_diagnostics(&self, msg: DiagnosticArray) -> Result<(), String> {
-        self.diagnostics.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+    fn publish_diagnostics(&self, msg: DiagnosticArray) -> impl Future<Output = Result<(), String>> + '_ {
+        B::publish(&self.diagnostics, msg)
     }
 
-    async fn publish_calibration(&self, msg: msgs::Calibration) -> Result<(), String> {
-        self.calibration.async_publish(msg).await.map_err(|e| format!("{e:?}"))
+    fn publish_calibration(&self, msg: msgs::Calibration) -> impl Future<Output = Result<(), String>> + '_ {
+        B::publish(&self.calibration, msg)
     }
 
     fn calibrate_requests(&self) -> impl Stream<Item = Result<(RmwRequestId, CalibrateRequest), String>> + '_ {
-        self.calibrate.receive_request_stream().map(|r| r.map_err(|e| format!("{e:?}")))
+        // Where the backend does not count the requests it cannot read (Zenoh), each is
+        // counted (and warned of, once a second at most) here, as the DDS server counts
+        // its own; it gets no reply.
+        B::requests(&self.calibrate).inspect(|r| {
+            if let Err(err) = r
+                && B::unreadable_requests(&self.calibrate).is_none()
+            {
+                self.calibrate_unreadable.add(err);
+            }
+        })
     }
 
     fn calibrate_unreadable(&self) -> u64 {
-        self.calibrate.bad_request_count()
+        B::unreadable_requests(&self.calibrate)
+            .unwrap_or_else(|| self.calibrate_unreadable.count.load(Ordering::Relaxed))
     }
 
-    async fn answer_calibrate(&self, id: RmwRequestId, response: CalibrateResponse) -> Result<(), String> {
-        self.calibrate.async_send_response(id, response).await.map_err(|e| format!("{e:?}"))
+    fn answer_calibrate(
+        &self,
+        id: RmwRequestId,
+        response: CalibrateResponse,
+    ) -> impl Future<Output = Result<(), String>> + '_ {
+        B::respond(&self.calibrate, id, response)
     }
 
     async fn publish_calibrate_event(&self, msg: CalibrateEvent) -> Result<(), String> {
         match &self.calibrate_events {
-            Some(p) => p.async_publish(msg).await.map_err(|e| format!("{e:?}")),
+            Some(p) => B::publish(p, msg).await,
             None => Err(NO_EVENT_PUBLISHER.to_string()),
         }
     }
@@ -332,15 +252,15 @@ impl Wire for Entities {
     fn type_description_requests(
         &self,
     ) -> impl Stream<Item = Result<(RmwRequestId, GetTypeDescriptionRequest), String>> + '_ {
-        self.type_description.receive_request_stream().map(|r| r.map_err(|e| format!("{e:?}")))
+        B::requests(&self.type_description)
     }
 
-    async fn answer_type_description(
+    fn answer_type_description(
         &self,
         id: RmwRequestId,
         response: GetTypeDescriptionResponse,
-    ) -> Result<(), String> {
-        self.type_description.async_send_response(id, response).await.map_err(|e| format!("{e:?}"))
+    ) -> impl Future<Output = Result<(), String>> + '_ {
+        B::respond(&self.type_description, id, response)
     }
 
     fn types_in_use(&self) -> Vec<String> {
@@ -348,23 +268,18 @@ impl Wire for Entities {
     }
 
     fn set_parameters(&self, params: Vec<ros2_client::Parameter>) -> Result<(), String> {
-        self.node.set_parameters_atomically(params)
+        B::set_parameters(&self.node, params)
     }
 
     fn raw_scan_publishers(&self) -> usize {
-        self.raw_scans.get_publisher_count(&self.node)
+        B::publisher_count(&self.raw_scans, &self.node)
     }
 
-    fn rosout(&self, r: &RosoutRecord) {
-        let node = &self.node;
-        node.rosout_raw(node.rosout_stamp(), r.level, &self.logger_name, &r.msg, &r.file, &r.function, r.line);
+    fn rosout(&self, record: &RosoutRecord) {
+        B::rosout(&self.node, &self.logger_name, record)
     }
 
     fn use_sim_time(&self) -> bool {
-        self.node.clock().use_sim_time()
-    }
-
-    fn tick(&self, shared: &Shared) {
-        shared.qos_reports.lock().expect("qos reports lock").flush(&self.node, std::time::Instant::now(), false);
+        B::use_sim_time(&self.node)
     }
 }

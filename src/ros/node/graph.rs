@@ -1,20 +1,25 @@
-//! Graph events: the polygon writer's matches (polygons only when someone listens), and
-//! remote endpoints discovered with an incompatible QoS, each counted and reported once.
+//! DDS graph events: the polygon writer's matches (polygons only when someone listens), and
+//! remote endpoints discovered with an incompatible QoS, each counted and reported once
+//! (when its peer's node is known, or has not come in time: checked once a second).
 
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use futures::StreamExt;
 use log::{error, warn};
 use ros2_client::dds::{Context, NodeEvent};
 
-use super::{Entities, RateLimit, Shared};
+use super::dds::Dds;
+use super::entities::Entities;
+use super::{RateLimit, Shared};
 use crate::cell::NodeState;
 
 /// Keeps [`Shared::polygon_wanted`] from the polygon writer's match events (the scan loop
 /// only reads the flag, so the first scan after a subscriber matched gets its polygon), and
-/// hands incompatible-QoS events to the reports. Never ends.
-pub(super) async fn run(e: &Entities, shared: &Shared) {
+/// hands incompatible-QoS events to the reports; once a second, reports those whose peer
+/// node is known by now (or that waited long enough). Ends when the events do.
+pub(super) async fn run(e: &Entities<Dds>, shared: &Shared) {
     let node = &e.node;
     let wanted = || e.polygons.get_subscription_count(node) > 0;
     let Some(events) = node.status_receiver() else {
@@ -24,16 +29,25 @@ pub(super) async fn run(e: &Entities, shared: &Shared) {
     };
     // Matches before the receiver existed are in the map already.
     shared.polygon_wanted.store(wanted(), Ordering::Relaxed);
-    while let Ok(event) = events.recv().await {
+    let mut second = smol::Timer::interval(Duration::from_secs(1));
+    loop {
+        // `None`: a second has passed.
+        let event = smol::future::or(async { Some(events.recv().await) }, async {
+            second.next().await;
+            None
+        })
+        .await;
         match event {
-            NodeEvent::Graph(_) => shared.polygon_wanted.store(wanted(), Ordering::Relaxed),
-            NodeEvent::QosIncompatible { local, remote, local_is_writer, policy } => {
+            None => shared.qos_reports.lock().expect("qos reports lock").flush(node, Instant::now(), false),
+            Some(Err(_)) => return,
+            Some(Ok(NodeEvent::Graph(_))) => shared.polygon_wanted.store(wanted(), Ordering::Relaxed),
+            Some(Ok(NodeEvent::QosIncompatible { local, remote, local_is_writer, policy })) => {
                 let topic = ctx_topic_of(&e.ctx, remote, local_is_writer);
                 let mut reports = shared.qos_reports.lock().expect("qos reports lock");
                 reports.add(local, remote, local_is_writer, policy, topic, Instant::now());
                 reports.flush(node, Instant::now(), false);
             }
-            _ => {}
+            Some(Ok(_)) => {}
         }
     }
 }

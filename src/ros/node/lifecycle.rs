@@ -12,71 +12,62 @@
 //! QoS as rcl's defaults for services and publishers (reliable, volatile, keep last 10).
 //! The state machine and the node's callbacks are the cell's ([`crate::cell::lifecycle`],
 //! [`crate::cell::managed`]); this maps them onto `lifecycle_msgs`, through a
-//! [`LifecycleWire`]: [`LifecycleEntities`] on DDS, `super::zenoh::ZenohLifecycle` on Zenoh. Each transition taken is
-//! one `transition_event` (rcl publishes the start and goal states; the transition's id and
-//! label and the timestamp, on the node's clock in nanoseconds, are filled in too). A
-//! transition the current state does not offer is logged at ERROR and answered
-//! `success: false`, as rclcpp_lifecycle does.
+//! [`LifecycleWire`]: [`Lifecycle`], on either middleware ([`super::backend`]). Each
+//! transition taken is one `transition_event` (rcl publishes the start and goal states; the
+//! transition's id and label and the timestamp, on the node's clock in nanoseconds, are
+//! filled in too). A transition the current state does not offer is logged at ERROR and
+//! answered `success: false`, as rclcpp_lifecycle does.
 
 use futures::{Stream, StreamExt, stream};
 use log::{debug, error, info, warn};
-use ros2_client::dds::{Node, Publisher, Server, ServiceMapping};
-use ros2_client::{Name, service::RmwRequestId};
+use ros2_client::RmwRequestId;
 
-use super::{
-    Shared,
-    entities::{private_name, reliable},
-    log_history_read,
-};
+use super::backend::Backend;
+use super::endpoints::{private_name, reliable};
+use super::{Shared, log_history_read};
 use crate::cell::lifecycle::{self, STATES, TRANSITIONS, Transition};
 use crate::interfaces::{
-    ChangeState, ChangeStateRequest, ChangeStateResponse, GetAvailableStates, GetAvailableStatesRequest,
-    GetAvailableStatesResponse, GetAvailableTransitions, GetAvailableTransitionsRequest,
-    GetAvailableTransitionsResponse, GetState, GetStateRequest, GetStateResponse, LifecycleState, LifecycleTransition,
-    RosMsg, RosService, TransitionDescription, TransitionEvent,
+    ChangeState, ChangeStateRequest, ChangeStateResponse, GetAvailableStates, GetAvailableStatesResponse,
+    GetAvailableTransitions, GetAvailableTransitionsResponse, GetState, GetStateResponse, LifecycleState,
+    LifecycleTransition, RosMsg, TransitionDescription, TransitionEvent,
 };
 
-type TransitionsServer = Server<GetAvailableTransitionsRequest, GetAvailableTransitionsResponse>;
-
-/// The lifecycle services and the transition event publisher.
-pub(super) struct LifecycleEntities {
-    change_state: Server<ChangeStateRequest, ChangeStateResponse>,
-    get_state: Server<GetStateRequest, GetStateResponse>,
-    get_available_states: Server<GetAvailableStatesRequest, GetAvailableStatesResponse>,
-    get_available_transitions: TransitionsServer,
-    get_transition_graph: TransitionsServer,
-    transition_event: Publisher<TransitionEvent>,
+/// The lifecycle services and the transition event publisher, on the backend `B`.
+pub(super) struct Lifecycle<B: Backend> {
+    change_state: B::Server<ChangeState>,
+    get_state: B::Server<GetState>,
+    get_available_states: B::Server<GetAvailableStates>,
+    get_available_transitions: B::Server<GetAvailableTransitions>,
+    get_transition_graph: B::Server<GetAvailableTransitions>,
+    transition_event: B::Publisher<TransitionEvent>,
 }
 
-impl LifecycleEntities {
+impl<B: Backend> Lifecycle<B> {
     /// Made on `node`, whose fully qualified name is `fqn`.
-    pub fn create(node: &mut Node, fqn: &str) -> Result<Self, String> {
+    pub fn create(node: &mut B::Node, fqn: &str) -> Result<Self, String> {
         let name = |suffix: &str| private_name(fqn, suffix);
-        let mk = |e: ros2_client::CreateError| format!("cannot create a lifecycle entity: {e:?}");
-        fn server<S: RosService>(
-            node: &mut Node,
-            name: &Name,
-        ) -> Result<Server<S::Request, S::Response>, ros2_client::CreateError> {
-            node.create_server::<S::Request, S::Response>(
-                ServiceMapping::Enhanced,
-                name,
-                &S::type_name(),
-                reliable(10),
+        let mk = |e: ros2_client::CreateError| B::cannot_create(B::LIFECYCLE_ENTITY, e);
+        let topic =
+            B::topic(node, &name("transition_event")?, TransitionEvent::NAME.message_type_name(), &reliable(10))
+                .map_err(mk)?;
+        Ok(Lifecycle {
+            change_state: B::server::<ChangeState>(node, &name("change_state")?, reliable(10)).map_err(mk)?,
+            get_state: B::server::<GetState>(node, &name("get_state")?, reliable(10)).map_err(mk)?,
+            get_available_states: B::server::<GetAvailableStates>(node, &name("get_available_states")?, reliable(10))
+                .map_err(mk)?,
+            get_available_transitions: B::server::<GetAvailableTransitions>(
+                node,
+                &name("get_available_transitions")?,
                 reliable(10),
             )
-        }
-        let topic = node
-            .create_topic(&name("transition_event")?, TransitionEvent::NAME.message_type_name(), &reliable(10))
-            .map_err(mk)?;
-        Ok(LifecycleEntities {
-            change_state: server::<ChangeState>(node, &name("change_state")?).map_err(mk)?,
-            get_state: server::<GetState>(node, &name("get_state")?).map_err(mk)?,
-            get_available_states: server::<GetAvailableStates>(node, &name("get_available_states")?).map_err(mk)?,
-            get_available_transitions: server::<GetAvailableTransitions>(node, &name("get_available_transitions")?)
-                .map_err(mk)?,
-            get_transition_graph: server::<GetAvailableTransitions>(node, &name("get_transition_graph")?)
-                .map_err(mk)?,
-            transition_event: node.create_publisher::<TransitionEvent>(&topic, None).map_err(mk)?,
+            .map_err(mk)?,
+            get_transition_graph: B::server::<GetAvailableTransitions>(
+                node,
+                &name("get_transition_graph")?,
+                reliable(10),
+            )
+            .map_err(mk)?,
+            transition_event: B::publisher::<TransitionEvent>(node, &topic).map_err(mk)?,
         })
     }
 }
@@ -132,39 +123,38 @@ pub(super) trait LifecycleWire {
 type Calls<'a, Id> = std::pin::Pin<Box<dyn futures::Stream<Item = Result<(Id, Call), String>> + 'a>>;
 
 /// `s`, a service's request stream, as [`Call`]s made by `call`.
-pub(super) fn calls<'a, Id: 'a, R: 'a, E: std::fmt::Debug + 'a>(
-    s: impl futures::Stream<Item = Result<(Id, R), E>> + 'a,
+fn calls<'a, Id: 'a, R: 'a>(
+    s: impl futures::Stream<Item = Result<(Id, R), String>> + 'a,
     call: fn(R) -> Call,
 ) -> Calls<'a, Id> {
-    Box::pin(s.map(move |r| r.map(|(id, req)| (id, call(req))).map_err(|e| format!("{e:?}"))))
+    Box::pin(s.map(move |r| r.map(|(id, req)| (id, call(req)))))
 }
 
-impl LifecycleWire for LifecycleEntities {
+impl<B: Backend> LifecycleWire for Lifecycle<B> {
     type RequestId = RmwRequestId;
 
     fn calls(&self) -> impl Stream<Item = Result<(RmwRequestId, Call), String>> + '_ {
         stream::select_all([
-            calls(self.change_state.receive_request_stream(), Call::ChangeState),
-            calls(self.get_state.receive_request_stream(), |_| Call::GetState),
-            calls(self.get_available_states.receive_request_stream(), |_| Call::GetAvailableStates),
-            calls(self.get_available_transitions.receive_request_stream(), |_| Call::GetAvailableTransitions),
-            calls(self.get_transition_graph.receive_request_stream(), |_| Call::GetTransitionGraph),
+            calls(B::requests(&self.change_state), Call::ChangeState),
+            calls(B::requests(&self.get_state), |_| Call::GetState),
+            calls(B::requests(&self.get_available_states), |_| Call::GetAvailableStates),
+            calls(B::requests(&self.get_available_transitions), |_| Call::GetAvailableTransitions),
+            calls(B::requests(&self.get_transition_graph), |_| Call::GetTransitionGraph),
         ])
     }
 
     async fn answer(&self, id: RmwRequestId, reply: Reply) -> Result<(), String> {
         match reply {
-            Reply::ChangeState(r) => self.change_state.async_send_response(id, r).await,
-            Reply::GetState(r) => self.get_state.async_send_response(id, r).await,
-            Reply::GetAvailableStates(r) => self.get_available_states.async_send_response(id, r).await,
-            Reply::GetAvailableTransitions(r) => self.get_available_transitions.async_send_response(id, r).await,
-            Reply::GetTransitionGraph(r) => self.get_transition_graph.async_send_response(id, r).await,
+            Reply::ChangeState(r) => B::respond(&self.change_state, id, r).await,
+            Reply::GetState(r) => B::respond(&self.get_state, id, r).await,
+            Reply::GetAvailableStates(r) => B::respond(&self.get_available_states, id, r).await,
+            Reply::GetAvailableTransitions(r) => B::respond(&self.get_available_transitions, id, r).await,
+            Reply::GetTransitionGraph(r) => B::respond(&self.get_transition_graph, id, r).await,
         }
-        .map_err(|e| format!("{e:?}"))
     }
 
-    async fn publish_event(&self, event: TransitionEvent) -> Result<(), String> {
-        self.transition_event.async_publish(event).await.map_err(|e| format!("{e:?}"))
+    fn publish_event(&self, event: TransitionEvent) -> impl Future<Output = Result<(), String>> + '_ {
+        B::publish(&self.transition_event, event)
     }
 }
 

@@ -1,7 +1,7 @@
 //! `tracer_calib_node`: the node's wiring. The cell's state ([`crate::cell::NodeState`]) and
-//! the middleware's entities (DDS: [`entities`]; Zenoh, under
-//! `RMW_IMPLEMENTATION=rmw_zenoh_cpp`: [`zenoh`]) are made first; then one async loop per
-//! concern moves messages between them, written once against [`Wire`]:
+//! the middleware's entities ([`entities`], written once over a [`backend`]: DDS, [`dds`];
+//! Zenoh, under `RMW_IMPLEMENTATION=rmw_zenoh_cpp`, [`zenoh`]) are made first; then one
+//! async loop per concern moves messages between them, written once against [`Wire`]:
 //!
 //! | loop | what |
 //! |---|---|
@@ -10,9 +10,9 @@
 //! | [`calibration`] | the calibration in force, latched, at start-up and on each change |
 //! | [`diagnostics`] | `/diagnostics` at 1 Hz |
 //! | [`type_description`] | `~/get_type_description` (REP-2016) |
-//! | [`graph`] | DDS: matches (polygons only when someone listens) and incompatible QoS |
+//! | [`graph`] | DDS: matches (polygons only when someone listens) and incompatible QoS (reported once a second) |
 //! | [`lifecycle`] | a managed node's lifecycle services and transition events |
-//! | [`zenoh`] | Zenoh: the graph (polygons only when someone listens), the parameter services |
+//! | [`zenoh::run_graph_and_parameters`] | Zenoh: the graph (polygons only when someone listens), the parameter services |
 //!
 //! The parameters ([`parameters`]) are served by ros2-client's parameter services, with
 //! the cell's validation. Each loop reads the [`Wire`] and the [`Shared`] state and
@@ -22,10 +22,13 @@
 // the private items (`cargo doc --document-private-items`, as the test command builds it).
 #![allow(rustdoc::private_intra_doc_links)]
 
+mod backend;
 mod calibrate;
 mod calibration;
 mod config;
+mod dds;
 mod diagnostics;
+mod endpoints;
 mod entities;
 mod graph;
 mod lifecycle;
@@ -50,8 +53,11 @@ use ros2_client::dds::NodeClock;
 use crate::cell::{NodeState, Now};
 use crate::params::file as params_file;
 use crate::rmw::Middleware;
+use backend::Backend;
 pub use config::Config;
-use entities::{Endpoints, Entities};
+use dds::Dds;
+use endpoints::Endpoints;
+use entities::Entities;
 use graph::QosReports;
 pub use rate_limit::RateLimit;
 use wire::Wire;
@@ -176,16 +182,15 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     let options = parameters::options(&params, &qos, &shared);
     match middleware {
         Middleware::Dds => {
-            let entities = Entities::create(&env, &security, &identity, options, &endpoints, params.managed)?;
-            let _ = shared.clock.set(RosClock::Dds(entities.node.clock()));
+            let opened = Dds::open(&env, &security, &identity, options)?;
+            let entities = Entities::create(opened, &identity, &endpoints, params.managed)?;
+            let _ = shared.clock.set(entities.clock());
             info!(
                 "{fqn}: listening on {} (raw scans), serving {}; DDS, domain {}, discovery {:?}",
                 endpoints.raw_scan.0, endpoints.calibrate, env.domain_id, env.discovery_range
             );
             let e = &entities;
-            let mut extra: Vec<Loop<'_>> = vec![Box::pin(graph::run(e, &shared))];
-            extra.extend(e.lifecycle.as_ref().map(|l| lifecycle_loop(l, &shared)));
-            serve(e, &shared, extra, shutdown, &fqn, rosout);
+            serve(e, &shared, Box::pin(graph::run(e, &shared)), shutdown, &fqn, rosout);
             shared.qos_reports.lock().expect("qos reports lock").flush(&entities.node, Instant::now(), true);
             entities.close();
         }
@@ -197,16 +202,15 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 ));
             }
             let zenv = crate::rmw::zenoh::ZenohEnv::from_env();
-            let entities = zenoh::ZenohEntities::create(&env, &zenv, &identity, options, &endpoints, params.managed)?;
-            let _ = shared.clock.set(RosClock::Zenoh(entities.clock()));
+            let opened = zenoh::Zenoh::open(&env, &zenv, &identity, options)?;
+            let entities = Entities::create(opened, &identity, &endpoints, params.managed)?;
+            let _ = shared.clock.set(entities.clock());
             info!(
                 "{fqn}: listening on {} (raw scans), serving {}; Zenoh (rmw_zenoh_cpp), domain {}",
                 endpoints.raw_scan.0, endpoints.calibrate, env.domain_id
             );
             let e = &entities;
-            let mut extra: Vec<Loop<'_>> = vec![Box::pin(e.run_graph_and_parameters(&shared))];
-            extra.extend(e.lifecycle.as_ref().map(|l| lifecycle_loop(l, &shared)));
-            serve(e, &shared, extra, shutdown, &fqn, rosout);
+            serve(e, &shared, Box::pin(zenoh::run_graph_and_parameters(e, &shared)), shutdown, &fqn, rosout);
             entities.close();
         }
         #[cfg(not(feature = "zenoh"))]
@@ -223,20 +227,13 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
 /// One of the node's loops.
 type Loop<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
 
-/// A managed node's lifecycle loop, on either middleware.
-fn lifecycle_loop<'a>(l: &'a impl lifecycle::LifecycleWire, shared: &'a Shared) -> Loop<'a> {
-    Box::pin(async move {
-        lifecycle::run(l, shared).await;
-        error!("the lifecycle request streams ended")
-    })
-}
-
-/// Run the loops every middleware has, and its `extra` ones, until one ends or `shutdown`
-/// resolves. `rosout`: the node's log records to publish on `/rosout`.
-fn serve<'a>(
-    e: &'a impl Wire,
+/// Run the loops every middleware has, the middleware's `graph` loop, and a managed
+/// node's lifecycle loop, until one ends or `shutdown` resolves. `rosout`: the node's log
+/// records to publish on `/rosout`.
+fn serve<'a, B: Backend>(
+    e: &'a Entities<B>,
     shared: &'a Shared,
-    extra: Vec<Loop<'a>>,
+    graph: Loop<'a>,
     shutdown: impl std::future::Future<Output = ()> + 'a,
     fqn: &'a str,
     rosout: Option<smol::channel::Receiver<crate::ros::logging::RosoutRecord>>,
@@ -246,7 +243,14 @@ fn serve<'a>(
     // calibrate request stream and the diagnostics timer included: the latency bench
     // had the node ~15 µs slower, +62..+68 µs over the relay against +46..+55 µs.)
     // The first loop to end ends the node.
-    let mut loops: FuturesUnordered<Loop<'a>> = extra.into_iter().collect();
+    let mut loops: FuturesUnordered<Loop<'a>> = FuturesUnordered::new();
+    loops.push(graph);
+    if let Some(l) = &e.lifecycle {
+        loops.push(Box::pin(async {
+            lifecycle::run(l, shared).await;
+            error!("the lifecycle request streams ended")
+        }));
+    }
     loops.push(Box::pin(async {
         scans::run(e, shared).await;
         error!("the raw scan stream ended")

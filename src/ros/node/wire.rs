@@ -1,15 +1,14 @@
 //! The seam between the node's loops and a middleware: what the loops read from and
-//! write to, and nothing of how it travels. [`super::entities`] implements it on DDS,
-//! [`super::zenoh`] on Zenoh; the loops ([`super::scans`], [`super::calibrate`],
-//! [`super::calibration`], [`super::diagnostics`], [`super::type_description`]) are written
-//! once, against this trait.
+//! write to, and nothing of how it travels. [`super::entities::Entities`] implements it
+//! once, over either middleware ([`super::backend`]); the loops ([`super::scans`],
+//! [`super::calibrate`], [`super::calibration`], [`super::diagnostics`],
+//! [`super::type_description`]) are written once, against this trait.
 //!
 //! Errors are the middleware's, as text: the loops only count and log them.
 
 use crate::ros::logging::RosoutRecord;
 use futures::Stream;
 
-use super::Shared;
 use crate::interfaces::{
     CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescriptionRequest,
     GetTypeDescriptionResponse, PolygonStamped, RawScan, tracer_calib_msgs as msgs,
@@ -69,7 +68,4 @@ pub(super) trait Wire {
     fn rosout(&self, record: &RosoutRecord);
     /// Whether the node's clock is simulated (`use_sim_time`).
     fn use_sim_time(&self) -> bool;
-    /// Once a second, from the diagnostics loop: what the middleware reports late
-    /// (DDS: incompatible QoS whose peer node is known by now).
-    fn tick(&self, shared: &Shared);
 }
