@@ -34,6 +34,7 @@ const RUST_NAMES: &[(&str, &str)] = &[
     ("type_description_interfaces/msg/KeyValue", "TypeKeyValue"),
     ("lifecycle_msgs/msg/State", "LifecycleState"),
     ("lifecycle_msgs/msg/Transition", "LifecycleTransition"),
+    ("bond/msg/Status", "BondStatus"),
 ];
 
 /// The Rust struct name of a message type `pkg/msg/Name`.

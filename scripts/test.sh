@@ -37,7 +37,7 @@ part "cargo build" cargo build --release --locked --features security --bins
 part "cargo test build" cargo test --release --locked --features security --no-run
 # The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags
 # to read the bags we write. Needs the package registries, so outside the namespace.
-part "ROS setup (kilted, jazzy)" tests/interop/setup.sh
+part "ROS setup (kilted, jazzy)" bash -c 'tests/interop/setup.sh && tests/interop/bond.sh kilted jazzy'
 # --include-ignored: a plain `cargo test` (a Rust toolchain alone) ignores, saying why, the
 # few tests that need what setup.sh installs (rosbags, rosidl's type hashes); here they run.
 part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline --features security -- --include-ignored

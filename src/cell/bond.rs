@@ -187,13 +187,14 @@ impl Bond {
     /// `active: false` at once, then every [`DEAD_PUBLISH_PERIOD`] until the sister
     /// answers or the disconnect timeout.
     pub fn die(&mut self, now: Instant) -> Option<BondEvent> {
-        self.publish_now = Some(false);
         match self.state {
             BondState::WaitingForSister => {
+                self.publish_now = Some(false);
                 self.death();
                 Some(BondEvent::Broken("broken before it formed"))
             }
             BondState::Alive => {
+                self.publish_now = Some(false);
                 self.state = BondState::AwaitSisterDeath;
                 self.heartbeat_deadline = None;
                 self.disconnect_deadline = Some(now + DISCONNECT_TIMEOUT);
@@ -344,6 +345,10 @@ mod tests {
         let p = b.poll(ms(t0, 2000));
         assert!(matches!(p.event, Some(BondEvent::Broken(_))));
         assert_eq!(b.state(), BondState::Dead);
+        // Dying again changes nothing, says nothing.
+        assert_eq!(b.die(ms(t0, 2100)), None);
+        assert_eq!(b.poll(ms(t0, 2100)).publish, None);
+        assert_eq!(b.next_poll(), None);
     }
 
     #[test]

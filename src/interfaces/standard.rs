@@ -4,7 +4,8 @@
 //! Jazzy's are the same but for a longer comment in `builtin_interfaces/msg/Time.msg` (the
 //! same hash). `type_description_interfaces/msg/KeyValue` is [`TypeKeyValue`]
 //! (`diagnostic_msgs`' is [`KeyValue`]); `lifecycle_msgs/msg/State` and `Transition` are
-//! [`LifecycleState`] and [`LifecycleTransition`].
+//! [`LifecycleState`] and [`LifecycleTransition`]; `bond/msg/Status` (bond_core's, the
+//! heartbeat of nav2's bond) is [`BondStatus`].
 
 use super::{Definition, InterfaceName, RosMsg};
 

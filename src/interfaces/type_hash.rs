@@ -392,13 +392,14 @@ mod tests {
     }
 
     /// The `.json` rosidl installs for `type_name` (the wheels' standard packages, the colcon
-    /// build of `msg/` that `tests/interop/setup.sh` makes), if there.
+    /// build of `msg/` that `tests/interop/setup.sh` makes, bond_core's `bond` that
+    /// `tests/interop/bond.sh` builds), if there.
     fn rosidl_json(type_name: &str) -> Option<(std::path::PathBuf, String)> {
         let mut parts = type_name.splitn(3, '/');
         let (package, kind, name) = (parts.next()?, parts.next()?, parts.next()?);
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/ros");
         for distro in ["kilted", "jazzy"] {
-            for prefix in ["venv", "msgs_install"] {
+            for prefix in ["venv", "msgs_install", "bond_install"] {
                 let path = root.join(distro).join(prefix).join(format!("share/{package}/{kind}/{name}.json"));
                 if let Ok(text) = std::fs::read_to_string(&path) {
                     return Some((path, text));
@@ -409,7 +410,8 @@ mod tests {
     }
 
     /// Every hash equals the one rosidl generated for the same type (the `type_hashes` of its
-    /// `.json`; `tests/interop/setup.sh` installs them, as `scripts/test.sh` runs it first).
+    /// `.json`; `tests/interop/setup.sh` and `bond.sh` install them, as `scripts/test.sh`
+    /// runs them first).
     #[test]
     #[ignore = "needs rosidl's .json files (tests/interop/setup.sh); scripts/test.sh runs it"]
     fn hashes_equal_rosidls() {

@@ -41,8 +41,9 @@ pub mod names {
     pub const HARDWARE_ID: &str = "hardware_id";
     pub const SCAN_TIMEOUT: &str = "driver.scan_timeout";
     pub const INTROSPECTION: &str = "calibrate.introspection";
+    pub const BOND_HEARTBEAT_PERIOD: &str = "bond_heartbeat_period";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 25] = [
+    pub const ALL: [&str; 26] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -68,6 +69,7 @@ pub mod names {
         HARDWARE_ID,
         SCAN_TIMEOUT,
         INTROSPECTION,
+        BOND_HEARTBEAT_PERIOD,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
@@ -119,6 +121,9 @@ pub struct Parameters {
     pub scan_timeout: f64,
     /// What the `calibrate` service's introspection shows.
     pub introspection: Introspection,
+    /// A managed node's bond with nav2's lifecycle manager: its heartbeat period (s) while
+    /// active; 0 = no bond. Read at start-up (nav2_util::LifecycleNode's parameter).
+    pub bond_heartbeat_period: f64,
 }
 
 /// What a service's introspection shows on `<service>/_service_event`, as rclcpp's
@@ -183,6 +188,7 @@ impl Default for Parameters {
             hardware_id: String::new(),
             scan_timeout: 0.0,
             introspection: Introspection::Off,
+            bond_heartbeat_period: 0.1,
         }
     }
 }
@@ -222,6 +228,7 @@ impl Parameters {
             names::HARDWARE_ID => String(self.hardware_id.clone()),
             names::SCAN_TIMEOUT => Double(self.scan_timeout),
             names::INTROSPECTION => String(self.introspection.as_str().into()),
+            names::BOND_HEARTBEAT_PERIOD => Double(self.bond_heartbeat_period),
             _ => return None,
         })
     }
@@ -296,6 +303,7 @@ impl Parameters {
             names::SCAN_TIMEOUT => next.scan_timeout = double(value)?,
             names::INTROSPECTION if *value == ParamValue::Bool(false) => next.introspection = Introspection::Off,
             names::INTROSPECTION => next.introspection = one_of(value)?.parse()?,
+            names::BOND_HEARTBEAT_PERIOD => next.bond_heartbeat_period = double(value)?,
             _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
@@ -355,8 +363,9 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 25);
+        assert_eq!(list.len(), 26);
         assert_eq!(p.get("calibrate.introspection"), Some(ParamValue::String("off".into())));
+        assert_eq!(p.get("bond_heartbeat_period"), Some(ParamValue::Double(0.1)));
         assert_eq!(p.get("calibration.covariance"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("use_sim_time"), Some(ParamValue::Bool(false)));
         assert_eq!(p.get("managed"), Some(ParamValue::Bool(false)));

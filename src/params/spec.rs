@@ -91,7 +91,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 25] = [
+pub const SPECS: [Spec; 26] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -134,6 +134,9 @@ pub const SPECS: [Spec; 25] = [
         .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
     Spec::new(names::INTROSPECTION, "service introspection of calibrate, as rclcpp's configure_introspection: off, metadata (each request and response's client, sequence number and time on calibrate/_service_event) or contents (with the request and response: what `ros2 service echo` shows)")
         .constraints("one of: off (or disabled), metadata, contents"),
+    Spec::new(names::BOND_HEARTBEAT_PERIOD, "a managed node's bond with nav2's lifecycle manager (bond/msg/Status on bond, id: the node's name), kept while active: its heartbeat period (s); 0 = no bond; read at start-up")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY })
+        .read_only(),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.

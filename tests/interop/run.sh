@@ -34,7 +34,7 @@
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), type_hash
 # test_type_hash.py's (type_hash: all), runtime or sim_time, replay_clock, describe,
-# lifecycle, rcl_param_rules test_runtime.py's (runtime: all), first_scan test_first_scan.py's
+# lifecycle, bond, rcl_param_rules test_runtime.py's (runtime: all), first_scan test_first_scan.py's
 # (first_scan: all; first_scan_fastdds, first_scan_cyclone, first_scan_call_fastdds,
 # first_scan_call_cyclone), lossy test_lossy.py's (lossy: all; lossy_fastdds_10, ...), two_hosts test_two_hosts.py's scenarios (two_hosts:
 # all), cyclone or mixed test_cyclone.py's (cyclone: all), security or secure_* or
@@ -71,7 +71,7 @@ for a in "$@"; do
         launch_*) launch+=("${a#launch_}") ;;
         graph*) graph+=("$a") ;;
         type_hash*) type_hash+=("$a") ;;
-        runtime | sim_time* | replay_clock | describe | lifecycle | rcl_param_rules) runtime+=("$a") ;;
+        runtime | sim_time* | replay_clock | describe | lifecycle | bond | rcl_param_rules) runtime+=("$a") ;;
         first_scan*) first_scan+=("$a") ;;
         lossy*) lossy+=("$a") ;;
         two_hosts*) two_hosts+=("$a") ;;
@@ -97,6 +97,7 @@ peer_run() {
     # shellcheck disable=SC2016
     "$HERE/$wrapper" bash -c '
         . "$1/target/ros/$2/env.sh"
+        [ ! -f "$1/target/ros/$2/bond_env.sh" ] || . "$1/target/ros/$2/bond_env.sh"
         [ -z "$3" ] || . "$1/target/ros/$2/$3"
         limit=$4
         shift 4
@@ -124,6 +125,8 @@ for d in $DISTROS; do
     # The stock ros2 CLI and launch in the venv (quick when installed): test_cyclone.py's
     # and test_launch.py's.
     "$HERE/ros2cli.sh" "$d"
+    # The stock bond packages (bond, smclib, bondpy; quick when built): test_runtime.py's bond.
+    "$HERE/bond.sh" "$d"
     echo "run.sh: $d: setup $(took "$t0")"
     suite node_suite.py "$d" "test_node.py, test_records.py; ROS 2 $d rclpy, release binaries" node_suite \
         ${node_tests[@]+"${node_tests[@]}"}

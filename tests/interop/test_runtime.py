@@ -23,6 +23,11 @@ peer environment (target/ros/DISTRO/env.sh). Prints one line per test.
   state does not offer: refused, nothing changes); contours only while active, scans
   held and counted on /diagnostics otherwise, /calibrate refused naming the state; every
   transition event seen by an rclpy subscriber; an unmanaged node has no lifecycle.
+- bond: nav2's bond with the stock bondpy (tests/interop/bond.sh) as nav2's lifecycle
+  manager keeps it (id the node's name, `bond` in its namespace, heartbeat 0.1 s, timeout
+  4 s): none before activation, formed within 2 s of it and kept past the timeout, broken
+  at once on deactivation and on SIGTERM, a new one on reactivation, and a SIGKILLed
+  node's noticed by the heartbeat timeout.
 - rcl_param_rules: tests/data/rcl_param_rules.json (what the Rust tests check our parser
   against) is what rcl itself reads, through rclpy: each rule taken or refused as the file
   says, with the name, type and value it gives.
@@ -32,6 +37,7 @@ import json
 import math
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -392,6 +398,102 @@ def test_lifecycle(peer):
     return f"{len(events)} transition events, 3 scans held" + ("" if have_cli else "; no ros2 CLI installed")
 
 
+def test_bond(peer):
+    """nav2's bond, against the stock bondpy (bond_core, tests/interop/bond.sh), as
+    nav2_lifecycle_manager keeps it with each node it manages: id the node's name, topic
+    `bond` in the manager's namespace, heartbeat 0.1 s, timeout 4 s, formed within half the
+    timeout of the activation."""
+    from rclpy.duration import Duration  # noqa: F401  (bondpy needs rclpy's)
+    try:
+        from bondpy.bondpy import Bond
+    except ImportError:
+        return "skipped: bondpy not installed (tests/interop/bond.sh)"
+    ns, name = "/bond_cell", "tracer"
+    fqn = f"{ns}/{name}"
+    keep = []  # bondpy's shutdown() would tear the peer's executor down: never called
+
+    def manager_bond():
+        """A manager's end of a new bond, started; its formed and broken times."""
+        times = {}
+        b = Bond(peer.node, f"{ns}/bond", name,
+                 on_broken=lambda: times.setdefault("broken", time.monotonic()),
+                 on_formed=lambda: times.setdefault("formed", time.monotonic()))
+        b.heartbeat_period = 0.1
+        b.heartbeat_timeout = 4.0
+        b.start()
+        keep.append(b)
+        return times
+
+    def spin_for(seconds, until=lambda: False):
+        """Spin the peer `seconds`, or until `until()`."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline and not until():
+            peer.executor.spin_once(timeout_sec=0.05)
+
+    def transition(change, tid):
+        req = ChangeState.Request(transition=Transition(id=tid))
+        assert peer.retry(lambda: change.call_async(req), "change_state").success, tid
+
+    node = h.NodeProcess("bond", ["-r", f"__ns:={ns}", "-r", f"__node:={name}", "-p", "managed:=true"])
+    try:
+        change = peer.node.create_client(ChangeState, f"{fqn}/change_state")
+        peer.spin_until(change.service_is_ready, 20, f"{fqn}/change_state")
+        # Not active yet: no heartbeat, the bond does not form.
+        early = manager_bond()
+        transition(change, Transition.TRANSITION_CONFIGURE)
+        spin_for(1.0)
+        assert "formed" not in early, "a bond formed before the node was active"
+        # Activated: formed within 2 s (nav2 waits half its 4 s timeout), and kept past the
+        # heartbeat timeout: the heartbeats flow.
+        t0 = time.monotonic()
+        transition(change, Transition.TRANSITION_ACTIVATE)
+        peer.spin_until(lambda: "formed" in early, 2.0, "the bond formed after the activation")
+        formed = early["formed"] - t0
+        spin_for(5.0, lambda: "broken" in early)
+        assert "broken" not in early, f"the bond broke while the node was active:\n{node.output()}"
+        # Deactivated: broken at once (the node says so).
+        t1 = time.monotonic()
+        transition(change, Transition.TRANSITION_DEACTIVATE)
+        peer.spin_until(lambda: "broken" in early, 2.0, "the bond broken on deactivation")
+        on_deactivate = early["broken"] - t1
+        # Activated again: a new bond forms (nav2 makes one per activation).
+        again = manager_bond()
+        transition(change, Transition.TRANSITION_ACTIVATE)
+        peer.spin_until(lambda: "formed" in again, 2.0, "a new bond after the second activation")
+        # The node stopped (SIGTERM): broken at once.
+        h.RUNNING.remove(node)  # it leaves: not a failure of the peer's waits
+        t2 = time.monotonic()
+        node.proc.send_signal(signal.SIGTERM)  # the manager spins on meanwhile, as nav2's does
+        peer.spin_until(lambda: "broken" in again, 2.0, "the bond broken when the node stopped")
+        on_stop = again["broken"] - t2
+        assert node.proc.wait(timeout=5) == 0, node.output()
+    finally:
+        if node in h.RUNNING:
+            node.stop()
+    # A node killed without a word: the manager's heartbeat timeout notices it.
+    node = h.NodeProcess("bond_killed", ["-r", f"__ns:={ns}", "-r", f"__node:={name}", "-p", "managed:=true"])
+    try:
+        change = peer.node.create_client(ChangeState, f"{fqn}/change_state")
+        peer.spin_until(change.service_is_ready, 20, f"{fqn}/change_state")
+        last = manager_bond()
+        transition(change, Transition.TRANSITION_CONFIGURE)
+        transition(change, Transition.TRANSITION_ACTIVATE)
+        peer.spin_until(lambda: "formed" in last, 2.0, "the bond formed")
+        spin_for(0.5)
+        h.RUNNING.remove(node)  # its death is the point: not a failure of the peer's waits
+        t3 = time.monotonic()
+        node.proc.kill()
+        node.proc.wait()
+        peer.spin_until(lambda: "broken" in last, 6.0, "the bond broken by the heartbeat timeout")
+        on_kill = last["broken"] - t3
+        assert on_kill > 3.0, f"broken {on_kill:.2f} s after SIGKILL: before the heartbeat timeout?"
+    finally:
+        if node in h.RUNNING:
+            h.RUNNING.remove(node)
+    return (f"formed {formed:.2f} s after activation, kept 5 s; broken {on_deactivate * 1e3:.0f} ms after deactivate, "
+            f"{on_stop * 1e3:.0f} ms after SIGTERM, {on_kill:.2f} s after SIGKILL (heartbeat timeout 4 s)")
+
+
 def test_rcl_param_rules(_peer):
     with open(os.path.join(ROOT, "tests/data/rcl_param_rules.json")) as f:
         cases = json.load(f)
@@ -452,6 +554,7 @@ def main():
         ("replay_clock", lambda: test_replay_clock(peer)),
         ("describe", lambda: test_describe(peer)),
         ("lifecycle", lambda: test_lifecycle(peer)),
+        ("bond", lambda: test_bond(peer)),
         ("rcl_param_rules", lambda: test_rcl_param_rules(peer)),
     ]
     only = [a for a in sys.argv[1:] if a != "runtime"]

@@ -48,13 +48,21 @@ pub(super) struct Endpoints {
     pub calibrate: Name,
     /// `<calibrate>/_service_event`, its introspection.
     pub calibrate_event: Name,
+    /// `bond`, a managed node's bond with nav2's lifecycle manager ([`super::bond`]), if it
+    /// keeps one.
+    pub bond: Option<Name>,
 }
 
 impl Endpoints {
     /// Names resolved for `identity` with the remaps of `args`; the QoS overrides applied
     /// to the topics they are for (one warning for each that names no endpoint of the node;
-    /// `qos` keeps only those in force).
-    pub fn resolve(args: &RosArgs, identity: &NodeIdentity, qos: &mut QosOverrides) -> Result<Self, String> {
+    /// `qos` keeps only those in force). `bond`: the node keeps nav2's bond.
+    pub fn resolve(
+        args: &RosArgs,
+        identity: &NodeIdentity,
+        qos: &mut QosOverrides,
+        bond: bool,
+    ) -> Result<Self, String> {
         let topic = |name: &str| -> Result<Name, String> {
             let resolved = args.resolve_topic(name, identity).map_err(|e| e.to_string())?;
             ros2_name(&resolved).map_err(|e| e.to_string())
@@ -89,6 +97,7 @@ impl Endpoints {
             calibration: topic("calibration")?,
             calibrate,
             calibrate_event,
+            bond: if bond { Some(topic("bond")?) } else { None },
         })
     }
 }

@@ -113,7 +113,8 @@ impl<B: Backend> Entities<B> {
     ) -> Result<Self, String> {
         let Opened { ctx, mut node, types_in_use } = opened;
         let mk = |e: ros2_client::CreateError| B::cannot_create(B::ENTITY, e);
-        let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate, calibrate_event } = endpoints;
+        let Endpoints { raw_scan, contour, polygon, diagnostics, calibration, calibrate, calibrate_event, bond } =
+            endpoints;
         let raw_topic = topic::<B, RawScan>(&mut node, &raw_scan.0, &raw_scan.1)?;
         let contour_topic = topic::<B, Contour>(&mut node, &contour.0, &contour.1)?;
         let polygon_topic = topic::<B, PolygonStamped>(&mut node, &polygon.0, &polygon.1)?;
@@ -136,7 +137,7 @@ impl<B: Backend> Entities<B> {
         let type_description =
             B::server::<GetTypeDescription>(&mut node, &type_description_name, reliable(10)).map_err(mk)?;
         let lifecycle =
-            if managed { Some(Lifecycle::create(&mut node, &identity.fully_qualified_name())?) } else { None };
+            if managed { Some(Lifecycle::create(&mut node, &identity.fully_qualified_name(), bond)?) } else { None };
         let spinner = B::spin(&mut node).map_err(mk)?;
         Ok(Entities {
             ctx,

@@ -20,14 +20,14 @@
 
 use futures::{Stream, StreamExt, stream};
 use log::{debug, error, info, warn};
-use ros2_client::RmwRequestId;
+use ros2_client::{Name, RmwRequestId};
 
 use super::backend::Backend;
 use super::endpoints::{private_name, reliable};
 use super::{Shared, log_history_read};
 use crate::cell::lifecycle::{self, STATES, TRANSITIONS, Transition};
 use crate::interfaces::{
-    ChangeState, ChangeStateRequest, ChangeStateResponse, GetAvailableStates, GetAvailableStatesResponse,
+    BondStatus, ChangeState, ChangeStateRequest, ChangeStateResponse, GetAvailableStates, GetAvailableStatesResponse,
     GetAvailableTransitions, GetAvailableTransitionsResponse, GetState, GetStateResponse, LifecycleState,
     LifecycleTransition, RosMsg, TransitionDescription, TransitionEvent,
 };
@@ -40,16 +40,33 @@ pub(super) struct Lifecycle<B: Backend> {
     get_available_transitions: B::Server<GetAvailableTransitions>,
     get_transition_graph: B::Server<GetAvailableTransitions>,
     transition_event: B::Publisher<TransitionEvent>,
+    /// nav2's bond (`bond/msg/Status` on `bond`), if the node keeps one: its publisher and
+    /// subscription ([`super::bond`]).
+    bond: Option<(B::Publisher<BondStatus>, B::Subscription<BondStatus>)>,
 }
 
 impl<B: Backend> Lifecycle<B> {
-    /// Made on `node`, whose fully qualified name is `fqn`.
-    pub fn create(node: &mut B::Node, fqn: &str) -> Result<Self, String> {
+    /// Made on `node`, whose fully qualified name is `fqn`; with the bond's endpoints on
+    /// the topic `bond` if given (QoS as bondcpp's: reliable, volatile, keep last 5 for the
+    /// publisher, 100 for the subscription).
+    pub fn create(node: &mut B::Node, fqn: &str, bond: &Option<Name>) -> Result<Self, String> {
         let name = |suffix: &str| private_name(fqn, suffix);
         let mk = |e: ros2_client::CreateError| B::cannot_create(B::LIFECYCLE_ENTITY, e);
         let topic =
             B::topic(node, &name("transition_event")?, TransitionEvent::NAME.message_type_name(), &reliable(10))
                 .map_err(mk)?;
+        let bond = match bond {
+            Some(bond) => {
+                let type_name = BondStatus::NAME.message_type_name();
+                let out = B::topic(node, bond, type_name.clone(), &reliable(5)).map_err(mk)?;
+                let into = B::topic(node, bond, type_name, &reliable(100)).map_err(mk)?;
+                Some((
+                    B::publisher::<BondStatus>(node, &out).map_err(mk)?,
+                    B::subscription::<BondStatus>(node, &into).map_err(mk)?,
+                ))
+            }
+            None => None,
+        };
         Ok(Lifecycle {
             change_state: B::server::<ChangeState>(node, &name("change_state")?, reliable(10)).map_err(mk)?,
             get_state: B::server::<GetState>(node, &name("get_state")?, reliable(10)).map_err(mk)?,
@@ -68,6 +85,7 @@ impl<B: Backend> Lifecycle<B> {
             )
             .map_err(mk)?,
             transition_event: B::publisher::<TransitionEvent>(node, &topic).map_err(mk)?,
+            bond,
         })
     }
 }
@@ -117,6 +135,10 @@ pub(super) trait LifecycleWire {
     fn answer(&self, id: Self::RequestId, reply: Reply) -> impl Future<Output = Result<(), String>> + '_;
     /// Publish a transition event.
     fn publish_event(&self, event: TransitionEvent) -> impl Future<Output = Result<(), String>> + '_;
+    /// The statuses on the bond's topic, if the node keeps nav2's bond (`None`: it does not).
+    fn bond_statuses(&self) -> Option<impl Stream<Item = Result<BondStatus, String>> + '_>;
+    /// Publish a status of the node's end of the bond (nothing if it keeps none).
+    fn publish_bond(&self, status: BondStatus) -> impl Future<Output = Result<(), String>> + '_;
 }
 
 /// The five request streams merged into one.
@@ -155,6 +177,17 @@ impl<B: Backend> LifecycleWire for Lifecycle<B> {
 
     fn publish_event(&self, event: TransitionEvent) -> impl Future<Output = Result<(), String>> + '_ {
         B::publish(&self.transition_event, event)
+    }
+
+    fn bond_statuses(&self) -> Option<impl Stream<Item = Result<BondStatus, String>> + '_> {
+        self.bond.as_ref().map(|(_, subscription)| B::messages(subscription))
+    }
+
+    async fn publish_bond(&self, status: BondStatus) -> Result<(), String> {
+        match &self.bond {
+            Some((publisher, _)) => B::publish(publisher, status).await,
+            None => Ok(()),
+        }
     }
 }
 
@@ -200,7 +233,8 @@ pub(super) async fn run(l: &impl LifecycleWire, shared: &Shared) {
     }
 }
 
-fn current_state(shared: &Shared) -> lifecycle::State {
+/// The managed node's lifecycle state (`unknown` if it is not managed).
+pub(super) fn current_state(shared: &Shared) -> lifecycle::State {
     let st = shared.state.lock().expect("state lock");
     st.lifecycle.as_ref().map_or(lifecycle::State::UNKNOWN, |lc| lc.current())
 }

@@ -23,6 +23,7 @@
 #![allow(rustdoc::private_intra_doc_links)]
 
 mod backend;
+mod bond;
 mod calibrate;
 mod calibration;
 mod config;
@@ -43,7 +44,7 @@ mod zenoh;
 use std::pin::Pin;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex, OnceLock};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use futures::{StreamExt, stream::FuturesUnordered};
 use log::{error, info, warn};
@@ -80,6 +81,8 @@ struct Shared {
     qos_reports: Mutex<QosReports>,
     /// The node's clock (simulated under `use_sim_time`), once the node exists.
     clock: Arc<OnceLock<RosClock>>,
+    /// A managed node's end of nav2's bond, while it keeps one ([`bond`]).
+    bond: Mutex<Option<crate::cell::bond::Bond>>,
 }
 
 /// The node's ROS clock, from its middleware's node: the last `/clock` under
@@ -165,7 +168,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             info!("removed {removed} temporary file(s) a killed writer left beside {}", params.params_file);
         }
     }
-    let endpoints = Endpoints::resolve(&args, &identity, &mut qos)?;
+    let endpoints = Endpoints::resolve(&args, &identity, &mut qos, bond::period(&params).is_some())?;
     let mut initial = initial_state(&fqn, &params);
     initial.extra_params = qos.to_list();
     initial.driver.topic = endpoints.raw_scan.0.to_string();
@@ -178,7 +181,9 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         calibration_changes,
         polygon_wanted: AtomicBool::new(false),
         clock: Arc::new(OnceLock::new()),
+        bond: Mutex::new(None),
     };
+    let bond = bond::period(&params).map(|period| (identity.name.as_str(), period));
     let options = parameters::options(&params, &qos, &shared);
     match middleware {
         Middleware::Dds => {
@@ -190,7 +195,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 endpoints.raw_scan.0, endpoints.calibrate, env.domain_id, env.discovery_range
             );
             let e = &entities;
-            serve(e, &shared, Box::pin(graph::run(e, &shared)), shutdown, &fqn, rosout);
+            serve(e, &shared, Box::pin(graph::run(e, &shared)), shutdown, &fqn, rosout, bond);
             shared.qos_reports.lock().expect("qos reports lock").flush(&entities.node, Instant::now(), true);
             entities.close();
         }
@@ -210,7 +215,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
                 endpoints.raw_scan.0, endpoints.calibrate, env.domain_id
             );
             let e = &entities;
-            serve(e, &shared, Box::pin(zenoh::run_graph_and_parameters(e, &shared)), shutdown, &fqn, rosout);
+            serve(e, &shared, Box::pin(zenoh::run_graph_and_parameters(e, &shared)), shutdown, &fqn, rosout, bond);
             entities.close();
         }
         #[cfg(not(feature = "zenoh"))]
@@ -228,8 +233,10 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
 type Loop<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
 
 /// Run the loops every middleware has, the middleware's `graph` loop, and a managed
-/// node's lifecycle loop, until one ends or `shutdown` resolves. `rosout`: the node's log
+/// node's lifecycle loop (and its bond's, `bond`: its id and heartbeat period), until one
+/// ends or `shutdown` resolves; then a bond kept is broken. `rosout`: the node's log
 /// records to publish on `/rosout`.
+#[allow(clippy::too_many_arguments)]
 fn serve<'a, B: Backend>(
     e: &'a Entities<B>,
     shared: &'a Shared,
@@ -237,6 +244,7 @@ fn serve<'a, B: Backend>(
     shutdown: impl std::future::Future<Output = ()> + 'a,
     fqn: &'a str,
     rosout: Option<smol::channel::Receiver<crate::ros::logging::RosoutRecord>>,
+    bond: Option<(&'a str, Duration)>,
 ) {
     // Each loop is a future of its own, with its own waker: a scan arriving wakes the
     // scan loop alone. (Under one `select!`, every wake-up polled every loop, the
@@ -250,6 +258,12 @@ fn serve<'a, B: Backend>(
             lifecycle::run(l, shared).await;
             error!("the lifecycle request streams ended")
         }));
+        if let Some((id, period)) = bond {
+            loops.push(Box::pin(async move {
+                bond::run(l, shared, id, period).await;
+                error!("the bond's status stream ended")
+            }));
+        }
     }
     loops.push(Box::pin(async {
         scans::run(e, shared).await;
@@ -282,4 +296,8 @@ fn serve<'a, B: Backend>(
         }));
     }
     smol::block_on(loops.next());
+    drop(loops);
+    if let Some(l) = &e.lifecycle {
+        smol::block_on(bond::leave(l, shared));
+    }
 }
