@@ -4,7 +4,8 @@ node (issue 20, item 2):
 
 - endpoint_hashes: every endpoint of the node (its topics, /calibrate, the parameter
   services, ~/get_type_description, /rosout, /parameter_events, /clock, ros_discovery_info,
-  and, the node being managed, the lifecycle services and ~/transition_event)
+  and, the node being managed, the lifecycle services and ~/transition_event, and the
+  bond's publisher and subscription)
   announces a RIHS01 hash that rclpy reads, equal to the one rosidl generated for its type
   (the `.json` of the wheels and of the colcon build of msg/); a service's request and
   reply topics carry the request's and the response's hash, as rmw_fastrtps and
@@ -82,7 +83,7 @@ EXPECTED += [(f"rt/{NODE}/transition_event", "pub")] + [
     (f"{d}/{NODE}/{s}{suffix}", kind)
     for s in ("change_state", "get_state", "get_available_states", "get_available_transitions", "get_transition_graph")
     for d, suffix, kind in (("rq", "Request", "sub"), ("rr", "Reply", "pub"))
-]
+] + [("rt/bond", "pub"), ("rt/bond", "sub")]  # nav2's bond (bond/msg/Status), kept while active
 
 
 def test_endpoint_hashes(peer):
