@@ -175,7 +175,8 @@ fn contours_out_of_float_range_are_refused() {
         p.calibration_valid = case.iter().any(|(n, _)| n.starts_with("calibration."));
         let mut st = NodeState::new("/tuned".into(), p);
         let e = st.on_raw_scan(&msg, true).unwrap_err();
-        assert!(e.contains("is out of range (check encoder.meters_per_count and the calibration)"), "{case:?}: {e}");
+        assert!(matches!(e, tracer_calib::cell::intake::ScanRejected::OutOfRange { .. }), "{case:?}: {e}");
+        assert!(e.to_string().contains("is out of range (check encoder.meters_per_count and the calibration)"), "{e}");
         assert_eq!(st.stats.scans_rejected, 1);
         assert_eq!(st.stats.contours_published, 0);
         // The plate scan was kept: /calibrate finds it (and fails on its own terms).

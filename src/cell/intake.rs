@@ -2,8 +2,41 @@
 //! the node and the offline tools (`calibrate --bag`, `correct`) take scans through here,
 //! so a scan the node refuses is refused offline too, with the same words.
 
-use crate::engine::scan::Scan;
+use crate::engine::scan::{Scan, ScanError};
 use crate::interfaces::RawScan;
+
+/// Why a raw scan was refused (counted as rejected; the words are the log's and
+/// /diagnostics' `last_rejection`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScanRejected {
+    /// `target` is none of the message's `TARGET_*` constants.
+    #[error("target {0} is not one of TARGET_UNKNOWN..TARGET_RING_GAUGE (0..4)")]
+    UnknownTarget(u8),
+    /// `steps_per_revolution` above [`MAX_STEPS_PER_REV`].
+    #[error("steps_per_revolution {0} is larger than the limit of {MAX_STEPS_PER_REV}")]
+    TooManySteps(u32),
+    /// More samples than [`MAX_SAMPLES`].
+    #[error("the scan has {0} samples, more than the limit of {MAX_SAMPLES}")]
+    TooLarge(usize),
+    /// Fewer than 3 samples.
+    #[error("the scan has {0} samples, at least 3 are needed for a contour")]
+    TooSmall(usize),
+    /// The samples themselves (a step out of range, a count not finite, ...).
+    #[error(transparent)]
+    Samples(#[from] ScanError),
+    /// A corrected point beyond what a contour can hold (extreme parameters).
+    #[error(
+        "sample {index}: the corrected point ({x}, {y}) m is out of range (check encoder.meters_per_count and the calibration)"
+    )]
+    OutOfRange {
+        /// The sample's index.
+        index: usize,
+        /// The corrected point, m.
+        x: f64,
+        /// The corrected point, m.
+        y: f64,
+    },
+}
 
 /// Largest scan accepted, in samples: far above any tracer (400-1000 steps a turn),
 /// far below what would hurt the node.
@@ -13,37 +46,31 @@ pub const MAX_STEPS_PER_REV: u32 = 1 << 20;
 
 /// The checks of a raw scan that need no pass over its samples: the target, and sizes
 /// within the limits.
-pub fn check_limits(msg: &RawScan) -> Result<(), String> {
+pub fn check_limits(msg: &RawScan) -> Result<(), ScanRejected> {
     if msg.target > RawScan::TARGET_RING_GAUGE {
-        return Err(format!("target {} is not one of TARGET_UNKNOWN..TARGET_RING_GAUGE (0..4)", msg.target));
+        return Err(ScanRejected::UnknownTarget(msg.target));
     }
     if msg.steps_per_revolution > MAX_STEPS_PER_REV {
-        return Err(format!(
-            "steps_per_revolution {} is larger than the limit of {MAX_STEPS_PER_REV}",
-            msg.steps_per_revolution
-        ));
+        return Err(ScanRejected::TooManySteps(msg.steps_per_revolution));
     }
     if msg.step.len() > MAX_SAMPLES || msg.counts.len() > MAX_SAMPLES {
-        return Err(format!(
-            "the scan has {} samples, more than the limit of {MAX_SAMPLES}",
-            msg.step.len().max(msg.counts.len())
-        ));
+        return Err(ScanRejected::TooLarge(msg.step.len().max(msg.counts.len())));
     }
     if msg.step.len() < 3 {
-        return Err(format!("the scan has {} samples, at least 3 are needed for a contour", msg.step.len()));
+        return Err(ScanRejected::TooSmall(msg.step.len()));
     }
     Ok(())
 }
 
 /// Check a raw scan's samples, with encoder counts of `meters_per_count` metres; the error
 /// says what is wrong.
-pub fn check(msg: &RawScan, meters_per_count: f64) -> Result<(), String> {
+pub fn check(msg: &RawScan, meters_per_count: f64) -> Result<(), ScanRejected> {
     check_limits(msg)?;
-    Scan::check_counts(msg.steps_per_revolution, &msg.step, &msg.counts, meters_per_count).map_err(|e| e.to_string())
+    Ok(Scan::check_counts(msg.steps_per_revolution, &msg.step, &msg.counts, meters_per_count)?)
 }
 
 /// Check a raw scan and turn it into an engine scan; the error says what is wrong.
-pub fn to_scan(msg: &RawScan, meters_per_count: f64) -> Result<Scan, String> {
+pub fn to_scan(msg: &RawScan, meters_per_count: f64) -> Result<Scan, ScanRejected> {
     check_limits(msg)?;
-    Scan::from_counts(msg.steps_per_revolution, &msg.step, &msg.counts, meters_per_count).map_err(|e| e.to_string())
+    Ok(Scan::from_counts(msg.steps_per_revolution, &msg.step, &msg.counts, meters_per_count)?)
 }

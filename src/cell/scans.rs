@@ -1,7 +1,8 @@
 //! A raw scan corrected: every sample to where the probe really touched, as a `Contour`
 //! (and a `PolygonStamped` for RViz), the plate scans kept for `/calibrate`.
 
-use super::{NodeState, intake};
+use super::NodeState;
+use super::intake::{self, ScanRejected};
 use nalgebra::Vector2;
 
 use crate::engine::calibrate::covariance_from_values;
@@ -44,7 +45,7 @@ impl NodeState {
     /// the `Contour` and into the polar form the radii are resampled from as it comes
     /// (no engine `Scan`, no array of points: less memory to bring into cache for every
     /// scan).
-    pub fn on_raw_scan(&mut self, msg: &RawScan, with_polygon: bool) -> Result<Corrected, String> {
+    pub fn on_raw_scan(&mut self, msg: &RawScan, with_polygon: bool) -> Result<Corrected, ScanRejected> {
         self.stats.scans_received += 1;
         // A plate or ring-gauge scan is kept as an engine scan (for /calibrate); any other
         // is only checked. Either way its samples are checked once.
@@ -101,12 +102,8 @@ impl NodeState {
             touched_surface(&mut path, tip, traced, closed);
             path.into_iter().for_each(&mut emit);
         }
-        if let Some((i, p)) = out_of_range {
-            let e = format!(
-                "sample {i}: the corrected point ({}, {}) m is out of range (check encoder.meters_per_count and the calibration)",
-                p.x, p.y
-            );
-            return Err(self.reject(msg, e));
+        if let Some((index, p)) = out_of_range {
+            return Err(self.reject(msg, ScanRejected::OutOfRange { index, x: p.x, y: p.y }));
         }
         let max_gap = default_max_gap(steps_per_rev);
         let (radii, radii_gain) =

@@ -2,6 +2,7 @@
 //! counted.
 
 use super::NodeState;
+use super::intake::ScanRejected;
 use crate::interfaces::RawScan;
 
 /// Counters reported on `/diagnostics`.
@@ -31,7 +32,7 @@ pub struct Stats {
 
 impl NodeState {
     /// Count a rejected scan; returns the error.
-    pub(super) fn reject(&mut self, msg: &RawScan, e: String) -> String {
+    pub(super) fn reject(&mut self, msg: &RawScan, e: ScanRejected) -> ScanRejected {
         self.stats.scans_rejected += 1;
         self.stats.last_rejection = format!("scan {}: {e}", msg.scan_id);
         e

@@ -76,11 +76,20 @@ fn malformed_scans_are_rejected_and_counted() {
     ];
     for (i, (msg, want)) in cases.iter().enumerate() {
         let e = st.on_raw_scan(msg, true).unwrap_err();
-        assert!(e.contains(want), "case {i}: {e}");
+        assert!(e.to_string().contains(want), "case {i}: {e}");
         assert_eq!(st.stats.scans_rejected, i as u64 + 1);
     }
+    // A caller can tell the reasons apart.
+    use crate::cell::intake::ScanRejected;
+    let small = RawScan { step: vec![1, 2], counts: vec![1, 2], ..good.clone() };
+    assert_eq!(st.on_raw_scan(&small, true).unwrap_err(), ScanRejected::TooSmall(2));
+    assert!(matches!(
+        st.on_raw_scan(&RawScan { steps_per_revolution: 0, ..good.clone() }, true),
+        Err(ScanRejected::Samples(_))
+    ));
+    assert_eq!(st.stats.scans_rejected, cases.len() as u64 + 2);
     assert!(st.on_raw_scan(&good, true).is_ok());
-    assert_eq!(st.stats.scans_received, cases.len() as u64 + 1);
+    assert_eq!(st.stats.scans_received, cases.len() as u64 + 3);
 }
 
 #[test]

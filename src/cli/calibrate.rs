@@ -179,7 +179,7 @@ fn read_scan(path: &Path, args: &Args, scan_id: u32, target: u8, p: &Parameters)
         intake::to_scan(&msg, p.meters_per_count)
             .map_err(|e| format!("{}: scan {} on {}: {e}", path.display(), msg.scan_id, args.topic))?
     } else {
-        let rev = csv::read(path)?;
+        let rev = csv::read(path).map_err(|e| e.to_string())?;
         Scan::from_counts(args.steps_per_rev, &rev.step, &rev.counts, p.meters_per_count)
             .map_err(|e| format!("{}: {e}", path.display()))?
     };

@@ -12,6 +12,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::FileError;
+
 /// A revolution as the tracer reports it: steps and encoder counts.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RawRevolution {
@@ -59,10 +61,10 @@ pub fn parse(text: &str, path: &str) -> Result<RawRevolution, String> {
 }
 
 /// Read a CSV file.
-pub fn read(path: &Path) -> Result<RawRevolution, String> {
+pub fn read(path: &Path) -> Result<RawRevolution, FileError> {
     let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{shown}: cannot read: {e}"))?;
-    parse(&text, &shown)
+    let text = std::fs::read_to_string(path).map_err(|source| FileError::Unreadable { path: shown.clone(), source })?;
+    parse(&text, &shown).map_err(FileError::Malformed)
 }
 
 /// The CSV text of a revolution.

@@ -4,3 +4,22 @@ pub mod bag;
 pub mod csv;
 pub mod oma;
 pub mod plot;
+
+/// Why a scan file ([`csv::read`], [`oma::read`]) was not read: the file itself could not be
+/// read, or what it holds is not what the format says (the parser's words name the file
+/// and, where there is one, the line).
+#[derive(Debug, thiserror::Error)]
+pub enum FileError {
+    /// The file could not be read (missing, a directory, no permission, ...).
+    #[error("{path}: cannot read: {source}")]
+    Unreadable {
+        /// The file, as given.
+        path: String,
+        /// The system's reason.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file was read; its contents are not the format's.
+    #[error("{0}")]
+    Malformed(String),
+}

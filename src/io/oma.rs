@@ -43,6 +43,8 @@ use std::fmt;
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::FileError;
+
 /// The only trace format read and written: ASCII absolute radii.
 pub const FORMAT_ASCII: u32 = 1;
 
@@ -383,11 +385,11 @@ pub fn parse(text: &str, path: &str) -> Result<OmaFile, String> {
 }
 
 /// Read an OMA file.
-pub fn read(path: &Path) -> Result<OmaFile, String> {
+pub fn read(path: &Path) -> Result<OmaFile, FileError> {
     let shown = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| format!("{shown}: cannot read: {e}"))?;
+    let bytes = std::fs::read(path).map_err(|source| FileError::Unreadable { path: shown.clone(), source })?;
     // OMA files are ASCII; be lenient with stray bytes rather than refuse the file.
-    parse(&String::from_utf8_lossy(&bytes), &shown)
+    parse(&String::from_utf8_lossy(&bytes), &shown).map_err(FileError::Malformed)
 }
 
 /// Append `values` as `LABEL=v;v;...` lines, 10 a line, CRLF.
@@ -693,7 +695,12 @@ mod tests {
         let back = read(&path).unwrap();
         assert_eq!(back.traces[0].n(), 512);
         let missing = read(&dir.join("missing.oma")).unwrap_err();
-        assert!(missing.contains("missing.oma: cannot read"), "{missing}");
+        assert!(
+            matches!(&missing, FileError::Unreadable { source, .. } if source.kind() == std::io::ErrorKind::NotFound)
+        );
+        assert!(missing.to_string().contains("missing.oma: cannot read"), "{missing}");
+        std::fs::write(dir.join("bad.oma"), "JOB=1\r\nTRCFMT=9;0;E;R;F\r\n").unwrap();
+        assert!(matches!(read(&dir.join("bad.oma")), Err(FileError::Malformed(_))));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

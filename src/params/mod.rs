@@ -193,6 +193,26 @@ impl Default for Parameters {
     }
 }
 
+/// Why a parameter was not set ([`Parameters::set`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ParamError {
+    /// No parameter of this node has that name.
+    #[error("'{0}' is not a parameter of this node")]
+    Unknown(String),
+    /// A value of another type than the parameter's.
+    #[error("expected {expected}, got {got}")]
+    WrongType {
+        /// The parameter's type, in words (`a double`).
+        expected: String,
+        /// The value given, with its type (`integer '3'`).
+        got: String,
+    },
+    /// A value of the right type that the parameter does not take (out of its range, not
+    /// one of its values, inconsistent with another parameter): why.
+    #[error("{0}")]
+    Invalid(String),
+}
+
 impl Parameters {
     /// Every parameter as a name and a value, in [`names::ALL`] order.
     pub fn to_list(&self) -> Vec<(String, ParamValue)> {
@@ -239,32 +259,32 @@ impl Parameters {
     }
 
     /// Set one parameter, checking its type and its declaration's bound
-    /// ([`spec::SPECS`]); the message says what is wrong. Unknown names are an error
+    /// ([`spec::SPECS`]); the error says what is wrong. Unknown names are an error
     /// here; the caller decides whether to ignore them.
-    pub fn set(&mut self, name: &str, value: &ParamValue) -> Result<(), String> {
-        let spec = spec::spec(name).ok_or_else(|| format!("'{name}' is not a parameter of this node"))?;
+    pub fn set(&mut self, name: &str, value: &ParamValue) -> Result<(), ParamError> {
+        let spec = spec::spec(name).ok_or_else(|| ParamError::Unknown(name.to_string()))?;
         let mut next = self.clone();
+        let wrong = |expected: &str, v: &ParamValue| ParamError::WrongType {
+            expected: expected.to_string(),
+            got: format!("{} '{}'", v.type_name(), v),
+        };
         let double = |v: &ParamValue| {
-            v.as_f64()
-                .ok_or_else(|| format!("expected a double, got {} '{}'", v.type_name(), v))
-                .and_then(|x| spec.check_f64(x))
+            v.as_f64().ok_or_else(|| wrong("a double", v)).and_then(|x| spec.check_f64(x).map_err(ParamError::Invalid))
         };
         let integer = |v: &ParamValue| match v {
-            ParamValue::Integer(i) => spec.check_i64(*i),
-            v => Err(format!("expected an integer, got {} '{}'", v.type_name(), v)),
+            ParamValue::Integer(i) => spec.check_i64(*i).map_err(ParamError::Invalid),
+            v => Err(wrong("an integer", v)),
         };
         let boolean = |v: &ParamValue| match v {
             ParamValue::Bool(b) => Ok(*b),
-            v => Err(format!("expected a bool, got {} '{}'", v.type_name(), v)),
+            v => Err(wrong("a bool", v)),
         };
         let string = |v: &ParamValue| match v {
             ParamValue::String(s) => Ok(s.clone()),
-            v => Err(format!("expected a string, got {} '{}'", v.type_name(), v)),
+            v => Err(wrong("a string", v)),
         };
         // A string naming one of a few values: a wrong type is told with what they are.
-        let one_of = |v: &ParamValue| {
-            string(v).map_err(|_| format!("expected a string ({}), got {} '{}'", spec.constraints, v.type_name(), v))
-        };
+        let one_of = |v: &ParamValue| string(v).map_err(|_| wrong(&format!("a string ({})", spec.constraints), v));
         // `[]` (what `ros2 param dump` writes for it) has no element type: any empty list
         // is the empty covariance; whole numbers are doubles, as for a double parameter.
         let covariance = |v: &ParamValue| {
@@ -272,9 +292,9 @@ impl Parameters {
                 v if v.is_empty_array() => return Ok(Vec::new()),
                 ParamValue::IntegerArray(c) => c.iter().map(|&i| i as f64).collect(),
                 ParamValue::DoubleArray(c) => c.clone(),
-                v => return Err(format!("expected a double array, got {} '{}'", v.type_name(), v)),
+                v => return Err(wrong("a double array", v)),
             };
-            covariance_from_values(&c).map(|_| c)
+            covariance_from_values(&c).map(|_| c).map_err(ParamError::Invalid)
         };
         match name {
             names::ALPHA0 => next.calibration.alpha0 = double(value)?,
@@ -290,7 +310,7 @@ impl Parameters {
             names::RING_DIAMETER => next.ring_diameter = double(value)?,
             names::DIAMETER_UNCERTAINTY => next.ring_diameter_uncertainty = double(value)?,
             names::METERS_PER_COUNT => next.meters_per_count = double(value)?,
-            names::MODEL => next.model = one_of(value)?.parse()?,
+            names::MODEL => next.model = one_of(value)?.parse().map_err(ParamError::Invalid)?,
             names::OUTPUT_FRAME_ID => next.output_frame_id = string(value)?,
             names::RESAMPLE_POINTS => next.resample_points = integer(value)? as usize,
             names::PARAMS_FILE => next.params_file = string(value)?,
@@ -302,12 +322,12 @@ impl Parameters {
             names::HARDWARE_ID => next.hardware_id = string(value)?,
             names::SCAN_TIMEOUT => next.scan_timeout = double(value)?,
             names::INTROSPECTION if *value == ParamValue::Bool(false) => next.introspection = Introspection::Off,
-            names::INTROSPECTION => next.introspection = one_of(value)?.parse()?,
+            names::INTROSPECTION => next.introspection = one_of(value)?.parse().map_err(ParamError::Invalid)?,
             names::BOND_HEARTBEAT_PERIOD => next.bond_heartbeat_period = double(value)?,
             _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
-            next.plate.validate()?;
+            next.plate.validate().map_err(ParamError::Invalid)?;
         }
         *self = next;
         Ok(())
@@ -325,7 +345,8 @@ impl Parameters {
                 unknown.push(e.name.clone());
                 continue;
             }
-            next.set(&e.name, &e.value).map_err(|m| ParamsFileError::new(path, Some(e.line), Some(&e.name), m))?;
+            next.set(&e.name, &e.value)
+                .map_err(|m| ParamsFileError::new(path, Some(e.line), Some(&e.name), m.to_string()))?;
         }
         *self = next;
         Ok(unknown)
@@ -397,7 +418,7 @@ mod tests {
             assert_eq!(p.introspection, state, "{value:?}");
         }
         let e = p.set(names::INTROSPECTION, &ParamValue::String("loud".into())).unwrap_err();
-        assert_eq!(e, "'loud' is not one of: off (or disabled), metadata, contents");
+        assert_eq!(e.to_string(), "'loud' is not one of: off (or disabled), metadata, contents");
         assert!(p.set(names::INTROSPECTION, &ParamValue::Bool(true)).is_err());
         assert_eq!(p.introspection, Introspection::Off);
     }
@@ -406,25 +427,46 @@ mod tests {
     fn validation_names_the_problem() {
         let mut p = Parameters::default();
         assert_eq!(
-            p.set("plate.side", &ParamValue::Double(-0.045)).unwrap_err(),
+            p.set("plate.side", &ParamValue::Double(-0.045)).unwrap_err().to_string(),
             "must be positive (greater than 0), got -0.045 (side of the square calibration plate (m))"
         );
         assert_eq!(
-            p.set("model", &ParamValue::String("magic".into())).unwrap_err(),
+            p.set("model", &ParamValue::String("magic".into())).unwrap_err().to_string(),
             "unknown model 'magic': expected 'full', 'paper', 'full_scale', 'full_tip' or 'full_scale_tip'"
         );
-        assert!(p.set("resample_points", &ParamValue::Integer(-1)).unwrap_err().contains("between 0"));
+        // The kinds of refusal, told apart.
+        assert_eq!(p.set("nope", &ParamValue::Bool(true)), Err(ParamError::Unknown("nope".into())));
+        assert_eq!(
+            p.set("calibration.valid", &ParamValue::Integer(1)),
+            Err(ParamError::WrongType { expected: "a bool".into(), got: "integer '1'".into() })
+        );
+        assert!(matches!(p.set("calibration.scale", &ParamValue::Double(0.0)), Err(ParamError::Invalid(_))));
+        assert!(p.set("resample_points", &ParamValue::Integer(-1)).unwrap_err().to_string().contains("between 0"));
         assert!(p.set("plate.corner_radius", &ParamValue::Double(0.03)).is_err());
-        assert!(p.set("calibration.valid", &ParamValue::Integer(1)).unwrap_err().contains("expected a bool"));
-        assert!(p.set("calibration.scale", &ParamValue::Double(0.0)).unwrap_err().contains("between 0.5 and 2"));
-        assert!(p.set("calibration.max_age_days", &ParamValue::Double(-1.0)).unwrap_err().contains("at least 0"));
-        assert!(p.set("calibration.drift_warn_sigma", &ParamValue::Double(f64::NAN)).unwrap_err().contains("finite"));
-        assert!(p.set("history_file", &ParamValue::Integer(3)).unwrap_err().contains("expected a string"));
+        assert!(
+            p.set("calibration.valid", &ParamValue::Integer(1)).unwrap_err().to_string().contains("expected a bool")
+        );
+        assert!(
+            p.set("calibration.scale", &ParamValue::Double(0.0)).unwrap_err().to_string().contains("between 0.5 and 2")
+        );
+        assert!(
+            p.set("calibration.max_age_days", &ParamValue::Double(-1.0))
+                .unwrap_err()
+                .to_string()
+                .contains("at least 0")
+        );
+        assert!(
+            p.set("calibration.drift_warn_sigma", &ParamValue::Double(f64::NAN))
+                .unwrap_err()
+                .to_string()
+                .contains("finite")
+        );
+        assert!(p.set("history_file", &ParamValue::Integer(3)).unwrap_err().to_string().contains("expected a string"));
         let cov = |v: Vec<f64>| p.clone().set("calibration.covariance", &ParamValue::DoubleArray(v));
-        assert!(cov(vec![1e-12; 24]).unwrap_err().contains("expected 25 finite values"));
+        assert!(cov(vec![1e-12; 24]).unwrap_err().to_string().contains("expected 25 finite values"));
         let mut asymmetric = vec![0.0; 25];
         (asymmetric[0], asymmetric[1], asymmetric[6]) = (1e-8, 1e-9, 1e-8);
-        assert!(cov(asymmetric).unwrap_err().contains("symmetric"));
+        assert!(cov(asymmetric).unwrap_err().to_string().contains("symmetric"));
         let mut negative = vec![0.0; 25];
         negative[6] = -1e-12;
         assert!(cov(negative).is_err());

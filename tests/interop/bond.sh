@@ -27,7 +27,7 @@
 #       key                                              what it was built from
 #
 # KEY: the sha256 of the tarball's sha256, the venv's lock file (kilted:
-# requirements.lock, jazzy: requirements-jazzy.lock), this script and the distribution.
+# requirements.lock, jazzy: requirements-jazzy.lock), the recipe (RECIPE below) and the distribution.
 # A fresh build takes well under a minute on 2 cores; a rerun with all of those unchanged
 # reuses it (a fraction of a second); `--force` rebuilds. The build runs in a temporary
 # directory beside the cache and is moved into place when complete: an interrupted build
@@ -47,17 +47,7 @@ ROOT=$(cd "$HERE/../.." && pwd)
 CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
 JOBS=${ROS_SETUP_JOBS:-2}
 
-FORCE=0
-DISTROS=()
-for a in "$@"; do
-    case "$a" in
-        --force) FORCE=1 ;;
-        kilted|jazzy) DISTROS+=("$a") ;;
-        -h|--help) sed -n '2,40p' "$0"; exit 0 ;;
-        *) echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2 ;;
-    esac
-done
-[ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
+parse_peer_args 40 "$@"
 T_START=$(now_ms)
 # The source, checked against ros2-sources.lock (downloaded by its hash if absent).
 TARBALL=$(python3 "$ROOT/scripts/ros2_sources.py" path bond_core) || exit
@@ -66,7 +56,8 @@ TARBALL=$(python3 "$ROOT/scripts/ros2_sources.py" path bond_core) || exit
 clean_ros_env
 
 TAR_SHA=$(sha256sum "$TARBALL" | cut -c1-64)
-SELF_SHA=$(sha256sum "$0" | cut -c1-64)
+# Bump when the way it is built changes (the cache key says which recipe built it).
+RECIPE=1
 
 failed=()
 first=1
@@ -84,7 +75,7 @@ for d in "${DISTROS[@]}"; do
         kilted) LOCK=$HERE/requirements.lock ;;
         *) LOCK=$HERE/requirements-$d.lock ;;
     esac
-    KEY_TEXT="tarball=$TAR_SHA distro=$d lock=$(sha256sum "$LOCK" | cut -c1-64) script=$SELF_SHA"
+    KEY_TEXT="tarball=$TAR_SHA distro=$d lock=$(sha256sum "$LOCK" | cut -c1-64) recipe=$RECIPE"
     KEY=$(printf '%s' "$KEY_TEXT" | sha256sum | cut -c1-16)
     CACHE=$CACHE_TOP/bond-$KEY-$d
     P=$CACHE/install

@@ -45,17 +45,7 @@ JOBS=${ROS_SETUP_JOBS:-2}
 # Bump when the way it is built changes.
 RECIPE=1
 
-FORCE=0
-DISTROS=()
-for a in "$@"; do
-    case "$a" in
-        --force) FORCE=1 ;;
-        kilted|jazzy) DISTROS+=("$a") ;;
-        -h|--help) sed -n '2,37p' "$0"; exit 0 ;;
-        *) echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2 ;;
-    esac
-done
-[ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
+parse_peer_args 37 "$@"
 # The source, checked against ros2-sources.lock (downloaded by its hash if absent).
 TARBALL=$(python3 "$ROOT/scripts/ros2_sources.py" path rmw_cyclonedds) || exit 1
 

@@ -33,3 +33,23 @@ apt_install_missing() {
     fi
     echo "$who: apt-get install ${missing[*]} $(took "$t0")"
 }
+
+# parse_peer_args HELP_END "$@": the arguments of a script that builds or installs a stock
+# peer for distributions, `[--force] kilted|jazzy...`: sets FORCE (1 with --force, else 0)
+# and the array DISTROS; --help prints the script's lines 2..HELP_END (its header); anything
+# else, or no distribution, is a usage error (exit 2).
+parse_peer_args() {
+    local help_end=$1 a
+    shift
+    FORCE=0
+    DISTROS=()
+    for a in "$@"; do
+        case "$a" in
+            --force) FORCE=1 ;;
+            kilted|jazzy) DISTROS+=("$a") ;;
+            -h|--help) sed -n "2,${help_end}p" "$0"; exit 0 ;;
+            *) echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2 ;;
+        esac
+    done
+    [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
+}

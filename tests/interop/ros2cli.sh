@@ -43,17 +43,7 @@ PY_PKGS=(
     launch_ros/launch_ros launch_ros/ros2launch
 )
 
-FORCE=0
-DISTROS=()
-for a in "$@"; do
-    case "$a" in
-        --force) FORCE=1 ;;
-        kilted|jazzy) DISTROS+=("$a") ;;
-        -h|--help) sed -n '2,27p' "$0"; exit 0 ;;
-        *) echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2 ;;
-    esac
-done
-[ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
+parse_peer_args 27 "$@"
 # The sources, checked against ros2-sources.lock (downloaded by their hashes if absent).
 paths=$(python3 "$ROOT/scripts/ros2_sources.py" path "${SOURCES[@]}") || exit 1
 mapfile -t TARBALLS <<<"$paths"

@@ -19,17 +19,7 @@ HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 REQ=$HERE/requirements-sros2.txt
 
-FORCE=0
-DISTROS=()
-for a in "$@"; do
-    case "$a" in
-        --force) FORCE=1 ;;
-        kilted|jazzy) DISTROS+=("$a") ;;
-        -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
-        *) echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2 ;;
-    esac
-done
-[ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
+parse_peer_args 14 "$@"
 # The source, checked against ros2-sources.lock (downloaded by its hash if absent).
 TARBALL=$(python3 "$ROOT/scripts/ros2_sources.py" path sros2) || exit 1
 

@@ -403,7 +403,6 @@ def test_bond(peer):
     nav2_lifecycle_manager keeps it with each node it manages: id the node's name, topic
     `bond` in the manager's namespace, heartbeat 0.1 s, timeout 4 s, formed within half the
     timeout of the activation."""
-    from rclpy.duration import Duration  # noqa: F401  (bondpy needs rclpy's)
     try:
         from bondpy.bondpy import Bond
     except ImportError:
@@ -434,10 +433,15 @@ def test_bond(peer):
         req = ChangeState.Request(transition=Transition(id=tid))
         assert peer.retry(lambda: change.call_async(req), "change_state").success, tid
 
-    node = h.NodeProcess("bond", ["-r", f"__ns:={ns}", "-r", f"__node:={name}", "-p", "managed:=true"])
-    try:
+    def managed(label):
+        """The managed node, started, and a client of its change_state, ready."""
+        node = h.NodeProcess(label, ["-r", f"__ns:={ns}", "-r", f"__node:={name}", "-p", "managed:=true"])
         change = peer.node.create_client(ChangeState, f"{fqn}/change_state")
         peer.spin_until(change.service_is_ready, 20, f"{fqn}/change_state")
+        return node, change
+
+    node, change = managed("bond")
+    try:
         # Not active yet: no heartbeat, the bond does not form.
         early = manager_bond()
         transition(change, Transition.TRANSITION_CONFIGURE)
@@ -471,10 +475,8 @@ def test_bond(peer):
         if node in h.RUNNING:
             node.stop()
     # A node killed without a word: the manager's heartbeat timeout notices it.
-    node = h.NodeProcess("bond_killed", ["-r", f"__ns:={ns}", "-r", f"__node:={name}", "-p", "managed:=true"])
+    node, change = managed("bond_killed")
     try:
-        change = peer.node.create_client(ChangeState, f"{fqn}/change_state")
-        peer.spin_until(change.service_is_ready, 20, f"{fqn}/change_state")
         last = manager_bond()
         transition(change, Transition.TRANSITION_CONFIGURE)
         transition(change, Transition.TRANSITION_ACTIVATE)
