@@ -482,12 +482,20 @@ def test_lossy(envs, rmw, loss, variant=""):
     if env is None:
         return f"skipped: no {rmw}_env.sh (tests/interop/{rmw}.sh builds it)"
     label = f"{rmw} {loss} %{VARIANTS[variant]}"
-    stock = run_scenario(env, "stock", loss, variant)
-    print(f"  {label}: stock rclpy node: {describe(stock)}", flush=True)
+    # The stock node in the node's place is the reference, not the subject: one that never
+    # gets a first contour through (Fast DDS' 64 kB datagrams, 44 frames each at MTU 1500,
+    # under 10 % frame loss) is said so and counted as having lost every scan.
+    try:
+        stock = run_scenario(env, "stock", loss, variant)
+        stock_text = describe(stock)
+    except AssertionError as e:
+        stock = None
+        stock_text = "never got through: " + str(e).strip().splitlines()[-1]
+    print(f"  {label}: stock rclpy node: {stock_text}", flush=True)
     node = run_scenario(env, "node", loss, variant)
     print(f"  {label}: tracer_calib_node: {describe(node)}", flush=True)
     lost_node = node["scans"] - node["contours"]
-    lost_stock = stock["scans"] - stock["contours"]
+    lost_stock = node["scans"] if stock is None else stock["scans"] - stock["contours"]
     allowed = 0 if loss <= 10 else lost_stock
     unanswered = node["calls"].count(None) + node["param_calls"].count(None)
     said = []
@@ -500,7 +508,7 @@ def test_lossy(envs, rmw, loss, variant=""):
         )
         said.append(f"OPEN: {unanswered} call(s) unanswered within {CALL_WAIT} s")
     assert node["latched_ms"] is not None, f"the latched calibration did not reach a late subscriber in {WAIT} s"
-    return "; ".join(said + [f"node {describe(node)} | stock {describe(stock)}"])
+    return "; ".join(said + [f"node {describe(node)} | stock {stock_text}"])
 
 
 def test_ten_cells(envs, rmw, loss):
