@@ -30,10 +30,10 @@ pub(super) fn period(params: &crate::params::Parameters) -> Option<Duration> {
 /// How often the loop looks at the lifecycle state when the bond has nothing due sooner.
 const LOOK: Duration = Duration::from_millis(100);
 
-/// Keeps the node's end of the bond `id` while the node is active. Never ends (unless the
-/// node keeps no bond: at once).
+/// Keeps the node's end of the bond `id` while the node is active. Never ends (a node
+/// without the bond's endpoints waits for good: the loop that ends first ends the node).
 pub(super) async fn run(l: &impl LifecycleWire, shared: &Shared, id: &str, period: Duration) {
-    let Some(statuses) = l.bond_statuses() else { return };
+    let Some(statuses) = l.bond_statuses() else { return futures::future::pending().await };
     let mut statuses = pin!(statuses.fuse());
     loop {
         let wake = {
@@ -155,9 +155,5 @@ fn status_msg(shared: &Shared, b: &Bond, active: bool) -> BondStatus {
 
 /// A random (version 4) UUID, as bondcpp's and bondpy's instance ids.
 fn instance_id() -> String {
-    let mut b: [u8; 16] = rand::random();
-    b[6] = (b[6] & 0x0f) | 0x40;
-    b[8] = (b[8] & 0x3f) | 0x80;
-    let hex: String = b.iter().map(|x| format!("{x:02x}")).collect();
-    format!("{}-{}-{}-{}-{}", &hex[0..8], &hex[8..12], &hex[12..16], &hex[16..20], &hex[20..32])
+    uuid::Uuid::new_v4().to_string()
 }

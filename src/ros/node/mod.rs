@@ -168,7 +168,8 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
             info!("removed {removed} temporary file(s) a killed writer left beside {}", params.params_file);
         }
     }
-    let endpoints = Endpoints::resolve(&args, &identity, &mut qos, bond::period(&params).is_some())?;
+    let bond_period = bond::period(&params);
+    let endpoints = Endpoints::resolve(&args, &identity, &mut qos, bond_period.is_some())?;
     let mut initial = initial_state(&fqn, &params);
     initial.extra_params = qos.to_list();
     initial.driver.topic = endpoints.raw_scan.0.to_string();
@@ -183,7 +184,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
         clock: Arc::new(OnceLock::new()),
         bond: Mutex::new(None),
     };
-    let bond = bond::period(&params).map(|period| (identity.name.as_str(), period));
+    let bond = bond_period.map(|period| (identity.name.as_str(), period));
     let options = parameters::options(&params, &qos, &shared);
     match middleware {
         Middleware::Dds => {
