@@ -142,8 +142,7 @@ for d in "${DISTROS[@]}"; do
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/bond_env.sh
-    tmp=$(mktemp "$env_sh.XXXXXX")
-    cat >"$tmp" <<EOF
+    write_if_changed "$env_sh" <<EOF
 # Written by tests/interop/bond.sh -- do not edit. Source it AFTER target/ros/$d/env.sh:
 #   . target/ros/$d/env.sh; . target/ros/$d/bond_env.sh
 # The stock bond_core (ros/bond_core e6d0fc2c, 4.0.0): the \`bond\` messages (bond/msg/Status,
@@ -160,7 +159,6 @@ case ":\${AMENT_PREFIX_PATH:-}:" in *":\$_p:"*) ;;
     *) export AMENT_PREFIX_PATH="\$_p\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}" ;; esac
 unset _p
 EOF
-    if [ -f "$env_sh" ] && cmp -s "$tmp" "$env_sh"; then rm -f "$tmp"; else mv -f "$tmp" "$env_sh"; fi
     # The install where the Rust tests look for rosidl's type descriptions
     # (src/interfaces/type_hash.rs, hashes_equal_rosidls): target/ros/DISTRO/bond_install.
     ln -sfn "$CACHE/install" "$ROS_DIR/bond_install"

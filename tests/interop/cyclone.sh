@@ -125,8 +125,7 @@ for d in "${DISTROS[@]}"; do
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/cyclone_env.sh
-    tmp=$(mktemp "$env_sh.XXXXXX")
-    cat >"$tmp" <<EOF
+    write_if_changed "$env_sh" <<EOF
 # Written by tests/interop/cyclone.sh -- do not edit. Source it AFTER target/ros/$d/env.sh:
 #   . target/ros/$d/env.sh; . target/ros/$d/cyclone_env.sh
 # Puts this shell's ROS 2 processes on Cyclone DDS (rmw_cyclonedds_cpp, Debian's Cyclone DDS
@@ -144,7 +143,6 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export CYCLONEDDS_URI='<CycloneDDS><Domain><General><Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces></General></Domain></CycloneDDS>'
 unset FASTDDS_DEFAULT_PROFILES_FILE
 EOF
-    if [ -f "$env_sh" ] && cmp -s "$tmp" "$env_sh"; then rm -f "$tmp"; else mv -f "$tmp" "$env_sh"; fi
 
     # Check: an rclpy process on it says it is on Cyclone (no participant is created).
     if ! out=$(. "$ROS_DIR/env.sh" && . "$env_sh" && timeout -s KILL 60 python -c '

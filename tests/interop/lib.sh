@@ -53,3 +53,12 @@ parse_peer_args() {
     done
     [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
 }
+
+# write_if_changed FILE: FILE's new text from stdin, written (through a temporary file beside
+# it, renamed) only when it differs from what FILE holds, so that a rerun leaves it untouched.
+write_if_changed() {
+    local file=$1 tmp
+    tmp=$(mktemp "$file.XXXXXX")
+    cat >"$tmp"
+    if [ -f "$file" ] && cmp -s "$tmp" "$file"; then rm -f "$tmp"; else mv -f "$tmp" "$file"; fi
+}

@@ -175,8 +175,7 @@ for d in "${DISTROS[@]}"; do
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/zenoh_env.sh
-    tmp=$(mktemp "$env_sh.XXXXXX")
-    cat >"$tmp" <<EOF
+    write_if_changed "$env_sh" <<EOF
 # Written by tests/interop/zenoh.sh -- do not edit. Source it AFTER target/ros/$d/env.sh:
 #   . target/ros/$d/env.sh; . target/ros/$d/zenoh_env.sh
 # Puts this shell's ROS 2 processes on Zenoh (rmw_zenoh_cpp 0.2.10, zenoh-c 1.8.0) instead of
@@ -196,12 +195,10 @@ export RMW_IMPLEMENTATION=rmw_zenoh_cpp
 export AMENT_PREFIX_PATH="\$TRACER_ZENOH_DIR/install\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}"
 unset FASTDDS_DEFAULT_PROFILES_FILE
 EOF
-    if [ -f "$env_sh" ] && cmp -s "$tmp" "$env_sh"; then rm -f "$tmp"; else mv -f "$tmp" "$env_sh"; fi
     # The router command (rewritten only when its text changes).
     mkdir -p "$ROS_DIR/zenoh_bin"
     router_sh=$ROS_DIR/zenoh_bin/tracer_zenoh_router
-    tmp=$(mktemp "$router_sh.XXXXXX")
-    cat >"$tmp" <<EOF
+    write_if_changed "$router_sh" <<EOF
 #!/bin/sh
 # Written by tests/interop/zenoh.sh -- do not edit. On PATH after target/ros/$d/zenoh_env.sh.
 # rmw_zenohd (the router of rmw_zenoh_cpp 0.2.10) in the foreground, listening on
@@ -211,8 +208,7 @@ ZENOH_CONFIG_OVERRIDE='listen/endpoints=["tcp/127.0.0.1:7447"]'\${ZENOH_CONFIG_O
 export ZENOH_CONFIG_OVERRIDE
 exec '$CACHE/install/lib/rmw_zenoh_cpp/rmw_zenohd' "\$@"
 EOF
-    chmod 755 "$tmp"
-    if [ -f "$router_sh" ] && cmp -s "$tmp" "$router_sh"; then rm -f "$tmp"; else mv -f "$tmp" "$router_sh"; fi
+    chmod 755 "$router_sh"
 
     # Check (after a build only; a rerun trusts the key): an rclpy process on it says it is
     # on rmw_zenoh_cpp (no session is opened).
