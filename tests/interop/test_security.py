@@ -693,12 +693,21 @@ def each_in_its_own_process(names):
     the process they run in (SIGSEGV in the timer of a handshake, as participants with
     their handshakes come and go: eclipse-cyclonedds/cyclonedds#1548, more often on a
     loaded machine). A test whose process crashed so is said, and run once more; the node
-    runs in its own process in every test, and is not what crashed. Returns how many
-    failed."""
+    runs in its own process in every test, and is not what crashed. Each test process leads
+    a process group of its own, and what it started and left behind (a crash runs no
+    `finally`: its node, a foreign peer still announcing itself) is killed with the group
+    before the next test starts. Returns how many failed."""
     failed = 0
     for name in names:
         for attempt in (1, 2):
-            rc = subprocess.run([sys.executable, os.path.abspath(__file__), name]).returncode
+            proc = subprocess.Popen([sys.executable, os.path.abspath(__file__), name], start_new_session=True)
+            try:
+                rc = proc.wait()
+            finally:
+                try:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
             if rc != -signal.SIGSEGV:
                 break
             again = ": run again" if attempt == 1 else ""
