@@ -170,12 +170,10 @@ for d in "${DISTROS[@]}"; do
         plog=$ROS_DIR/logs/rosbag2-pip.log
         pwork=$(mktemp -d)
         tar -xzf "${TARBALL[rosbag2]}" -C "$pwork" rosbag2/ros2bag
-        if ! ( export PATH="$VENV/bin:$PATH" _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
-               set -x
-               pip install --disable-pip-version-check --no-input -r "$REQ" || exit
-               pip install --disable-pip-version-check --no-input --no-deps --no-build-isolation \
-                   "$pwork/rosbag2/ros2bag" || exit
-             ) >"$plog" 2>&1; then
+        pip=("$VENV/bin/python" -m pip install --disable-pip-version-check --no-input)
+        if ! { _ROS_WHEELS_BOOTSTRAP_COMPLETE=1 "${pip[@]}" -r "$REQ" \
+               && _ROS_WHEELS_BOOTSTRAP_COMPLETE=1 "${pip[@]}" --no-deps --no-build-isolation "$pwork/rosbag2/ros2bag"
+             } >"$plog" 2>&1; then
             rm -rf "$pwork"
             exec 9>&-
             echo "rosbag2.sh: $d: pip install into $VENV failed; last lines of $plog:" >&2
@@ -207,8 +205,10 @@ for d in "${DISTROS[@]}"; do
         # The copy computes its prefix as the venv, as the original does from its place.
         overlay=$work/fastrtps-cmake
         cp -r "$VENV/share/fastrtps/cmake" "$overlay"
+        # shellcheck disable=SC2016
         sed -i 's#get_filename_component(PACKAGE_PREFIX_DIR "${CMAKE_CURRENT_LIST_DIR}/../../../" ABSOLUTE)#set(PACKAGE_PREFIX_DIR "'"$VENV"'")#' \
             "$overlay/fastrtps-config.cmake"
+        # shellcheck disable=SC2016
         sed -i -e 's#get_filename_component(_IMPORT_PREFIX "${CMAKE_CURRENT_LIST_FILE}" PATH)#set(_IMPORT_PREFIX "'"$VENV"'/share/fastrtps/cmake")#' \
             -e 's#/usr/lib64/libtinyxml2.so;##' "$overlay"/*-targets.cmake
         # shared_queues_vendor downloads readerwriterqueue's zip (URL + MD5): the tarball instead.
