@@ -22,9 +22,11 @@ package (raw CDR, decoded by rclpy's generated types). Prints one line per test.
   time: a contour for every scan, stamped with the scan's recorded stamp; the node's
   /diagnostics and the calibration a /calibrate call makes stamped within the bag's time,
   not the wall clock's.
-- record_service_events: the node with `calibrate.introspection:=contents`; `ros2 bag record
-  --services /calibrate` holds each call's REQUEST_RECEIVED and RESPONSE_SENT events with
-  the request and the response; `ros2 bag info` lists the service.
+- record_service_events_mcap, record_service_events_sqlite3: the node with
+  `calibrate.introspection:=contents`; `ros2 bag record --services /calibrate` (MCAP) and
+  `--all-services` (sqlite3) hold each call's REQUEST_RECEIVED and RESPONSE_SENT events with
+  the request and the response, paired by client and sequence number, and nothing else;
+  `ros2 bag info` lists the service.
 """
 
 import importlib.util
@@ -394,6 +396,7 @@ def test_play_clock(peer):
     while time.time() < bag_end + 3:
         time.sleep(0.1)
     node = h.NodeProcess("play_clock", ["-r", "__node:=played", "-p", "use_sim_time:=true"])
+    play = None
     try:
         diags = peer.subscribe(DiagnosticArray, "/diagnostics")
         contours = peer.subscribe(Contour, "/contour")
@@ -416,6 +419,9 @@ def test_play_clock(peer):
         cal_t = seconds(next(c for c in cals if c.valid).header.stamp)
     finally:
         node.stop()
+        if play and play.proc.poll() is None:
+            os.killpg(play.proc.pid, signal.SIGKILL)
+            play.proc.wait()
     # The bag's /clock ran from its first message to its last; the play started >= 3 s later.
     assert bag_start - 0.5 <= cal_t <= bag_end + 0.5 < t_play, \
         f"calibration stamped {cal_t:.3f}, the bag's time {bag_start:.3f}..{bag_end:.3f}, played at {t_play:.3f}"
@@ -427,19 +433,21 @@ def test_play_clock(peer):
             f"wall clock {t_play - bag_end:.1f} s past the bag")
 
 
-def test_record_service_events(peer):
-    """`ros2 bag record --services /calibrate` with the node's service introspection on."""
-    bag = os.path.join(h.WORK, "service_events")
-    node = h.NodeProcess("service_events", ["-r", "__node:=introspected", "-p", "calibrate.introspection:=contents"])
+def test_record_service_events(peer, storage, select):
+    """`ros2 bag record -s STORAGE SELECT` (`--services /calibrate`, `--all-services`) with the
+    node's service introspection on."""
+    label = f"service_events_{storage}"
+    bag = os.path.join(h.WORK, label)
+    node = h.NodeProcess(label, ["-r", f"__node:=introspected_{storage}", "-p", "calibrate.introspection:=contents"])
     rec = None
     try:
         diags = peer.subscribe(DiagnosticArray, "/diagnostics")
-        wait_diagnostics(peer, diags, "/introspected")
-        rec = Bag("service_events_bag", ["record", "-s", "mcap", "-o", bag, "--services", "/calibrate"])
+        wait_diagnostics(peer, diags, f"/introspected_{storage}")
+        rec = Bag(label + "_bag", ["record", "-s", storage, "-o", bag, *select])
         rec.wait_subscribed(peer, ["/calibrate/_service_event"])
         pub = peer.publisher("/raw_scan")
         contours = peer.subscribe(Contour, "/contour")
-        plate = h.simulate("events_plate", "plate", seed=61)
+        plate = h.simulate(f"{label}_plate", "plate", seed=61)
         peer.send_scan(pub, h.raw_scan(50, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
         ok = peer.call("/calibrate", Calibrate.Request(scan_id=50))
         h.assert_fit(ok, 50)
@@ -454,7 +462,7 @@ def test_record_service_events(peer):
     # Not rosbags: the stock recorder (Jazzy) finds no definition for a service whose .srv
     # names no message type (Calibrate's fields are all primitive), and writes the MCAP
     # schema with encoding "unknown", which rosbags refuses; rosbag2 reads its own bag.
-    msgs, kinds = read_bag_rosbag2(bag, "mcap")
+    msgs, kinds = read_bag_rosbag2(bag, storage)
     events = [m for _, m in msgs.get("/calibrate/_service_event", [])]
     assert kinds.get("/calibrate/_service_event") == "tracer_calib_msgs/srv/Calibrate_Event", kinds
     received = [e for e in events if e.info.event_type == ServiceEventInfo.REQUEST_RECEIVED]
@@ -473,7 +481,8 @@ def test_record_service_events(peer):
     _, total, _, services, text = bag_info(bag)
     assert services.get("/calibrate") == ("tracer_calib_msgs/srv/Calibrate", len(events)), \
         f"ros2 bag info's services: {services}:\n{text}"
-    return (f"{len(events)} events ({len(received)} requests, {len(sent)} responses) of /calibrate; "
+    assert set(msgs) == {"/calibrate/_service_event"}, f"{' '.join(select)} recorded {sorted(msgs)}"
+    return (f"{storage}, {' '.join(select)}: {len(events)} events ({len(received)} requests, {len(sent)} responses) of /calibrate; "
             f"ros2 bag info: Service /calibrate, {services['/calibrate'][1]} events")
 
 
@@ -492,7 +501,9 @@ def main():
         ("calibrate_recorded_mcap", needs_bag(lambda: test_calibrate_recorded(peer, "mcap"))),
         ("calibrate_recorded_sqlite3", needs_bag(lambda: test_calibrate_recorded(peer, "sqlite3"))),
         ("play_clock", needs_bag(lambda: test_play_clock(peer))),
-        ("record_service_events", needs_bag(lambda: test_record_service_events(peer))),
+        ("record_service_events_mcap",
+         needs_bag(lambda: test_record_service_events(peer, "mcap", ["--services", "/calibrate"]))),
+        ("record_service_events_sqlite3", needs_bag(lambda: test_record_service_events(peer, "sqlite3", ["--all-services"]))),
     ]
     h.run_tests_and_exit("test_rosbag2.py", tests, sys.argv[1:], "interop::rosbag2_", "rosbag2")
 
