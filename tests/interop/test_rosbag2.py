@@ -201,7 +201,8 @@ def check_info_matches(path, storage, msgs):
     for topic, lst in msgs.items():
         assert topic in topics and topics[topic][1] == len(lst), \
             f"{topic}: rosbags read {len(lst)}, ros2 bag info says {topics.get(topic)}:\n{text}"
-    assert total == sum(len(v) for v in msgs.values()), f"{total} messages in ros2 bag info, rosbags read {sum(len(v) for v in msgs.values())}"
+    n = sum(len(v) for v in msgs.values())
+    assert total == n, f"{total} messages in ros2 bag info, rosbags read {n}"
     return total
 
 
@@ -482,8 +483,8 @@ def test_record_service_events(peer, storage, select):
     assert services.get("/calibrate") == ("tracer_calib_msgs/srv/Calibrate", len(events)), \
         f"ros2 bag info's services: {services}:\n{text}"
     assert set(msgs) == {"/calibrate/_service_event"}, f"{' '.join(select)} recorded {sorted(msgs)}"
-    return (f"{storage}, {' '.join(select)}: {len(events)} events ({len(received)} requests, {len(sent)} responses) of /calibrate; "
-            f"ros2 bag info: Service /calibrate, {services['/calibrate'][1]} events")
+    return (f"{storage}, {' '.join(select)}: {len(events)} events ({len(received)} requests, "
+            f"{len(sent)} responses) of /calibrate; ros2 bag info: Service /calibrate, {services['/calibrate'][1]} events")
 
 
 def main():
@@ -503,7 +504,8 @@ def main():
         ("play_clock", needs_bag(lambda: test_play_clock(peer))),
         ("record_service_events_mcap",
          needs_bag(lambda: test_record_service_events(peer, "mcap", ["--services", "/calibrate"]))),
-        ("record_service_events_sqlite3", needs_bag(lambda: test_record_service_events(peer, "sqlite3", ["--all-services"]))),
+        ("record_service_events_sqlite3",
+         needs_bag(lambda: test_record_service_events(peer, "sqlite3", ["--all-services"]))),
     ]
     h.run_tests_and_exit("test_rosbag2.py", tests, sys.argv[1:], "interop::rosbag2_", "rosbag2")
 
