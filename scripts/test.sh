@@ -39,7 +39,7 @@ part "cargo test build" cargo test --release --locked --features security --no-r
 # The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags
 # to read the bags we write. Needs the package registries, so outside the namespace.
 # The stock ros2 bag (rosbag2.sh, Jazzy; after the ros2 CLI, which ros2bag extends): built
-# from source here, ~12 min the first time, cached outside the clone.
+# from source here, 9-12 min the first time, cached outside the clone.
 part "ROS setup (kilted, jazzy)" bash -c 'tests/interop/setup.sh && tests/interop/bond.sh kilted jazzy \
     && tests/interop/ros2cli.sh jazzy && tests/interop/rosbag2.sh jazzy'
 # --include-ignored: a plain `cargo test` (a Rust toolchain alone) ignores, saying why, the

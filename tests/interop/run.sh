@@ -56,7 +56,7 @@
 # router, in a private network namespace.
 # (2e, Jazzy; rosbag2 or rosbag2_NAME, e.g. rosbag2_record_mcap) tests/interop/rosbag2.sh
 # builds the stock `ros2 bag` (rosbag2 from ../shared/ros2-src/, cached outside the clone;
-# ~12 min the first time, well under a second after), and test_rosbag2.py runs `ros2 bag
+# 9-12 min the first time, well under a second after), and test_rosbag2.py runs `ros2 bag
 # record` (MCAP, sqlite3, service events), `info` and `play --clock` against the node and
 # `tracer_calib calibrate`/`correct` on what it recorded, peers on Fast DDS, in a private
 # network namespace.
