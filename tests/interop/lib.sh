@@ -1,5 +1,5 @@
 # Sourced by the interop scripts (run.sh, setup.sh, workspace.sh, ros2cli.sh, cyclone.sh,
-# sros2.sh, zenoh.sh): what each of them does the same way.
+# sros2.sh, zenoh.sh, bond.sh, rosbag2.sh): what each of them does the same way.
 
 # Milliseconds since the epoch; `took T0`: the time since T0 as "12.3s".
 now_ms() { echo $(( $(date +%s%N) / 1000000 )); }

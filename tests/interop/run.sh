@@ -54,6 +54,12 @@
 # time, 0.1 s after), and test_zenoh.py runs the node on Zenoh (RMW_IMPLEMENTATION=
 # rmw_zenoh_cpp) with stock rclpy peers on rmw_zenoh_cpp and the stock ros2 CLI through the
 # router, in a private network namespace.
+# (2e, Jazzy; rosbag2 or rosbag2_NAME, e.g. rosbag2_record_mcap) tests/interop/rosbag2.sh
+# builds the stock `ros2 bag` (rosbag2 from ../shared/ros2-src/, cached outside the clone;
+# 9-12 min the first time, well under a second after), and test_rosbag2.py runs `ros2 bag
+# record` (MCAP, sqlite3, service events), `info` and `play --clock` against the node and
+# `tracer_calib calibrate`/`correct` on what it recorded, peers on Fast DDS, in a private
+# network namespace.
 #   TRACER_ROS_DISTROS="jazzy" tests/interop/run.sh    (default: "kilted jazzy")
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -62,9 +68,11 @@ ROOT=$(cd "$HERE/../.." && pwd)
 DISTROS=${TRACER_ROS_DISTROS:-kilted jazzy}
 trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
 . "$ROOT/scripts/target_dir.sh"
-export TRACER_CALIB_NODE="$TRACER_RELEASE_DIR/tracer_calib_node"
-export TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
-node_tests=() graph=() type_hash=() runtime=() first_scan=() lossy=() two_hosts=() cyclone=() security=() zenoh=() launch=()
+# (TRACER_CALIB_NODE and TRACER_CALIB, when set, name other release binaries: a worktree's
+# run against a checkout's build.)
+export TRACER_CALIB_NODE="${TRACER_CALIB_NODE:-$TRACER_RELEASE_DIR/tracer_calib_node}"
+export TRACER_CALIB="${TRACER_CALIB:-$TRACER_RELEASE_DIR/tracer_calib}"
+node_tests=() graph=() type_hash=() runtime=() first_scan=() lossy=() two_hosts=() cyclone=() security=() zenoh=() rosbag2=() launch=()
 for a in "$@"; do
     case "$a" in
         launch) launch+=(all) ;;
@@ -78,6 +86,8 @@ for a in "$@"; do
         cyclone*|mixed*) cyclone+=("$a") ;;
         security|secure_*|insecure_*|hmi_*|capture_*|foreign_*|*_missing_enclave|*_bad_credentials) security+=("$a") ;;
         zenoh*) zenoh+=("$a") ;;
+        rosbag2) rosbag2+=(rosbag2) ;;
+        rosbag2_*) rosbag2+=("${a#rosbag2_}") ;;
         *) node_tests+=("$a") ;;
     esac
 done
@@ -127,6 +137,10 @@ for d in $DISTROS; do
     "$HERE/ros2cli.sh" "$d"
     # The stock bond packages (bond, smclib, bondpy; quick when built): test_runtime.py's bond.
     "$HERE/bond.sh" "$d"
+    # The stock ros2 bag (rosbag2; Jazzy only; quick when built): test_rosbag2.py's.
+    if [ "$d" = jazzy ] && { [ "$all" -eq 1 ] || [ "${#rosbag2[@]}" -gt 0 ]; } && ! "$HERE/rosbag2.sh" "$d"; then
+        failed+=("$d:rosbag2_setup")
+    fi
     echo "run.sh: $d: setup $(took "$t0")"
     suite node_suite.py "$d" "test_node.py, test_records.py; ROS 2 $d rclpy, release binaries" node_suite \
         ${node_tests[@]+"${node_tests[@]}"}
@@ -229,6 +243,21 @@ for d in $DISTROS; do
             echo "run.sh: $d: test_zenoh.py $(took "$t0")"
         else
             failed+=("$d:zenoh_setup")
+        fi
+    fi
+    # 2e. The stock `ros2 bag` (test_rosbag2.py) against the node, peers on Fast DDS, with
+    # target/ros/jazzy/rosbag2_env.sh. Jazzy only: rosbag2.sh builds Jazzy's rosbag2.
+    if [ "$d" != jazzy ] && { [ "$#" -eq 0 ] || [ "${#rosbag2[@]}" -gt 0 ]; }; then
+        echo "run.sh: $d: test_rosbag2.py skipped (rosbag2 is built for jazzy only)"
+    elif [ "$#" -eq 0 ] || [ "${#rosbag2[@]}" -gt 0 ]; then
+        if [ -f "$ROOT/target/ros/$d/rosbag2_env.sh" ]; then
+            t0=$(now_ms)
+            echo "run.sh: $d: test_rosbag2.py (the stock ros2 bag, ROS 2 $d rclpy, release binaries)"
+            peer_run netns.sh test_rosbag2.py "$d" rosbag2_env.sh ${rosbag2[@]+"${rosbag2[@]}"} \
+                || failed+=("$d:test_rosbag2")
+            echo "run.sh: $d: test_rosbag2.py $(took "$t0")"
+        else
+            failed+=("$d:rosbag2_setup")
         fi
     fi
     [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ] || continue
