@@ -294,7 +294,7 @@ impl Parameters {
                 ParamValue::DoubleArray(c) => c.clone(),
                 v => return Err(wrong("a double array", v)),
             };
-            covariance_from_values(&c).map(|_| c).map_err(ParamError::Invalid)
+            covariance_from_values(&c).map(|_| c).map_err(|e| ParamError::Invalid(e.to_string()))
         };
         match name {
             names::ALPHA0 => next.calibration.alpha0 = double(value)?,
@@ -310,7 +310,9 @@ impl Parameters {
             names::RING_DIAMETER => next.ring_diameter = double(value)?,
             names::DIAMETER_UNCERTAINTY => next.ring_diameter_uncertainty = double(value)?,
             names::METERS_PER_COUNT => next.meters_per_count = double(value)?,
-            names::MODEL => next.model = one_of(value)?.parse().map_err(ParamError::Invalid)?,
+            names::MODEL => {
+                next.model = one_of(value)?.parse::<ModelKind>().map_err(|e| ParamError::Invalid(e.to_string()))?
+            }
             names::OUTPUT_FRAME_ID => next.output_frame_id = string(value)?,
             names::RESAMPLE_POINTS => next.resample_points = integer(value)? as usize,
             names::PARAMS_FILE => next.params_file = string(value)?,
@@ -327,7 +329,7 @@ impl Parameters {
             _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
-            next.plate.validate().map_err(ParamError::Invalid)?;
+            next.plate.validate().map_err(|e| ParamError::Invalid(e.to_string()))?;
         }
         *self = next;
         Ok(())
