@@ -131,8 +131,8 @@ impl NodeState {
                 }
             }
             Err(e) => {
-                self.history_problem = e.clone();
-                HistoryRead { note: format!("{file}: not read"), warnings: vec![e] }
+                self.history_problem = e.to_string();
+                HistoryRead { note: format!("{file}: not read"), warnings: vec![e.to_string()] }
             }
         }
     }
