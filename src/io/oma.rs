@@ -485,7 +485,7 @@ pub fn render(file: &OmaFile) -> Result<String, RenderError> {
 #[error("{0}")]
 pub struct RenderError(pub String);
 
-/// Why an OMA file was not written ([`write`]).
+/// Why an OMA file was not written ([`write()`]).
 #[derive(Debug, thiserror::Error)]
 pub enum WriteError {
     /// What was to be written is not an OMA file; nothing was written.
