@@ -14,7 +14,7 @@ fuzz_target!(|data: &[u8]| {
     let file = match oma::parse(&text, "fuzz.oma") {
         Ok(f) => f,
         Err(e) => {
-            assert!(e.starts_with("fuzz.oma"), "{e}");
+            assert!(e.to_string().starts_with("fuzz.oma"), "{e}");
             return;
         }
     };

@@ -77,6 +77,19 @@ pub struct SisterStatus<'a> {
     pub active: bool,
 }
 
+/// A status of a third instance of the bond ([`Bond::on_status`]): one bond has two ends,
+/// this node's and its sister's; the status is ignored.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("a third instance ({instance_id}) of bond {bond} (sister {sister}): only two may share a bond")]
+pub struct ThirdInstance {
+    /// The third instance's id.
+    pub instance_id: String,
+    /// The bond's id.
+    pub bond: String,
+    /// The sister's instance id (the bond's other end).
+    pub sister: String,
+}
+
 /// One end of a bond (bondcpp's `bond::Bond`, started).
 #[derive(Debug, Clone)]
 pub struct Bond {
@@ -135,17 +148,18 @@ impl Bond {
 
     /// A status received at `now`. Another bond's, our own, or a third instance's (one
     /// bond has two ends) is ignored; `Err` says which third instance.
-    pub fn on_status(&mut self, status: SisterStatus<'_>, now: Instant) -> Result<Option<BondEvent>, String> {
+    pub fn on_status(&mut self, status: SisterStatus<'_>, now: Instant) -> Result<Option<BondEvent>, ThirdInstance> {
         if status.id != self.id || status.instance_id == self.instance_id {
             return Ok(None);
         }
         match &self.sister {
             None => self.sister = Some(status.instance_id.to_string()),
             Some(sister) if sister != status.instance_id => {
-                return Err(format!(
-                    "a third instance ({}) of bond {} (sister {sister}): only two may share a bond",
-                    status.instance_id, self.id
-                ));
+                return Err(ThirdInstance {
+                    instance_id: status.instance_id.to_string(),
+                    bond: self.id.clone(),
+                    sister: sister.clone(),
+                });
             }
             Some(_) => {}
         }
@@ -293,7 +307,12 @@ mod tests {
         assert_eq!(b.state(), BondState::WaitingForSister);
         assert_eq!(b.on_status(alive("manager"), t0), Ok(Some(BondEvent::Formed)));
         assert_eq!(b.state(), BondState::Alive);
-        assert!(b.on_status(alive("intruder"), t0).is_err());
+        let e = b.on_status(alive("intruder"), t0).unwrap_err();
+        assert_eq!(e, ThirdInstance { instance_id: "intruder".into(), bond: b.id().into(), sister: "manager".into() });
+        assert_eq!(
+            e.to_string(),
+            format!("a third instance (intruder) of bond {} (sister manager): only two may share a bond", b.id())
+        );
         assert_eq!(b.state(), BondState::Alive);
     }
 

@@ -153,6 +153,31 @@ pub struct Walk {
     pub success: bool,
 }
 
+/// A transition the current state does not offer, or a private one
+/// ([`Lifecycle::find`]): rcl_lifecycle's words.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "Unable to start transition {requested} from current state {}: Transition is not registered. (available: {})",
+    .current.label,
+    listed(.available)
+)]
+pub struct NotRegistered {
+    /// The transition asked for: its label, or its id when no label was given.
+    pub requested: String,
+    /// The state the node is in (unchanged).
+    pub current: State,
+    /// The public transitions the current state offers.
+    pub available: Vec<Transition>,
+}
+
+/// `label [id], ...`, or `none`.
+fn listed(available: &[Transition]) -> String {
+    if available.is_empty() {
+        return "none".to_string();
+    }
+    available.iter().map(|t| format!("{} [{}]", t.label, t.id)).collect::<Vec<_>>().join(", ")
+}
+
 /// The life cycle of one node: the state it is in.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Lifecycle {
@@ -184,7 +209,7 @@ impl Lifecycle {
 
     /// The public transition `request` names from the current state, or why there is none
     /// (rcl_lifecycle's words).
-    pub fn find(&self, request: &Request) -> Result<&'static Transition, String> {
+    pub fn find(&self, request: &Request) -> Result<&'static Transition, NotRegistered> {
         let found = if request.label.is_empty() {
             self.available().find(|t| t.id == request.id)
         } else {
@@ -192,16 +217,11 @@ impl Lifecycle {
         };
         match found {
             Some(t) if t.id < 10 => Ok(t),
-            _ => {
-                let what = if request.label.is_empty() { request.id.to_string() } else { request.label.to_string() };
-                let available: Vec<String> =
-                    self.available().filter(|t| t.id < 10).map(|t| format!("{} [{}]", t.label, t.id)).collect();
-                Err(format!(
-                    "Unable to start transition {what} from current state {}: Transition is not registered. (available: {})",
-                    self.current.label,
-                    if available.is_empty() { "none".to_string() } else { available.join(", ") }
-                ))
-            }
+            _ => Err(NotRegistered {
+                requested: if request.label.is_empty() { request.id.to_string() } else { request.label.to_string() },
+                current: self.current,
+                available: self.available().filter(|t| t.id < 10).copied().collect(),
+            }),
         }
     }
 
@@ -213,7 +233,7 @@ impl Lifecycle {
         &mut self,
         request: &Request,
         mut callback: impl FnMut(State) -> CallbackReturn,
-    ) -> Result<Walk, String> {
+    ) -> Result<Walk, NotRegistered> {
         let first = self.find(request)?;
         let mut steps = vec![*first];
         self.current = first.goal;
@@ -270,14 +290,20 @@ mod tests {
         assert_eq!(w.steps.iter().map(|t| t.id).collect::<Vec<_>>(), [5, 50]);
         assert_eq!(lc.current(), State::FINALIZED);
         assert_eq!(ids(&lc), Vec::<u8>::new());
+        let e = lc.find(&Request { id: 1, label: "" }).unwrap_err();
+        assert!(e.available.is_empty() && e.to_string().ends_with("(available: none)"), "{e}");
     }
 
     #[test]
     fn a_transition_not_offered_changes_nothing() {
         let mut lc = Lifecycle::new();
         let e = lc.change(&Request { id: 3, label: "" }, |_| unreachable!()).unwrap_err();
-        assert!(e.starts_with("Unable to start transition 3 from current state unconfigured"), "{e}");
-        assert!(e.contains("configure [1], shutdown [5]"), "{e}");
+        assert_eq!((e.requested.as_str(), e.current), ("3", State::UNCONFIGURED));
+        assert_eq!(e.available.iter().map(|t| t.id).collect::<Vec<_>>(), [1, 5]);
+        assert_eq!(
+            e.to_string(),
+            "Unable to start transition 3 from current state unconfigured: Transition is not registered. (available: configure [1], shutdown [5])"
+        );
         // The label wins over the id (rclcpp_lifecycle), and private transitions are refused.
         assert!(lc.change(&Request { id: 1, label: "activate" }, |_| unreachable!()).is_err());
         assert!(lc.change(&Request { id: 10, label: "" }, |_| unreachable!()).is_err());
@@ -286,7 +312,7 @@ mod tests {
         // shutdown is one label with an id per state.
         walk(&mut lc, "configure");
         let e = lc.change(&Request { id: 5, label: "" }, |_| unreachable!()).unwrap_err();
-        assert!(e.contains("shutdown [6]"), "{e}");
+        assert!(e.to_string().contains("shutdown [6]"), "{e}");
     }
 
     #[test]

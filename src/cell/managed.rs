@@ -15,10 +15,21 @@
 //! reported on /diagnostics (`history_problem`) as for an unmanaged node, not a reason to
 //! stay unconfigured. An unmanaged node ([`NodeState::lifecycle`] `None`) is always active.
 
-use super::lifecycle::{self, CallbackReturn, State, Walk};
+use super::lifecycle::{self, CallbackReturn, NotRegistered, State, Walk};
 use super::{InForce, NodeState, Now};
 use crate::interfaces::CalibrateResponse;
 use crate::records;
+
+/// Why a requested transition was not walked ([`NodeState::change_lifecycle`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum LifecycleError {
+    /// An unmanaged node has no life cycle.
+    #[error("the node is not managed (managed: false)")]
+    NotManaged,
+    /// The current state does not offer the transition; nothing changed.
+    #[error(transparent)]
+    NotRegistered(#[from] NotRegistered),
+}
 
 /// What reading the history file gave: a line to log (empty: no history file), and the
 /// problems to warn about.
@@ -73,11 +84,11 @@ impl NodeState {
         request: &lifecycle::Request,
         now: Now,
         history: &mut Option<HistoryRead>,
-    ) -> Result<Walk, String> {
-        let mut lc = self.lifecycle.take().ok_or("the node is not managed (managed: false)")?;
+    ) -> Result<Walk, LifecycleError> {
+        let mut lc = self.lifecycle.take().ok_or(LifecycleError::NotManaged)?;
         let walked = lc.change(request, |state| self.on_transition(state, now, history));
         self.lifecycle = Some(lc);
-        walked
+        Ok(walked?)
     }
 
     /// The callback of transition state `state`.
@@ -131,8 +142,8 @@ impl NodeState {
                 }
             }
             Err(e) => {
-                self.history_problem = e.clone();
-                HistoryRead { note: format!("{file}: not read"), warnings: vec![e] }
+                self.history_problem = e.to_string();
+                HistoryRead { note: format!("{file}: not read"), warnings: vec![e.to_string()] }
             }
         }
     }

@@ -44,7 +44,7 @@ mod tests;
 
 pub use calibrate::{CalibrateOutcome, response_for};
 pub use in_force::InForce;
-pub use managed::HistoryRead;
+pub use managed::{HistoryRead, LifecycleError};
 pub use scans::{Corrected, PLATE_SCANS_KEPT};
 pub use stats::Stats;
 
@@ -68,6 +68,30 @@ impl Now {
     pub fn system() -> Now {
         Now::at(SystemTime::now())
     }
+}
+
+/// Why a change was not persisted: the history file not appended to (a calibration's
+/// record), or the params file not written ([`NodeState::persist`]).
+#[derive(Debug, thiserror::Error)]
+pub enum PersistError {
+    /// The record could not be appended to `history_file` (nothing of it was left there).
+    #[error("cannot append to {path}: {source}")]
+    History {
+        /// The history file.
+        path: String,
+        /// The system's reason.
+        #[source]
+        source: std::io::Error,
+    },
+    /// `params_file` could not be written (it is as it was).
+    #[error("cannot write {path}: {source}")]
+    Params {
+        /// The params file.
+        path: String,
+        /// The system's reason.
+        #[source]
+        source: std::io::Error,
+    },
 }
 
 /// The node's state.
@@ -167,18 +191,20 @@ impl NodeState {
     }
 
     /// Append `record` to `history_file` (if set), durably.
-    fn append_history(&mut self, record: &Record) -> Result<(), String> {
+    fn append_history(&mut self, record: &Record) -> Result<(), PersistError> {
         if self.params.history_file.is_empty() {
             return Ok(());
         }
         let path = Path::new(&self.params.history_file);
-        records::file::append(path, record).map_err(|e| format!("cannot append to {}: {e}", path.display()))?;
+        records::file::append(path, record)
+            .map_err(|source| PersistError::History { path: path.display().to_string(), source })?;
         self.history_records += 1;
         Ok(())
     }
 
-    /// Write every parameter to `params_file` (if set), atomically.
-    pub fn persist(&self) -> Result<(), String> {
+    /// Write every parameter to `params_file` (if set), atomically; the error is
+    /// [`PersistError::Params`].
+    pub fn persist(&self) -> Result<(), PersistError> {
         if self.params.params_file.is_empty() {
             return Ok(());
         }
@@ -190,6 +216,7 @@ impl NodeState {
             &list,
             "Parameters of tracer_calib_node, written by the node after each change.\nLoad with: --ros-args --params-file THIS_FILE",
         );
-        params_file::write_atomic(path, &text).map_err(|e| format!("cannot write {}: {e}", path.display()))
+        params_file::write_atomic(path, &text)
+            .map_err(|source| PersistError::Params { path: path.display().to_string(), source })
     }
 }

@@ -125,11 +125,19 @@ fn dry_runs_change_nothing_and_persisting_failures_are_reported() {
     let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
     assert!(!out.response.success);
     assert!(
-        out.response.message.starts_with("calibration applied in memory but not persisted"),
+        out.response.message.starts_with(
+            "calibration applied in memory but not persisted: cannot write /nonexistent-dir/x/params.yaml: "
+        ),
         "{}",
         out.response.message
     );
     assert!(st.params.calibration_valid);
+    let e = st.persist().unwrap_err();
+    assert!(
+        matches!(&e, PersistError::Params { path, source }
+            if path == "/nonexistent-dir/x/params.yaml" && source.kind() == std::io::ErrorKind::NotFound),
+        "{e:?}"
+    );
 }
 
 /// A lens scan (noise-free ellipse) by a tracer with mounting `m`, and where each
@@ -429,7 +437,8 @@ fn a_managed_node_holds_scans_until_active_and_reads_its_history_when_configured
     assert_eq!((st.in_force.source, st.history_records), ("history", 1), "configure read the history");
     // Not offered from inactive: refused, nothing changes.
     let e = st.change_lifecycle(&label("configure"), Now::system(), &mut None).unwrap_err();
-    assert!(e.contains("from current state inactive"), "{e}");
+    assert!(matches!(&e, LifecycleError::NotRegistered(n) if n.current == State::INACTIVE), "{e:?}");
+    assert!(e.to_string().contains("from current state inactive"), "{e}");
     assert_eq!(st.lifecycle.as_ref().unwrap().current(), State::INACTIVE);
     st.change_lifecycle(&label("activate"), Now::system(), &mut None).unwrap();
     assert!(st.is_active() && st.calibrate_refused().is_none());
@@ -442,7 +451,9 @@ fn a_managed_node_holds_scans_until_active_and_reads_its_history_when_configured
     assert_eq!(st.lifecycle_label(), "finalized");
     assert!(st.calibrate_refused().unwrap().message.contains("restart it"));
     // An unmanaged node has no life cycle to change.
-    assert!(first.change_lifecycle(&label("configure"), Now::system(), &mut None).is_err());
+    let e = first.change_lifecycle(&label("configure"), Now::system(), &mut None).unwrap_err();
+    assert_eq!(e, LifecycleError::NotManaged);
+    assert_eq!(e.to_string(), "the node is not managed (managed: false)");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -201,7 +201,7 @@ fn write_oma(path: &Path, eye: &str, traces: &[Traced]) -> Result<Vec<String>, S
             let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "trace".into());
             path.with_file_name(format!("{stem}_{scan_id}.oma"))
         };
-        oma::write(&target_path, &file)?;
+        oma::write(&target_path, &file).map_err(|e| e.to_string())?;
         written.push(target_path.display().to_string());
     }
     Ok(written)

@@ -194,7 +194,7 @@ fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, 
     let sim = match kind {
         ShapeKind::Plate => {
             let plate = PlateSpec { side: a.plate_side, corner_radius: a.corner_radius };
-            plate.validate()?;
+            plate.validate().map_err(|e| e.to_string())?;
             simulate(&plate.at(center), &m, &opt, rng)
         }
         ShapeKind::Ellipse => {

@@ -44,7 +44,7 @@ use super::model::full::{self, FullModel};
 use super::model::full_scale::{self, FullScaleModel};
 use super::model::paper::{self, PaperModel};
 use super::model::tip::{self, RingSpec, TipModel, TipScaleModel};
-use super::model::{ModelKind, PlateSpec};
+use super::model::{ModelKind, PlateError, PlateSpec};
 use super::scan::Scan;
 use super::start::initial_guess;
 
@@ -161,14 +161,8 @@ pub fn covariance_values(cov: &Covariance) -> Vec<f64> {
 /// The 25 row-major values back as a [`Covariance`], if there are 25, every one finite,
 /// the matrix symmetric (to rounding) with no negative variance; else what they are not,
 /// in the words the parameter, the params file and the history report.
-pub fn covariance_from_values(v: &[f64]) -> Result<Covariance, String> {
-    let refused = || {
-        Err(format!(
-            "expected {} finite values of a symmetric matrix with no negative variance, got {} values",
-            layout::VALUES,
-            v.len()
-        ))
-    };
+pub fn covariance_from_values(v: &[f64]) -> Result<Covariance, InvalidCovariance> {
+    let refused = || Err(InvalidCovariance { values: v.len() });
     if v.len() != layout::VALUES || !v.iter().all(|x| x.is_finite()) {
         return refused();
     }
@@ -177,6 +171,18 @@ pub fn covariance_from_values(v: &[f64]) -> Result<Covariance, String> {
         (0..i).all(|j| (c[(i, j)] - c[(j, i)]).abs() <= 1e-9 * (c[(i, i)] * c[(j, j)]).sqrt().max(f64::MIN_POSITIVE))
     });
     if symmetric && (0..5).all(|i| c[(i, i)] >= 0.0) { Ok(c) } else { refused() }
+}
+
+/// Values that are no [`Covariance`] ([`covariance_from_values`]): not 25, not all
+/// finite, not symmetric, or with a negative variance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "expected {} finite values of a symmetric matrix with no negative variance, got {values} values",
+    layout::VALUES
+)]
+pub struct InvalidCovariance {
+    /// How many values there were.
+    pub values: usize,
 }
 
 /// A fitted calibration.
@@ -269,7 +275,7 @@ pub struct RingFit {
 /// Why a calibration failed.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CalibrationError {
-    InvalidPlate(String),
+    InvalidPlate(PlateError),
     TooFewSamples {
         got: usize,
         need: usize,
@@ -451,7 +457,7 @@ pub fn calibrate_with_ring(
                 opt.model
             ))
         })?;
-        ring.spec.validate().map_err(CalibrationError::Ring)?;
+        ring.spec.validate().map_err(|e| CalibrationError::Ring(e.to_string()))?;
         if ring.scan.len() < need {
             return Err(CalibrationError::Ring(format!(
                 "the ring-gauge scan has {} samples, at least {need} needed",
@@ -1030,4 +1036,24 @@ fn fit_paper(
         active = next;
     }
     unreachable!("the last round returns")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn covariance_values_refused_in_the_words_of_the_parameter() {
+        let identity = covariance_values(&Covariance::identity());
+        assert_eq!(covariance_from_values(&identity), Ok(Covariance::identity()));
+        assert_eq!(covariance_from_values(&identity[..24]), Err(InvalidCovariance { values: 24 }));
+        let mut negative = identity.clone();
+        negative[0] = -1.0;
+        let e = covariance_from_values(&negative).unwrap_err();
+        assert_eq!(e, InvalidCovariance { values: 25 });
+        assert_eq!(
+            e.to_string(),
+            "expected 25 finite values of a symmetric matrix with no negative variance, got 25 values"
+        );
+    }
 }

@@ -12,7 +12,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::FileError;
+use super::{FileError, ParseError};
 
 /// A revolution as the tracer reports it: steps and encoder counts.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -22,7 +22,7 @@ pub struct RawRevolution {
 }
 
 /// Parse CSV text; `path` names the file in errors.
-pub fn parse(text: &str, path: &str) -> Result<RawRevolution, String> {
+pub fn parse(text: &str, path: &str) -> Result<RawRevolution, ParseError> {
     let mut out = RawRevolution::default();
     let mut header_seen = false;
     for (i, raw) in text.lines().enumerate() {
@@ -34,28 +34,30 @@ pub fn parse(text: &str, path: &str) -> Result<RawRevolution, String> {
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         if !header_seen {
             if fields != ["step", "counts"] {
-                return Err(format!("{path}:{line_no}: expected the header line 'step,counts', got '{line}'"));
+                return Err(ParseError(format!(
+                    "{path}:{line_no}: expected the header line 'step,counts', got '{line}'"
+                )));
             }
             header_seen = true;
             continue;
         }
         if fields.len() != 2 {
-            return Err(format!(
+            return Err(ParseError(format!(
                 "{path}:{line_no}: expected two values 'step,counts', got {} in '{line}'",
                 fields.len()
-            ));
+            )));
         }
         let step = fields[0]
             .parse::<u32>()
-            .map_err(|_| format!("{path}:{line_no}: step '{}' is not a whole number >= 0", fields[0]))?;
-        let counts = fields[1]
-            .parse::<i32>()
-            .map_err(|_| format!("{path}:{line_no}: counts '{}' is not a whole number (32-bit)", fields[1]))?;
+            .map_err(|_| ParseError(format!("{path}:{line_no}: step '{}' is not a whole number >= 0", fields[0])))?;
+        let counts = fields[1].parse::<i32>().map_err(|_| {
+            ParseError(format!("{path}:{line_no}: counts '{}' is not a whole number (32-bit)", fields[1]))
+        })?;
         out.step.push(step);
         out.counts.push(counts);
     }
     if !header_seen {
-        return Err(format!("{path}: empty file: expected the header line 'step,counts' and samples"));
+        return Err(ParseError(format!("{path}: empty file: expected the header line 'step,counts' and samples")));
     }
     Ok(out)
 }
@@ -86,20 +88,23 @@ mod tests {
         assert_eq!(parse(&render(&rev), "f").unwrap(), rev);
         assert_eq!(parse("# comment\nstep, counts\n\n1,2\n", "f").unwrap().step, [1]);
         assert_eq!(
-            parse("steps,count\n", "f.csv").unwrap_err(),
+            parse("steps,count\n", "f.csv").unwrap_err().to_string(),
             "f.csv:1: expected the header line 'step,counts', got 'steps,count'"
         );
         assert_eq!(
-            parse("step,counts\n1,2,3\n", "f.csv").unwrap_err(),
+            parse("step,counts\n1,2,3\n", "f.csv").unwrap_err().to_string(),
             "f.csv:2: expected two values 'step,counts', got 3 in '1,2,3'"
         );
-        assert_eq!(parse("step,counts\n-1,2\n", "f.csv").unwrap_err(), "f.csv:2: step '-1' is not a whole number >= 0");
         assert_eq!(
-            parse("step,counts\n1,NaN\n", "f.csv").unwrap_err(),
+            parse("step,counts\n-1,2\n", "f.csv").unwrap_err().to_string(),
+            "f.csv:2: step '-1' is not a whole number >= 0"
+        );
+        assert_eq!(
+            parse("step,counts\n1,NaN\n", "f.csv").unwrap_err().to_string(),
             "f.csv:2: counts 'NaN' is not a whole number (32-bit)"
         );
         assert_eq!(
-            parse("", "f.csv").unwrap_err(),
+            parse("", "f.csv").unwrap_err().to_string(),
             "f.csv: empty file: expected the header line 'step,counts' and samples"
         );
     }

@@ -20,6 +20,12 @@ pub enum FileError {
         source: std::io::Error,
     },
     /// The file was read; its contents are not the format's.
-    #[error("{0}")]
-    Malformed(String),
+    #[error(transparent)]
+    Malformed(#[from] ParseError),
 }
+
+/// What a scan file holds is not what its format says ([`csv::parse`], [`oma::parse`]):
+/// the parser's words, one line naming the file and, where there is one, the line.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct ParseError(pub String);

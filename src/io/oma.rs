@@ -43,7 +43,7 @@ use std::fmt;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::FileError;
+use super::{FileError, ParseError};
 
 /// The only trace format read and written: ASCII absolute radii.
 pub const FORMAT_ASCII: u32 = 1;
@@ -213,20 +213,20 @@ struct Pending {
 
 impl Pending {
     /// Check the counts and hand over the trace.
-    fn finish(self, path: &str) -> Result<Trace, String> {
+    fn finish(self, path: &str) -> Result<Trace, ParseError> {
         let Pending { line_no, n, mut trace, angles } = self;
         if trace.radii.len() != n {
-            return Err(format!(
+            return Err(ParseError(format!(
                 "{path}:{line_no}: TRCFMT declares {n} points, the R= records that follow give {} radii",
                 trace.radii.len()
-            ));
+            )));
         }
         if trace.angles.is_some() {
             if angles.len() != n {
-                return Err(format!(
+                return Err(ParseError(format!(
                     "{path}:{line_no}: TRCFMT declares {n} points (not equiangular, U), the A= records that follow give {} angles",
                     angles.len()
-                ));
+                )));
             }
             trace.angles = Some(angles.iter().map(|a| (a * DEGREES_PER_UNIT).to_radians()).collect());
         }
@@ -235,7 +235,7 @@ impl Pending {
 }
 
 /// Parse the `;`-separated whole numbers of an `R=` or `A=` record.
-fn parse_values(value: &str, what: &str, unit: &str, path: &str, line_no: usize) -> Result<Vec<i64>, String> {
+fn parse_values(value: &str, what: &str, unit: &str, path: &str, line_no: usize) -> Result<Vec<i64>, ParseError> {
     let mut out = Vec::new();
     let fields: Vec<&str> = value.split(';').map(str::trim).collect();
     for (k, field) in fields.iter().enumerate() {
@@ -243,60 +243,60 @@ fn parse_values(value: &str, what: &str, unit: &str, path: &str, line_no: usize)
             if k + 1 == fields.len() && k > 0 {
                 break; // a trailing ';'
             }
-            return Err(format!("{path}:{line_no}: empty {what} value (field {})", k + 1));
+            return Err(ParseError(format!("{path}:{line_no}: empty {what} value (field {})", k + 1)));
         }
         let v = field
             .parse::<i64>()
-            .map_err(|_| format!("{path}:{line_no}: {what} '{field}' is not a whole number ({unit})"))?;
+            .map_err(|_| ParseError(format!("{path}:{line_no}: {what} '{field}' is not a whole number ({unit})")))?;
         out.push(v);
     }
     Ok(out)
 }
 
 /// Parse a `TRCFMT` value into a pending trace.
-fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, String> {
+fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, ParseError> {
     let fields: Vec<&str> = value.split(';').map(str::trim).collect();
     if fields.len() < 5 {
-        return Err(format!(
+        return Err(ParseError(format!(
             "{path}:{line_no}: TRCFMT needs 5 fields 'format;N;E|U;R|L|B;type', got {} in '{value}'",
             fields.len()
-        ));
+        )));
     }
     let format = fields[0]
         .parse::<u32>()
-        .map_err(|_| format!("{path}:{line_no}: TRCFMT format '{}' is not a number", fields[0]))?;
+        .map_err(|_| ParseError(format!("{path}:{line_no}: TRCFMT format '{}' is not a number", fields[0])))?;
     if format != FORMAT_ASCII {
         let kind = match format {
             2 => " (ASCII differential)",
             3 | 4 => " (binary)",
             _ => "",
         };
-        return Err(format!(
+        return Err(ParseError(format!(
             "{path}:{line_no}: TRCFMT format {format}{kind} is not supported; only format 1 (ASCII absolute radii)"
-        ));
+        )));
     }
-    let n = fields[1]
-        .parse::<usize>()
-        .map_err(|_| format!("{path}:{line_no}: TRCFMT point count '{}' is not a whole number", fields[1]))?;
+    let n = fields[1].parse::<usize>().map_err(|_| {
+        ParseError(format!("{path}:{line_no}: TRCFMT point count '{}' is not a whole number", fields[1]))
+    })?;
     if n == 0 {
-        return Err(format!("{path}:{line_no}: TRCFMT point count is 0"));
+        return Err(ParseError(format!("{path}:{line_no}: TRCFMT point count is 0")));
     }
     let equiangular = match fields[2].to_ascii_uppercase().as_str() {
         "E" => true,
         "U" => false,
         other => {
-            return Err(format!(
+            return Err(ParseError(format!(
                 "{path}:{line_no}: TRCFMT third field '{other}' is neither E (equiangular) nor U (angles given)"
-            ));
+            )));
         }
     };
     let eye = Eye::from_code(fields[3])
-        .ok_or_else(|| format!("{path}:{line_no}: TRCFMT eye '{}' is not R, L or B", fields[3]))?;
+        .ok_or_else(|| ParseError(format!("{path}:{line_no}: TRCFMT eye '{}' is not R, L or B", fields[3])))?;
     let trace_type = TraceType::from_code(fields[4]).ok_or_else(|| {
-        format!(
+        ParseError(format!(
             "{path}:{line_no}: TRCFMT trace type '{}' is not F (frame), P (pattern), L (lens) or D (demo lens)",
             fields[4]
-        )
+        ))
     })?;
     Ok(Pending {
         line_no,
@@ -315,7 +315,7 @@ fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, Stri
 
 /// Parse OMA text; `path` names the file in errors. Lines may end in CRLF or LF; blank
 /// lines are skipped. A file without `TRCFMT` records gives no traces (not an error).
-pub fn parse(text: &str, path: &str) -> Result<OmaFile, String> {
+pub fn parse(text: &str, path: &str) -> Result<OmaFile, ParseError> {
     let mut out = OmaFile::default();
     let mut pending: Option<Pending> = None;
     for (i, raw) in text.split('\n').enumerate() {
@@ -326,7 +326,7 @@ pub fn parse(text: &str, path: &str) -> Result<OmaFile, String> {
         }
         let Some((label, value)) = line.split_once('=') else {
             let shown: String = line.chars().take(40).collect();
-            return Err(format!("{path}:{line_no}: expected a record LABEL=VALUE, got '{shown}'"));
+            return Err(ParseError(format!("{path}:{line_no}: expected a record LABEL=VALUE, got '{shown}'")));
         };
         let label = label.trim().to_ascii_uppercase();
         let value = value.trim();
@@ -339,37 +339,37 @@ pub fn parse(text: &str, path: &str) -> Result<OmaFile, String> {
             }
             "R" => {
                 let Some(p) = pending.as_mut() else {
-                    return Err(format!("{path}:{line_no}: R= record before any TRCFMT record"));
+                    return Err(ParseError(format!("{path}:{line_no}: R= record before any TRCFMT record")));
                 };
                 for v in parse_values(value, "radius", "1/100 mm", path, line_no)? {
                     if v < 0 {
-                        return Err(format!("{path}:{line_no}: radius {v} is negative"));
+                        return Err(ParseError(format!("{path}:{line_no}: radius {v} is negative")));
                     }
                     if p.trace.radii.len() == p.n {
-                        return Err(format!(
+                        return Err(ParseError(format!(
                             "{path}:{line_no}: more radii than the {} declared by TRCFMT on line {}",
                             p.n, p.line_no
-                        ));
+                        )));
                     }
                     p.trace.radii.push(v as f64 * METRES_PER_UNIT);
                 }
             }
             "A" => {
                 let Some(p) = pending.as_mut() else {
-                    return Err(format!("{path}:{line_no}: A= record before any TRCFMT record"));
+                    return Err(ParseError(format!("{path}:{line_no}: A= record before any TRCFMT record")));
                 };
                 if p.trace.angles.is_none() {
-                    return Err(format!(
+                    return Err(ParseError(format!(
                         "{path}:{line_no}: A= record in an equiangular (E) trace (TRCFMT on line {})",
                         p.line_no
-                    ));
+                    )));
                 }
                 for v in parse_values(value, "angle", "1/100 degree", path, line_no)? {
                     if p.angles.len() == p.n {
-                        return Err(format!(
+                        return Err(ParseError(format!(
                             "{path}:{line_no}: more angles than the {} declared by TRCFMT on line {}",
                             p.n, p.line_no
-                        ));
+                        )));
                     }
                     p.angles.push(v as f64);
                 }
@@ -408,9 +408,12 @@ fn push_values(out: &mut String, label: &str, values: &[i64]) {
 }
 
 /// Check that a record value can be written on one line.
-fn check_value(what: &str, value: &str) -> Result<(), String> {
+fn check_value(what: &str, value: &str) -> Result<(), RenderError> {
     if value.chars().any(|c| c.is_control()) {
-        return Err(format!("{what} '{}' contains a line break or control character", value.escape_debug()));
+        return Err(RenderError(format!(
+            "{what} '{}' contains a line break or control character",
+            value.escape_debug()
+        )));
     }
     Ok(())
 }
@@ -418,7 +421,7 @@ fn check_value(what: &str, value: &str) -> Result<(), String> {
 /// The text of an OMA file (CRLF line ends): `JOB` if given, the other records, then one
 /// `TRCFMT` block a trace. Radii are rounded to 1/100 mm, angles to 1/100 degree (and
 /// brought into [0°, 360°)).
-pub fn render(file: &OmaFile) -> Result<String, String> {
+pub fn render(file: &OmaFile) -> Result<String, RenderError> {
     let mut out = String::new();
     if let Some(job) = &file.job {
         check_value("JOB", job)?;
@@ -426,7 +429,7 @@ pub fn render(file: &OmaFile) -> Result<String, String> {
     }
     for (label, value) in &file.other {
         if label.is_empty() || label.contains('=') || label.chars().any(|c| c.is_control() || c.is_whitespace()) {
-            return Err(format!("record label '{}' is not a plain label", label.escape_debug()));
+            return Err(RenderError(format!("record label '{}' is not a plain label", label.escape_debug())));
         }
         check_value(label, value)?;
         let _ = write!(out, "{label}={value}\r\n");
@@ -435,26 +438,26 @@ pub fn render(file: &OmaFile) -> Result<String, String> {
         let name = format!("trace {} ({} eye)", t + 1, trace.eye);
         let n = trace.radii.len();
         if n == 0 {
-            return Err(format!("{name}: no radii"));
+            return Err(RenderError(format!("{name}: no radii")));
         }
         let mut radii = Vec::with_capacity(n);
         for (k, &r) in trace.radii.iter().enumerate() {
             if !r.is_finite() || !(0.0..MAX_RADIUS).contains(&r) {
-                return Err(format!("{name}: radius {k} is {r} m, not a length in [0, {MAX_RADIUS}) m"));
+                return Err(RenderError(format!("{name}: radius {k} is {r} m, not a length in [0, {MAX_RADIUS}) m")));
             }
             radii.push((r / METRES_PER_UNIT).round() as i64);
         }
         let angles = match &trace.angles {
             None => None,
             Some(a) if a.len() != n => {
-                return Err(format!("{name}: {} angles for {n} radii", a.len()));
+                return Err(RenderError(format!("{name}: {} angles for {n} radii", a.len())));
             }
             Some(a) => {
                 let full = (360.0 / DEGREES_PER_UNIT) as i64;
                 let mut units = Vec::with_capacity(n);
                 for (k, &angle) in a.iter().enumerate() {
                     if !angle.is_finite() {
-                        return Err(format!("{name}: angle {k} is {angle}"));
+                        return Err(RenderError(format!("{name}: angle {k} is {angle}")));
                     }
                     units.push(((angle.to_degrees() / DEGREES_PER_UNIT).round() as i64).rem_euclid(full));
                 }
@@ -476,11 +479,40 @@ pub fn render(file: &OmaFile) -> Result<String, String> {
     Ok(out)
 }
 
+/// Why an OMA file was not rendered ([`render`]): a value the format cannot hold, in
+/// words naming the trace or the record.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct RenderError(pub String);
+
+/// Why an OMA file was not written ([`write()`]).
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// What was to be written is not an OMA file; nothing was written.
+    #[error("{path}: {source}")]
+    Unrenderable {
+        /// The file, as given.
+        path: String,
+        /// What the format cannot hold.
+        #[source]
+        source: RenderError,
+    },
+    /// The file could not be written (no such directory, no permission, a full disk, ...).
+    #[error("{path}: cannot write: {source}")]
+    Unwritable {
+        /// The file, as given.
+        path: String,
+        /// The system's reason.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
 /// Write an OMA file.
-pub fn write(path: &Path, file: &OmaFile) -> Result<(), String> {
+pub fn write(path: &Path, file: &OmaFile) -> Result<(), WriteError> {
     let shown = path.display().to_string();
-    let text = render(file).map_err(|e| format!("{shown}: {e}"))?;
-    std::fs::write(path, text).map_err(|e| format!("{shown}: cannot write: {e}"))
+    let text = render(file).map_err(|source| WriteError::Unrenderable { path: shown.clone(), source })?;
+    std::fs::write(path, text).map_err(|source| WriteError::Unwritable { path: shown, source })
 }
 
 #[cfg(test)]
@@ -618,7 +650,7 @@ mod tests {
     }
 
     fn err(text: &str) -> String {
-        let e = parse(text, "f.oma").unwrap_err();
+        let e = parse(text, "f.oma").unwrap_err().to_string();
         assert!(!e.contains('\n'), "one line: {e}");
         e
     }
@@ -667,18 +699,19 @@ mod tests {
             traces: vec![Trace::equiangular(Eye::Left, TraceType::Frame, radii)],
             ..Default::default()
         };
-        assert_eq!(render(&one(vec![])).unwrap_err(), "trace 1 (L eye): no radii");
-        assert!(render(&one(vec![0.02, f64::NAN])).unwrap_err().starts_with("trace 1 (L eye): radius 1 is NaN m"));
-        assert!(render(&one(vec![-0.01])).unwrap_err().contains("radius 0 is -0.01 m"));
+        let err = |f: &OmaFile| render(f).unwrap_err().to_string();
+        assert_eq!(err(&one(vec![])), "trace 1 (L eye): no radii");
+        assert!(err(&one(vec![0.02, f64::NAN])).starts_with("trace 1 (L eye): radius 1 is NaN m"));
+        assert!(err(&one(vec![-0.01])).contains("radius 0 is -0.01 m"));
         let mut f = one(vec![0.02; 3]);
         f.traces[0].angles = Some(vec![0.0; 2]);
-        assert_eq!(render(&f).unwrap_err(), "trace 1 (L eye): 2 angles for 3 radii");
+        assert_eq!(err(&f), "trace 1 (L eye): 2 angles for 3 radii");
         let mut f = one(vec![0.02; 3]);
         f.job = Some("a\r\nTRCFMT=4".into());
-        assert!(render(&f).unwrap_err().starts_with("JOB 'a\\r\\nTRCFMT=4' contains a line break"));
+        assert!(err(&f).starts_with("JOB 'a\\r\\nTRCFMT=4' contains a line break"));
         let mut f = one(vec![0.02; 3]);
         f.other.push(("A=B".into(), "1".into()));
-        assert!(render(&f).unwrap_err().contains("is not a plain label"));
+        assert!(err(&f).contains("is not a plain label"));
     }
 
     #[test]
@@ -701,6 +734,18 @@ mod tests {
         assert!(missing.to_string().contains("missing.oma: cannot read"), "{missing}");
         std::fs::write(dir.join("bad.oma"), "JOB=1\r\nTRCFMT=9;0;E;R;F\r\n").unwrap();
         assert!(matches!(read(&dir.join("bad.oma")), Err(FileError::Malformed(_))));
+        // Not written: what cannot be an OMA file, and what the system refuses.
+        let empty = OmaFile { traces: vec![Trace::equiangular(Eye::Left, TraceType::Frame, vec![])], ..file };
+        let e = write(&dir.join("empty.oma"), &empty).unwrap_err();
+        assert!(matches!(&e, WriteError::Unrenderable { source, .. } if source.0 == "trace 1 (L eye): no radii"));
+        assert!(e.to_string().ends_with("empty.oma: trace 1 (L eye): no radii"), "{e}");
+        assert!(!dir.join("empty.oma").exists());
+        let e = write(&dir.join("no/such/t.oma"), &back).unwrap_err();
+        assert!(
+            matches!(&e, WriteError::Unwritable { source, .. } if source.kind() == std::io::ErrorKind::NotFound),
+            "{e}"
+        );
+        assert!(e.to_string().contains("t.oma: cannot write: "), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

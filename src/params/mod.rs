@@ -152,14 +152,19 @@ impl Introspection {
     }
 }
 
+/// A word that is none of the [`Introspection`] states (its `FromStr`): the word given.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("'{0}' is not one of: off (or disabled), metadata, contents")]
+pub struct UnknownIntrospection(pub String);
+
 impl std::str::FromStr for Introspection {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownIntrospection;
+    fn from_str(s: &str) -> Result<Self, UnknownIntrospection> {
         match s {
             "off" | "disabled" => Ok(Introspection::Off),
             "metadata" => Ok(Introspection::Metadata),
             "contents" => Ok(Introspection::Contents),
-            other => Err(format!("'{other}' is not one of: off (or disabled), metadata, contents")),
+            other => Err(UnknownIntrospection(other.to_string())),
         }
     }
 }
@@ -269,10 +274,12 @@ impl Parameters {
             got: format!("{} '{}'", v.type_name(), v),
         };
         let double = |v: &ParamValue| {
-            v.as_f64().ok_or_else(|| wrong("a double", v)).and_then(|x| spec.check_f64(x).map_err(ParamError::Invalid))
+            v.as_f64()
+                .ok_or_else(|| wrong("a double", v))
+                .and_then(|x| spec.check_f64(x).map_err(|e| ParamError::Invalid(e.to_string())))
         };
         let integer = |v: &ParamValue| match v {
-            ParamValue::Integer(i) => spec.check_i64(*i).map_err(ParamError::Invalid),
+            ParamValue::Integer(i) => spec.check_i64(*i).map_err(|e| ParamError::Invalid(e.to_string())),
             v => Err(wrong("an integer", v)),
         };
         let boolean = |v: &ParamValue| match v {
@@ -294,7 +301,7 @@ impl Parameters {
                 ParamValue::DoubleArray(c) => c.clone(),
                 v => return Err(wrong("a double array", v)),
             };
-            covariance_from_values(&c).map(|_| c).map_err(ParamError::Invalid)
+            covariance_from_values(&c).map(|_| c).map_err(|e| ParamError::Invalid(e.to_string()))
         };
         match name {
             names::ALPHA0 => next.calibration.alpha0 = double(value)?,
@@ -310,7 +317,9 @@ impl Parameters {
             names::RING_DIAMETER => next.ring_diameter = double(value)?,
             names::DIAMETER_UNCERTAINTY => next.ring_diameter_uncertainty = double(value)?,
             names::METERS_PER_COUNT => next.meters_per_count = double(value)?,
-            names::MODEL => next.model = one_of(value)?.parse().map_err(ParamError::Invalid)?,
+            names::MODEL => {
+                next.model = one_of(value)?.parse::<ModelKind>().map_err(|e| ParamError::Invalid(e.to_string()))?
+            }
             names::OUTPUT_FRAME_ID => next.output_frame_id = string(value)?,
             names::RESAMPLE_POINTS => next.resample_points = integer(value)? as usize,
             names::PARAMS_FILE => next.params_file = string(value)?,
@@ -322,12 +331,15 @@ impl Parameters {
             names::HARDWARE_ID => next.hardware_id = string(value)?,
             names::SCAN_TIMEOUT => next.scan_timeout = double(value)?,
             names::INTROSPECTION if *value == ParamValue::Bool(false) => next.introspection = Introspection::Off,
-            names::INTROSPECTION => next.introspection = one_of(value)?.parse().map_err(ParamError::Invalid)?,
+            names::INTROSPECTION => {
+                next.introspection =
+                    one_of(value)?.parse::<Introspection>().map_err(|e| ParamError::Invalid(e.to_string()))?
+            }
             names::BOND_HEARTBEAT_PERIOD => next.bond_heartbeat_period = double(value)?,
             _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
-            next.plate.validate().map_err(ParamError::Invalid)?;
+            next.plate.validate().map_err(|e| ParamError::Invalid(e.to_string()))?;
         }
         *self = next;
         Ok(())

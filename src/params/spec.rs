@@ -38,6 +38,32 @@ pub struct Spec {
     pub read_only: bool,
 }
 
+/// Why a value is not one a parameter takes ([`Spec::check_f64`], [`Spec::check_i64`]):
+/// not a finite number, or outside the parameter's bound (the words name the bound and
+/// the parameter's meaning).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoundError {
+    /// A double that is not finite (NaN, infinite): no parameter takes one.
+    #[error("must be a finite number, got {0}")]
+    NotFinite(f64),
+    /// A double outside the parameter's bound.
+    #[error("must be {}, got {got} ({})", .spec.bound_text(), .spec.description)]
+    OutOfBound {
+        /// The parameter's declaration (its bound, its meaning).
+        spec: Spec,
+        /// The value given.
+        got: f64,
+    },
+    /// An integer outside the parameter's bound.
+    #[error("must be {}, got {got} ({})", .spec.bound_text(), .spec.description)]
+    IntegerOutOfBound {
+        /// The parameter's declaration (its bound, its meaning).
+        spec: Spec,
+        /// The value given.
+        got: i64,
+    },
+}
+
 impl Spec {
     const fn new(name: &'static str, description: &'static str) -> Spec {
         Spec { name, description, bound: Bound::Any, constraints: "", read_only: false }
@@ -56,23 +82,23 @@ impl Spec {
     }
 
     /// Check a double against the bound: `Ok(x)`, or what is wrong.
-    pub fn check_f64(&self, x: f64) -> Result<f64, String> {
+    pub fn check_f64(&self, x: f64) -> Result<f64, BoundError> {
         if !x.is_finite() {
-            return Err(format!("must be a finite number, got {x}"));
+            return Err(BoundError::NotFinite(x));
         }
         let ok = match self.bound {
             Bound::Any | Bound::Integer { .. } => true,
             Bound::Float { from, to } => (from..=to).contains(&x),
             Bound::Positive => x > 0.0,
         };
-        if ok { Ok(x) } else { Err(format!("must be {}, got {x} ({})", self.bound_text(), self.description)) }
+        if ok { Ok(x) } else { Err(BoundError::OutOfBound { spec: *self, got: x }) }
     }
 
     /// Check an integer against the bound: `Ok(i)`, or what is wrong.
-    pub fn check_i64(&self, i: i64) -> Result<i64, String> {
+    pub fn check_i64(&self, i: i64) -> Result<i64, BoundError> {
         match self.bound {
             Bound::Integer { from, to } if !(from..=to).contains(&i) => {
-                Err(format!("must be {}, got {i} ({})", self.bound_text(), self.description))
+                Err(BoundError::IntegerOutOfBound { spec: *self, got: i })
             }
             _ => Ok(i),
         }
@@ -159,14 +185,25 @@ mod tests {
     fn bounds_say_what_is_wrong() {
         let scale = spec(names::SCALE).unwrap();
         assert_eq!(scale.check_f64(1.5), Ok(1.5));
-        assert!(
-            scale.check_f64(2.5).unwrap_err().starts_with("must be between 0.5 and 2, got 2.5 (calibration in force")
-        );
+        let e = scale.check_f64(2.5).unwrap_err();
+        assert_eq!(e, BoundError::OutOfBound { spec: *scale, got: 2.5 });
+        assert!(e.to_string().starts_with("must be between 0.5 and 2, got 2.5 (calibration in force"), "{e}");
         let age = spec(names::MAX_AGE_DAYS).unwrap();
-        assert!(age.check_f64(f64::INFINITY).unwrap_err().contains("finite"), "no upper bound, yet finite");
-        assert!(age.check_f64(-1.0).unwrap_err().starts_with("must be at least 0"));
-        assert!(age.check_f64(f64::NAN).unwrap_err().contains("finite"));
-        assert!(spec(names::METERS_PER_COUNT).unwrap().check_f64(0.0).unwrap_err().contains("greater than 0"));
-        assert!(spec(names::RESAMPLE_POINTS).unwrap().check_i64(-1).unwrap_err().contains("between 0 and 100000"));
+        let e = age.check_f64(f64::INFINITY).unwrap_err();
+        assert_eq!(e, BoundError::NotFinite(f64::INFINITY), "no upper bound, yet finite");
+        assert_eq!(e.to_string(), "must be a finite number, got inf");
+        assert!(age.check_f64(-1.0).unwrap_err().to_string().starts_with("must be at least 0"));
+        assert!(matches!(age.check_f64(f64::NAN), Err(BoundError::NotFinite(x)) if x.is_nan()));
+        let e = spec(names::METERS_PER_COUNT).unwrap().check_f64(0.0).unwrap_err();
+        assert!(
+            matches!(e, BoundError::OutOfBound { got: 0.0, .. }) && e.to_string().contains("greater than 0"),
+            "{e}"
+        );
+        let e = spec(names::RESAMPLE_POINTS).unwrap().check_i64(-1).unwrap_err();
+        assert!(matches!(e, BoundError::IntegerOutOfBound { got: -1, .. }), "{e:?}");
+        assert_eq!(
+            e.to_string(),
+            "must be between 0 and 100000, got -1 (size of Contour.radii (equal angle steps); 0 = no resampling)"
+        );
     }
 }

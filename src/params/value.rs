@@ -92,7 +92,7 @@ impl ParamValue {
     /// The YAML is read by `yaml_rust2`'s parser (as rcl reads it with libyaml); its scalars
     /// are typed by rcl's rules ([`ParamValue::from_yaml_scalar`]), not YAML 1.2's core
     /// schema, which `yaml_rust2`'s loader follows (`010` is 8 for rcl, `yes` a bool).
-    pub fn parse_yaml(text: &str) -> Result<ParamValue, String> {
+    pub fn parse_yaml(text: &str) -> Result<ParamValue, YamlValueError> {
         /// The parser's events, in order.
         struct Events(Vec<Event>);
         impl MarkedEventReceiver for Events {
@@ -100,37 +100,39 @@ impl ParamValue {
                 self.0.push(event);
             }
         }
+        use YamlValueError::NotAValue;
         let mut events = Events(Vec::new());
-        Parser::new_from_str(text).load(&mut events, true).map_err(|e| format!("not valid YAML: {}", e.info()))?;
+        Parser::new_from_str(text)
+            .load(&mut events, true)
+            .map_err(|e| YamlValueError::NotYaml(e.info().to_string()))?;
         let body: Vec<Event> = events
             .0
             .into_iter()
             .filter(|e| !matches!(e, Event::StreamStart | Event::StreamEnd | Event::DocumentStart | Event::DocumentEnd))
             .collect();
-        let empty = || "empty value (write '' for an empty string)".to_string();
+        let empty = NotAValue("empty value (write '' for an empty string)");
         match body.as_slice() {
-            [] => Err(empty()),
-            [Event::Scalar(text, TScalarStyle::Plain, ..)] if text.is_empty() => Err(empty()),
+            [] => Err(empty),
+            [Event::Scalar(text, TScalarStyle::Plain, ..)] if text.is_empty() => Err(empty),
             [scalar @ Event::Scalar(..)] => yaml_scalar(scalar),
             // rcl reads a block sequence (`- 1`) as no value: only `[a, b]` is one.
             [Event::SequenceStart(..), ..] if !text.trim_start().starts_with('[') => {
-                Err("a sequence is written [a, b, c]".into())
+                Err(NotAValue("a sequence is written [a, b, c]"))
             }
             [Event::SequenceStart(anchor, _), items @ .., Event::SequenceEnd] => {
                 if *anchor != 0 {
-                    return Err("YAML anchors are not supported in parameter values".into());
+                    return Err(NotAValue("YAML anchors are not supported in parameter values"));
                 }
                 if items.is_empty() {
-                    return Err("an empty sequence has no type".into());
+                    return Err(NotAValue("an empty sequence has no type"));
                 }
                 let values = items.iter().map(yaml_scalar).collect::<Result<Vec<_>, _>>()?;
-                ParamValue::array_of(values).ok_or_else(|| {
-                    "an array must hold scalars of one type (write [1.0, 2.5], not [1, 2.5])".to_string()
-                })
+                ParamValue::array_of(values)
+                    .ok_or(NotAValue("an array must hold scalars of one type (write [1.0, 2.5], not [1, 2.5])"))
             }
-            [Event::MappingStart(..), ..] => Err("a YAML mapping is not a parameter value".into()),
-            [Event::Alias(_)] => Err("YAML aliases are not supported in parameter values".into()),
-            _ => Err("expected one scalar, or a sequence of scalars [a, b, c]".into()),
+            [Event::MappingStart(..), ..] => Err(NotAValue("a YAML mapping is not a parameter value")),
+            [Event::Alias(_)] => Err(NotAValue("YAML aliases are not supported in parameter values")),
+            _ => Err(NotAValue("expected one scalar, or a sequence of scalars [a, b, c]")),
         }
     }
 
@@ -272,23 +274,37 @@ pub(crate) fn yaml_string(s: &str) -> String {
     format!("'{}'", s.replace('\'', "''"))
 }
 
+/// Why a `-p` value was not read ([`ParamValue::parse_yaml`]): not YAML, or YAML that is
+/// no parameter value.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum YamlValueError {
+    /// Not YAML: the parser's words.
+    #[error("not valid YAML: {0}")]
+    NotYaml(String),
+    /// YAML that is no parameter value (empty, a mapping, a block scalar, an array of
+    /// mixed types, ...): why.
+    #[error("{0}")]
+    NotAValue(&'static str),
+}
+
 fn yaml_list(items: impl Iterator<Item = String>) -> String {
     format!("[{}]", items.collect::<Vec<_>>().join(", "))
 }
 
 /// One scalar event as a parameter value: typed as rcl types it ([`ParamValue::from_yaml_scalar`]),
 /// quoted or tagged `!!str` a string; block scalars (`|`, `>`) and anchors refused.
-fn yaml_scalar(event: &Event) -> Result<ParamValue, String> {
+fn yaml_scalar(event: &Event) -> Result<ParamValue, YamlValueError> {
+    use YamlValueError::NotAValue;
     let Event::Scalar(text, style, anchor, tag) = event else {
-        return Err("a sequence must hold scalars (no nested sequence or mapping)".into());
+        return Err(NotAValue("a sequence must hold scalars (no nested sequence or mapping)"));
     };
     if *anchor != 0 {
-        return Err("YAML anchors are not supported in parameter values".into());
+        return Err(NotAValue("YAML anchors are not supported in parameter values"));
     }
     let quoted = match style {
         TScalarStyle::Plain => false,
         TScalarStyle::SingleQuoted | TScalarStyle::DoubleQuoted => true,
-        _ => return Err("a block scalar (| or >) is not a one-line value".into()),
+        _ => return Err(NotAValue("a block scalar (| or >) is not a one-line value")),
     };
     let str_tag =
         tag.as_ref().is_some_and(|t| t.suffix == "str" && (t.handle == "!!" || t.handle == "tag:yaml.org,2002:"));

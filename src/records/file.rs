@@ -24,14 +24,25 @@ pub fn default_path(params_file: &str) -> String {
     p.with_file_name(format!("{stem}.history.jsonl")).display().to_string()
 }
 
+/// A history file that exists but could not be read ([`read`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: cannot read: {source}")]
+pub struct Unreadable {
+    /// The file, as given.
+    pub path: String,
+    /// The system's reason (not `NotFound`: a missing file is an empty history).
+    #[source]
+    pub source: io::Error,
+}
+
 /// Read a history file. A file that does not exist is an empty history; one that cannot
 /// be read is an error naming it. Lines that are not records are
 /// skipped ([`History::parse`]).
-pub fn read(path: &Path) -> Result<History, String> {
+pub fn read(path: &Path) -> Result<History, Unreadable> {
     let bytes = match fs::read(path) {
         Ok(b) => b,
         Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(History::default()),
-        Err(e) => return Err(format!("{}: cannot read: {e}", path.display())),
+        Err(source) => return Err(Unreadable { path: path.display().to_string(), source }),
     };
     // A torn multi-byte character is in a torn line, which is skipped anyway.
     let text = String::from_utf8_lossy(&bytes);
@@ -111,6 +122,10 @@ mod tests {
         assert_eq!(h.records.iter().map(|r| r.scan_id).collect::<Vec<_>>(), [1, 2, 4]);
         assert_eq!(h.skipped.len(), 1);
         assert!(fs::read(&path).unwrap().ends_with(b"}\n"));
+        // A file that cannot be read (a directory): an error naming it.
+        let e = read(&dir).unwrap_err();
+        assert_eq!(e.path, dir.display().to_string());
+        assert!(e.to_string().starts_with(&format!("{}: cannot read: ", dir.display())), "{e}");
         // A directory that does not exist: an error, nothing created.
         assert!(append(&dir.join("no/such/h.jsonl"), &record(5)).is_err());
         fs::remove_dir_all(&dir).unwrap();

@@ -42,16 +42,12 @@ impl Default for PlateSpec {
 
 impl PlateSpec {
     /// Check the dimensions make a plate: a positive side, `0 <= r < side/2`.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), PlateError> {
         if !(self.side.is_finite() && self.side > 0.0) {
-            return Err(format!("plate side must be a positive length in metres, got {}", self.side));
+            return Err(PlateError::Side(self.side));
         }
         if !(self.corner_radius.is_finite() && self.corner_radius >= 0.0 && self.corner_radius < self.side / 2.0) {
-            return Err(format!(
-                "plate corner radius must be at least 0 and less than half the side ({} m), got {}",
-                self.side / 2.0,
-                self.corner_radius
-            ));
+            return Err(PlateError::CornerRadius { side: self.side, corner_radius: self.corner_radius });
         }
         Ok(())
     }
@@ -66,6 +62,22 @@ impl PlateSpec {
     pub fn at(&self, center: Vector2<f64>) -> RoundedRect {
         RoundedRect::plate(self.side, self.corner_radius, center)
     }
+}
+
+/// Why plate dimensions make no plate ([`PlateSpec::validate`]): which dimension is wrong.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum PlateError {
+    /// The side is not a positive length.
+    #[error("plate side must be a positive length in metres, got {0}")]
+    Side(f64),
+    /// The corner radius is negative, or not less than half the side.
+    #[error("plate corner radius must be at least 0 and less than half the side ({} m), got {corner_radius}", .side / 2.0)]
+    CornerRadius {
+        /// The plate's side, metres.
+        side: f64,
+        /// The corner radius given, metres.
+        corner_radius: f64,
+    },
 }
 
 /// Which model fits the calibration.
@@ -118,18 +130,47 @@ impl fmt::Display for ModelKind {
     }
 }
 
+/// A name that is none of the models ([`ModelKind`]'s `FromStr`): the name given.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown model '{0}': expected 'full', 'paper', 'full_scale', 'full_tip' or 'full_scale_tip'")]
+pub struct UnknownModel(pub String);
+
 impl std::str::FromStr for ModelKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownModel;
+    fn from_str(s: &str) -> Result<Self, UnknownModel> {
         match s {
             "full" => Ok(ModelKind::Full),
             "paper" => Ok(ModelKind::Paper),
             "full_scale" => Ok(ModelKind::FullScale),
             "full_tip" => Ok(ModelKind::FullTip),
             "full_scale_tip" => Ok(ModelKind::FullScaleTip),
-            _ => Err(format!(
-                "unknown model '{s}': expected 'full', 'paper', 'full_scale', 'full_tip' or 'full_scale_tip'"
-            )),
+            _ => Err(UnknownModel(s.to_string())),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plates_and_model_names_refused_in_words() {
+        assert_eq!(PlateSpec::default().validate(), Ok(()));
+        let e = PlateSpec { side: 0.0, corner_radius: 0.0 }.validate().unwrap_err();
+        assert_eq!(e, PlateError::Side(0.0));
+        assert_eq!(e.to_string(), "plate side must be a positive length in metres, got 0");
+        let e = PlateSpec { side: 0.045, corner_radius: 0.03 }.validate().unwrap_err();
+        assert_eq!(e, PlateError::CornerRadius { side: 0.045, corner_radius: 0.03 });
+        assert_eq!(
+            e.to_string(),
+            "plate corner radius must be at least 0 and less than half the side (0.0225 m), got 0.03"
+        );
+        assert_eq!("full_tip".parse::<ModelKind>(), Ok(ModelKind::FullTip));
+        let e = "magic".parse::<ModelKind>().unwrap_err();
+        assert_eq!(e, UnknownModel("magic".into()));
+        assert_eq!(
+            e.to_string(),
+            "unknown model 'magic': expected 'full', 'paper', 'full_scale', 'full_tip' or 'full_scale_tip'"
+        );
     }
 }

@@ -59,14 +59,16 @@ pub struct RingSpec {
 
 impl RingSpec {
     /// A ring a tracer can trace: a positive, finite diameter.
-    pub fn validate(&self) -> Result<(), String> {
-        if self.diameter.is_finite() && self.diameter > 0.0 {
-            Ok(())
-        } else {
-            Err(format!("the ring gauge's diameter must be a positive length in metres, got {}", self.diameter))
-        }
+    pub fn validate(&self) -> Result<(), RingError> {
+        if self.diameter.is_finite() && self.diameter > 0.0 { Ok(()) } else { Err(RingError(self.diameter)) }
     }
 }
+
+/// A ring gauge's diameter that is not a positive length ([`RingSpec::validate`]): the
+/// diameter given, metres.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("the ring gauge's diameter must be a positive length in metres, got {0}")]
+pub struct RingError(pub f64);
 
 /// `full_tip`'s parameters from the full model's and the tip radius and ring centre.
 pub fn from_full(x: &full::Params, tip_radius: f64, ring_center: Vector2<f64>) -> Params {
@@ -285,6 +287,15 @@ mod tests {
     use crate::engine::lm::{differentiate_numerically, jacobian, residuals};
 
     const RING: RingSpec = RingSpec { diameter: 0.040 };
+
+    #[test]
+    fn a_ring_without_a_diameter_is_refused() {
+        assert_eq!(RING.validate(), Ok(()));
+        let e = RingSpec { diameter: -1.0 }.validate().unwrap_err();
+        assert_eq!(e, RingError(-1.0));
+        assert_eq!(e.to_string(), "the ring gauge's diameter must be a positive length in metres, got -1");
+        assert!(matches!(RingSpec { diameter: f64::NAN }.validate(), Err(RingError(d)) if d.is_nan()));
+    }
 
     /// A noise-free plate and ring scan of a tracer with a 0.5 mm tip.
     fn model_and_truth() -> (TipModel, Params) {

@@ -33,7 +33,7 @@ impl ParamOverride {
             None => (None, lhs),
         };
         check_param_name(name)?;
-        let value = ParamValue::parse_yaml(value)?;
+        let value = ParamValue::parse_yaml(value).map_err(|e| e.to_string())?;
         Ok(ParamOverride { node, name: name.to_string(), value })
     }
 

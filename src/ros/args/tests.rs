@@ -1,6 +1,7 @@
 //! The command line and `-p` values against rcl's rules.
 
 use super::*;
+use crate::params::value::YamlValueError;
 
 fn parse(args: &[&str]) -> Result<RosArgs, ArgsError> {
     RosArgs::parse(args.iter().copied())
@@ -153,6 +154,13 @@ fn parse_yaml_rejects_what_rcl_rejects() {
     ] {
         assert!(ParamValue::parse_yaml(bad).is_err(), "{bad:?} should be rejected");
     }
+    // Not YAML, or YAML that is no value: told apart, in the words `-p` reports.
+    let e = ParamValue::parse_yaml("'open").unwrap_err();
+    assert!(matches!(e, YamlValueError::NotYaml(_)) && e.to_string().starts_with("not valid YAML: "), "{e}");
+    let e = ParamValue::parse_yaml("[1, 2.5]").unwrap_err();
+    assert_eq!(e, YamlValueError::NotAValue("an array must hold scalars of one type (write [1.0, 2.5], not [1, 2.5])"));
+    assert_eq!(e.to_string(), "an array must hold scalars of one type (write [1.0, 2.5], not [1, 2.5])");
+    assert!(matches!(ParamValue::parse_yaml("{a: 1}"), Err(YamlValueError::NotAValue(_))));
 }
 
 #[test]
