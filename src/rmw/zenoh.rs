@@ -233,10 +233,8 @@ mod tests {
         let (config, _) = env.session_config().unwrap();
         std::fs::remove_file(&path).unwrap();
         assert_eq!(config.get_json("transport/link/tx/queue/size/data").unwrap(), "2");
-        let env = ZenohEnv {
-            config_override: Some("transport/link/tx/queue/size/data=4".into()),
-            ..ZenohEnv::default()
-        };
+        let env =
+            ZenohEnv { config_override: Some("transport/link/tx/queue/size/data=4".into()), ..ZenohEnv::default() };
         let (config, warnings) = env.session_config().unwrap();
         assert!(warnings.is_empty(), "{warnings:?}");
         assert_eq!(config.get_json("transport/link/tx/queue/size/data").unwrap(), "4");
