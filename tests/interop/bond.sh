@@ -142,7 +142,8 @@ for d in "${DISTROS[@]}"; do
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/bond_env.sh
-    write_if_changed "$env_sh" <<EOF
+    {
+        cat <<EOF
 # Written by tests/interop/bond.sh -- do not edit. Source it AFTER target/ros/$d/env.sh:
 #   . target/ros/$d/env.sh; . target/ros/$d/bond_env.sh
 # The stock bond_core (ros/bond_core e6d0fc2c, 4.0.0): the \`bond\` messages (bond/msg/Status,
@@ -150,15 +151,9 @@ for d in "${DISTROS[@]}"; do
 # bond_core.tar.gz (sha256 $TAR_SHA).
 TRACER_BOND_DIR='$CACHE'
 export TRACER_BOND_DIR
-_p="\$TRACER_BOND_DIR/install"
-case ":\${PYTHONPATH:-}:" in *":\$_p/lib/python3.11/site-packages:"*) ;;
-    *) export PYTHONPATH="\$_p/lib/python3.11/site-packages\${PYTHONPATH:+:\$PYTHONPATH}" ;; esac
-case ":\${LD_LIBRARY_PATH:-}:" in *":\$_p/lib:"*) ;;
-    *) export LD_LIBRARY_PATH="\$_p/lib\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}" ;; esac
-case ":\${AMENT_PREFIX_PATH:-}:" in *":\$_p:"*) ;;
-    *) export AMENT_PREFIX_PATH="\$_p\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}" ;; esac
-unset _p
 EOF
+        prefix_env_lines TRACER_BOND_DIR
+    } | write_if_changed "$env_sh"
     # The install where the Rust tests look for rosidl's type descriptions
     # (src/interfaces/type_hash.rs, hashes_equal_rosidls): target/ros/DISTRO/bond_install.
     ln -sfn "$CACHE/install" "$ROS_DIR/bond_install"

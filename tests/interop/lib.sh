@@ -54,6 +54,22 @@ parse_peer_args() {
     [ "${#DISTROS[@]}" -gt 0 ] || { echo "usage: $0 [--force] kilted|jazzy..." >&2; exit 2; }
 }
 
+# prefix_env_lines VAR: the lines of an environment file that put the install prefix
+# "$VAR/install" (VAR set earlier in the file) first on PYTHONPATH (its site-packages),
+# LD_LIBRARY_PATH and AMENT_PREFIX_PATH, each once however often the file is sourced.
+prefix_env_lines() {
+    cat <<EOF
+_p="\$$1/install"
+case ":\${PYTHONPATH:-}:" in *":\$_p/lib/python3.11/site-packages:"*) ;;
+    *) export PYTHONPATH="\$_p/lib/python3.11/site-packages\${PYTHONPATH:+:\$PYTHONPATH}" ;; esac
+case ":\${LD_LIBRARY_PATH:-}:" in *":\$_p/lib:"*) ;;
+    *) export LD_LIBRARY_PATH="\$_p/lib\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}" ;; esac
+case ":\${AMENT_PREFIX_PATH:-}:" in *":\$_p:"*) ;;
+    *) export AMENT_PREFIX_PATH="\$_p\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}" ;; esac
+unset _p
+EOF
+}
+
 # write_if_changed FILE: FILE's new text from stdin, written (through a temporary file beside
 # it, renamed) only when it differs from what FILE holds, so that a rerun leaves it untouched.
 write_if_changed() {

@@ -240,7 +240,8 @@ for d in "${DISTROS[@]}"; do
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/rosbag2_env.sh
-    write_if_changed "$env_sh" <<EOF
+    {
+        cat <<EOF
 # Written by tests/interop/rosbag2.sh -- do not edit. Source it AFTER target/ros/$d/env.sh:
 #   . target/ros/$d/env.sh; . target/ros/$d/rosbag2_env.sh
 # The stock \`ros2 bag\` (rosbag2 0.26.5, Jazzy; MCAP and sqlite3 storage, zstd compression)
@@ -248,15 +249,9 @@ for d in "${DISTROS[@]}"; do
 TRACER_ROSBAG2_DIR='$CACHE'
 export TRACER_ROSBAG2_DIR
 export ROS_DISTRO=$d
-_p="\$TRACER_ROSBAG2_DIR/install"
-case ":\${PYTHONPATH:-}:" in *":\$_p/lib/python3.11/site-packages:"*) ;;
-    *) export PYTHONPATH="\$_p/lib/python3.11/site-packages\${PYTHONPATH:+:\$PYTHONPATH}" ;; esac
-case ":\${LD_LIBRARY_PATH:-}:" in *":\$_p/lib:"*) ;;
-    *) export LD_LIBRARY_PATH="\$_p/lib\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}" ;; esac
-case ":\${AMENT_PREFIX_PATH:-}:" in *":\$_p:"*) ;;
-    *) export AMENT_PREFIX_PATH="\$_p\${AMENT_PREFIX_PATH:+:\$AMENT_PREFIX_PATH}" ;; esac
-unset _p
 EOF
+        prefix_env_lines TRACER_ROSBAG2_DIR
+    } | write_if_changed "$env_sh"
 
     # Check (after a build only; a rerun trusts the key): `ros2 bag list storage` names both
     # storage plugins and rosbag2_py imports (no participant is created).
