@@ -70,11 +70,17 @@ unset _p
 EOF
 }
 
-# write_if_changed FILE: FILE's new text from stdin, written (through a temporary file beside
-# it, renamed) only when it differs from what FILE holds, so that a rerun leaves it untouched.
+# write_if_changed FILE [CHANGED]: FILE's new text from stdin, written (through a temporary
+# file beside it, renamed) only when it differs from what FILE holds, so that a rerun leaves
+# it untouched; when it is written, the variable named CHANGED (if given) is set to 1.
 write_if_changed() {
     local file=$1 tmp
     tmp=$(mktemp "$file.XXXXXX")
     cat >"$tmp"
-    if [ -f "$file" ] && cmp -s "$tmp" "$file"; then rm -f "$tmp"; else mv -f "$tmp" "$file"; fi
+    if [ -f "$file" ] && cmp -s "$tmp" "$file"; then
+        rm -f "$tmp"
+    else
+        mv -f "$tmp" "$file"
+        if [ -n "${2:-}" ]; then printf -v "$2" 1; fi
+    fi
 }

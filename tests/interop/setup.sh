@@ -210,15 +210,8 @@ fi
 # ---------------------------------------------------------------------------------
 # 4. env: the Fast DDS profile and env.sh (rewritten only when their text changes).
 t0=$(now_ms)
-write_if_changed() { # FILE, text on stdin
-    local tmp
-    tmp=$(mktemp "$1.XXXXXX")
-    cat >"$tmp"
-    if [ -f "$1" ] && cmp -s "$tmp" "$1"; then rm -f "$tmp"; return 1; fi
-    mv -f "$tmp" "$1"
-}
 env_changed=0
-write_if_changed "$PROFILE" <<'EOF' && env_changed=1
+write_if_changed "$PROFILE" env_changed <<'EOF'
 <?xml version="1.0" encoding="UTF-8"?>
 <!-- Written by tests/interop/setup.sh. Fast DDS (rclpy's rmw_fastrtps_cpp) on the loopback only:
      one UDPv4 transport allowed on 127.0.0.1 only, no shared-memory or other built-in transport,
@@ -257,7 +250,7 @@ write_if_changed "$PROFILE" <<'EOF' && env_changed=1
 EOF
 
 LIBS_DIRS=$(cd "$VENV/lib/python3.11/site-packages" && for d in ros_*.libs; do [ -d "$d" ] && printf ':$TRACER_ROS_DIR/venv/lib/python3.11/site-packages/%s' "$d"; done; true)
-write_if_changed "$ENV_SH" <<EOF && env_changed=1
+write_if_changed "$ENV_SH" env_changed <<EOF
 # Written by tests/interop/setup.sh -- do not edit. Source it:  . target/ros/$DISTRO/env.sh
 # Sets this shell's environment for the real ROS 2 peer (rclpy, ROS 2 $DISTRO, Fast DDS) and
 # the tracer_calib_msgs built from msg/. Activates nothing globally. Sourcing twice is harmless.
@@ -279,7 +272,7 @@ export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export FASTDDS_DEFAULT_PROFILES_FILE="\$TRACER_ROS_DIR/fastdds_localhost.xml"
 EOF
-write_if_changed "$ROS_SETUP_SH" <<EOF && env_changed=1
+write_if_changed "$ROS_SETUP_SH" env_changed <<EOF
 # Written by tests/interop/setup.sh -- do not edit. Source it:  . target/ros/$DISTRO/ros_setup.sh
 # What \`source /opt/ros/$DISTRO/setup.bash\` does, for ROS 2 $DISTRO installed from PyPI wheels
 # into target/ros/$DISTRO/venv: the underlay of a colcon workspace (tests/interop/workspace.sh).
