@@ -16,7 +16,7 @@ def run_tests(tests, only, label, summary, after_each=None, log_dir=None):
     """Run the `(name, fn)` pairs (all, or those named in `only`), one line each as cargo
     test prints them (`test LABELname ... ok (1.2 s)`, with what `fn` returns if it is a
     string), a failure's traceback and, if `log_dir` is given, the tail of every `.log`
-    file in it, and a closing `SUMMARY: N passed, K skipped, M failed`. A test that returns
+    file in it written while the test ran, and a closing `SUMMARY: N passed, K skipped, M failed`. A test that returns
     "skipped: WHY" (what it needs is not on this machine) is counted skipped, not passed,
     and printed `test LABELname ... skipped: WHY`. `after_each()` runs after every test.
     Returns M."""
@@ -25,6 +25,7 @@ def run_tests(tests, only, label, summary, after_each=None, log_dir=None):
         if only and name not in only:
             continue
         t0 = time.monotonic()
+        started = time.time()
         try:
             detail = fn()
             if isinstance(detail, str) and detail.startswith("skipped:"):
@@ -39,8 +40,12 @@ def run_tests(tests, only, label, summary, after_each=None, log_dir=None):
             print(f"test {label}{name} ... FAILED ({time.monotonic() - t0:.1f} s)", flush=True)
             traceback.print_exc()
             for log in sorted(os.listdir(log_dir)) if log_dir else []:
-                if log.endswith(".log"):
-                    print(f"--- {log}:\n" + open(os.path.join(log_dir, log)).read()[-3000:], flush=True)
+                path = os.path.join(log_dir, log)
+                try:
+                    if log.endswith(".log") and os.path.getmtime(path) >= started - 1.0:
+                        print(f"--- {log}:\n" + open(path, errors="replace").read()[-3000:], flush=True)
+                except OSError:
+                    pass  # gone meanwhile
         if after_each:
             after_each()
     print(f"{summary}: {passed} passed, {skipped} skipped, {failed} failed", flush=True)

@@ -223,16 +223,13 @@ def test_record(peer, storage):
     name = f"bag_{storage}"
     bag = os.path.join(h.WORK, f"record_{storage}")
     node = h.NodeProcess(f"record_{storage}", ["-r", f"__node:={name}"])
-    rec = None
+    rec = pub = None
     try:
         diags = peer.subscribe(DiagnosticArray, "/diagnostics")
         wait_diagnostics(peer, diags, name)
+        pub = driver_publisher(peer)
         rec = Bag(f"record_{storage}_bag", ["record", "-s", storage, "-o", bag, *NODE_TOPICS])
-        # The recorder subscribes to a topic once it has a publisher: /raw_scan once the
-        # driver's exists.
-        rec.wait_subscribed(peer, NODE_TOPICS[1:])
-        pub = peer.publisher("/raw_scan")
-        rec.wait_subscribed(peer, ["/raw_scan"])
+        rec.wait_subscribed(peer, NODE_TOPICS)
         peer.spin_until(lambda: pub.get_subscription_count() >= 2, 15, "the node and the recorder on /raw_scan")
         contours = peer.subscribe(Contour, "/contour")
         sent = []
@@ -261,6 +258,8 @@ def test_record(peer, storage):
         node.stop()
         if rec and rec.proc.poll() is None:
             rec.stop()
+        if pub:
+            peer.node.destroy_publisher(pub)
     bag_files(bag, storage)
     msgs, kinds = read_bag(bag)
     missing = set(NODE_TOPICS) - set(msgs)
@@ -324,13 +323,27 @@ def test_info_own_bags():
     return "ros2 bag info read " + ", ".join(seen) + " messages"
 
 
+def driver_publisher(peer, topic="/raw_scan"):
+    """The rclpy driver's publisher, made before `ros2 bag record` starts; the test destroys
+    it when done.
+
+    DDS matches a writer and a reader on each side on its own: a sample the writer sends
+    once it has matched the recorder's reader is dropped by that reader if it has not yet
+    matched the writer (a volatile reader does not ask for it later). The recorder creates
+    its reader once discovery showed it a publisher of the topic, so a reader made after
+    this writer was discovered matches it at once; and no publisher of an earlier test may
+    be left behind to have it subscribe before this one is known."""
+    return peer.publisher(topic)
+
+
 def record_driver(peer, label, storage, scans, topic="/raw_scan"):
     """`ros2 bag record -s STORAGE TOPIC` of an rclpy driver alone publishing `scans`
     ([RawScan], stamped now), 0.2 s apart; the bag's path."""
     bag = os.path.join(h.WORK, label)
-    rec = Bag(label + "_bag", ["record", "-s", storage, "-o", bag, topic])
+    pub = driver_publisher(peer, topic)
+    rec = None
     try:
-        pub = peer.publisher(topic)
+        rec = Bag(label + "_bag", ["record", "-s", storage, "-o", bag, topic])
         rec.wait_subscribed(peer, [topic])
         peer.wait_matched(pub)
         for m in scans:
@@ -340,7 +353,9 @@ def record_driver(peer, label, storage, scans, topic="/raw_scan"):
                 peer.executor.spin_once(timeout_sec=0.05)
         time.sleep(1.0)
     finally:
-        rec.stop()
+        if rec:
+            rec.stop()
+        peer.node.destroy_publisher(pub)
     return bag
 
 
@@ -440,7 +455,7 @@ def test_record_service_events(peer, storage, select):
     label = f"service_events_{storage}"
     bag = os.path.join(h.WORK, label)
     node = h.NodeProcess(label, ["-r", f"__node:=introspected_{storage}", "-p", "calibrate.introspection:=contents"])
-    rec = None
+    rec = pub = None
     try:
         diags = peer.subscribe(DiagnosticArray, "/diagnostics")
         wait_diagnostics(peer, diags, f"/introspected_{storage}")
@@ -460,6 +475,8 @@ def test_record_service_events(peer, storage, select):
         node.stop()
         if rec and rec.proc.poll() is None:
             rec.stop()
+        if pub:
+            peer.node.destroy_publisher(pub)
     # Not rosbags: the stock recorder (Jazzy) finds no definition for a service whose .srv
     # names no message type (Calibrate's fields are all primitive), and writes the MCAP
     # schema with encoding "unknown", which rosbags refuses; rosbag2 reads its own bag.

@@ -56,7 +56,6 @@ import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 
 import rclpy
@@ -82,7 +81,9 @@ ZENOH_ENV = dict(os.environ)
 CLI_ENV = dict(ZENOH_ENV, ROS2CLI_NO_DAEMON="1")
 os.environ.pop("LD_PRELOAD", None)
 
-WORK = tempfile.mkdtemp(prefix="tracer_calib_zenoh_")
+# The harness's scratch folder, where its NodeProcess writes the nodes' logs: a failed test
+# prints the tails of the logs written meanwhile, the nodes' with the router's and peers'.
+WORK = tn.WORK
 MESSAGES = 10
 
 # A stock talker: publishes "hello N" every 50 ms and serves /zenoh_trigger, until stdin
@@ -466,6 +467,21 @@ def test_zenoh_node_lifecycle():
             if "inactive" in str(e):
                 raise
         assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "activate")
+        # nav2's bond on Zenoh, with the stock bondpy (tests/interop/bond.sh) as the manager,
+        # started right after the activation as nav2's manager starts it: the node's end waits
+        # for its sister the connect timeout (10 s, bond_msgs'), then breaks, as bondcpp's does,
+        # and a ros2 CLI call on Zenoh can take seconds on a loaded machine.
+        try:
+            from bondpy.bondpy import Bond
+        except ImportError:
+            Bond = None
+        formed = []
+        if Bond:
+            bond = Bond(peer.node, "/bond", "tracer_calibrator", on_formed=lambda: formed.append(time.monotonic()))
+            bond.heartbeat_period = 0.1
+            bond.heartbeat_timeout = 4.0
+            bond.start()
+            BONDS.append(bond)  # bondpy's shutdown() would tear the peer's executor down
         assert "active [3]" in lines(ros2("lifecycle", "get", "--no-daemon", "/tracer_calibrator"))
         c = peer.send_scan(pub, tn.raw_scan(41, RawScan.TARGET_LENS, *lens), contours)
         assert c.scan_id == 41
@@ -473,21 +489,11 @@ def test_zenoh_node_lifecycle():
         labels = [(e.start_state.label, e.goal_state.label) for e in events]
         assert labels == [("unconfigured", "configuring"), ("configuring", "inactive"),
                           ("inactive", "activating"), ("activating", "active")], labels
-        # nav2's bond on Zenoh, with the stock bondpy (tests/interop/bond.sh) as the manager.
-        try:
-            from bondpy.bondpy import Bond
-        except ImportError:
+        if not Bond:
             return "lifecycle on Zenoh passed; bond skipped: bondpy not installed (tests/interop/bond.sh)"
-        formed = []
-        bond = Bond(peer.node, "/bond", "tracer_calibrator", on_formed=lambda: formed.append(time.monotonic()))
-        bond.heartbeat_period = 0.1
-        bond.heartbeat_timeout = 4.0
-        t0 = time.monotonic()
-        bond.start()
-        BONDS.append(bond)  # bondpy's shutdown() would tear the peer's executor down
         peer.spin_until(lambda: formed, 5, "nav2's bond formed on Zenoh")
-        return (f"unconfigured -> inactive -> active by ros2 lifecycle on Zenoh, 4 transition events; "
-                f"nav2's bond formed in {formed[0] - t0:.2f} s")
+        return ("unconfigured -> inactive -> active by ros2 lifecycle on Zenoh, 4 transition events; "
+                "nav2's bond formed")
     finally:
         node.stop()
 
