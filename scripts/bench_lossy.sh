@@ -4,8 +4,9 @@
 # network namespace of its own whose loopback drops LOSS % of the UDP datagrams (nftables);
 # nothing leaves the machine. Needs the release binaries and the peers of the test command
 # (tests/interop/setup.sh DISTRO; tests/interop/cyclone.sh jazzy for the Cyclone DDS peers).
-#   bash scripts/bench_lossy.sh [DISTRO [SCANS [RMWS [LOSSES]]]]
-#   defaults: jazzy, 200 scans, "fastdds cyclone", "0 5 10 25"
+#   bash scripts/bench_lossy.sh [DISTRO [SCANS [RMWS [LOSSES [VARIANT]]]]]
+#   defaults: jazzy, 200 scans, "fastdds cyclone", "0 5 10 25", none
+#   VARIANT: delay, mtu1500 (DDS), keepall (keep all on both sides; zenoh: Block, not Drop)
 # Prints one line per scenario (contours back, latency p50/p99/max, calls, parameter
 # requests, the latched calibration, discovery, datagrams dropped).
 set -euo pipefail
@@ -14,6 +15,7 @@ DISTRO=${1:-jazzy}
 export LOSSY_SCANS=${2:-200}
 RMWS=${3:-fastdds cyclone}
 LOSSES=${4:-0 5 10 25}
+VARIANT=${5:-}
 . scripts/target_dir.sh
 export TRACER_CALIB_NODE="$TRACER_RELEASE_DIR/tracer_calib_node" TRACER_CALIB="$TRACER_RELEASE_DIR/tracer_calib"
 [ -x "$TRACER_CALIB_NODE" ] || { echo "bench_lossy.sh: build first: cargo build --release --features security --bins" >&2; exit 2; }
@@ -23,8 +25,8 @@ command -v nft >/dev/null || { echo "bench_lossy.sh: needs nft (apt-get install 
 for rmw in $RMWS; do
     for loss in $LOSSES; do
         for server in stock node; do
-            LOSSY_RUN="$server $rmw $loss" timeout -s KILL 600 python3 tests/interop/test_lossy.py | grep -v '^{' \
-                || echo "$server $rmw $loss %: failed"
+            LOSSY_RUN="$server $rmw $loss $VARIANT" timeout -s KILL 600 python3 tests/interop/test_lossy.py | grep -v '^{' \
+                || echo "$server $rmw $loss % $VARIANT: failed"
         done
     done
 done
