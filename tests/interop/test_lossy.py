@@ -324,6 +324,7 @@ def scenario_main(server, loss, variant=""):
         result["scans"] = SCANS
         result["contours"] = len(lat)
         result["latency_ms"] = lat
+        result["missing"] = sorted(s for s in published if s not in arrivals)
 
         # /calibrate calls, one after the other.
         client = peer.node.create_client(Calibrate, "/calibrate")
@@ -482,6 +483,8 @@ def describe(r):
     text = f"{r['contours']}/{r['scans']} contours"
     if lat:
         text += f", p50 {percentile(lat, 50):.1f} ms, p99 {percentile(lat, 99):.1f} ms, max {max(lat):.0f} ms"
+    if r.get("missing"):
+        text += f" (missing: scans {', '.join(map(str, r['missing']))})"
     text += f"; calls {len(calls)}/{len(r['calls'])}"
     if calls:
         text += f" (max {max(calls):.1f} ms)"
