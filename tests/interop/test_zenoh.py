@@ -176,10 +176,20 @@ def peer(name, script, *args):
 
 
 
-def ros2(*args):
+def ros2(*args, spin=None):
     """The stock `ros2` command on rmw_zenoh_cpp, without its daemon: its output; a failure
-    fails the test, but for rmw_zenoh's own session-close timeout as the command exits."""
-    out = subprocess.run(["timeout", "-s", "KILL", "60", "ros2", *args], env=CLI_ENV, capture_output=True, text=True)
+    fails the test, but for rmw_zenoh's own session-close timeout as the command exits.
+    `spin`: a peer whose executor spins while the command runs (its timers and callbacks:
+    a bond's heartbeats)."""
+    cmd = ["timeout", "-s", "KILL", "60", "ros2", *args]
+    if spin is None:
+        out = subprocess.run(cmd, env=CLI_ENV, capture_output=True, text=True)
+    else:
+        proc = subprocess.Popen(cmd, env=CLI_ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        while proc.poll() is None:
+            spin.executor.spin_once(timeout_sec=0.05)
+        stdout, stderr = proc.communicate()
+        out = subprocess.CompletedProcess(cmd, proc.returncode, stdout, stderr)
     closing = tn.zenoh_close_timed_out(out)
     assert out.returncode == 0 or closing, f"ros2 {' '.join(args)}: {out.returncode}\n{out.stdout}\n{out.stderr}"
     if closing:
@@ -466,11 +476,13 @@ def test_zenoh_node_lifecycle():
         except AssertionError as e:
             if "inactive" in str(e):
                 raise
-        assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "activate")
-        # nav2's bond on Zenoh, with the stock bondpy (tests/interop/bond.sh) as the manager,
-        # started right after the activation as nav2's manager starts it: the node's end waits
-        # for its sister the connect timeout (10 s, bond_msgs'), then breaks, as bondcpp's does,
-        # and a ros2 CLI call on Zenoh can take seconds on a loaded machine.
+        # nav2's bond on Zenoh, with the stock bondpy (tests/interop/bond.sh) as the manager.
+        # The node's end waits for its sister the connect timeout (10 s, bond_msgs'), then
+        # breaks, as bondcpp's does; nav2's manager starts its end as soon as the activation
+        # is answered, but `ros2 lifecycle set` on Zenoh can take 10 s more to exit (its
+        # session's close timing out). So the manager's end starts before the activation
+        # here, waiting for its sister longer than its default 10 s, and the peer spins (the
+        # bond's heartbeats) while the ros2 commands run.
         try:
             from bondpy.bondpy import Bond
         except ImportError:
@@ -480,9 +492,12 @@ def test_zenoh_node_lifecycle():
             bond = Bond(peer.node, "/bond", "tracer_calibrator", on_formed=lambda: formed.append(time.monotonic()))
             bond.heartbeat_period = 0.1
             bond.heartbeat_timeout = 4.0
+            bond.connect_timeout = 60.0
             bond.start()
             BONDS.append(bond)  # bondpy's shutdown() would tear the peer's executor down
-        assert "active [3]" in lines(ros2("lifecycle", "get", "--no-daemon", "/tracer_calibrator"))
+        assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "activate",
+                                                  spin=peer)
+        assert "active [3]" in lines(ros2("lifecycle", "get", "--no-daemon", "/tracer_calibrator", spin=peer))
         c = peer.send_scan(pub, tn.raw_scan(41, RawScan.TARGET_LENS, *lens), contours)
         assert c.scan_id == 41
         peer.spin_until(lambda: len(events) >= 4, 5, "four transition events")
