@@ -698,11 +698,10 @@ def each_in_its_own_process(names):
     their handshakes come and go: eclipse-cyclonedds/cyclonedds#1548, more often on a
     loaded machine). A test whose process crashed so is said, and run again, up to
     ATTEMPTS times in all (two crashes of the same test in a row were seen, 2026-11-26);
-    the node
-    runs in its own process in every test, and is not what crashed. Each test process leads
-    a process group of its own, and what it started and left behind (a crash runs no
-    `finally`: its node, a foreign peer still announcing itself) is killed with the group
-    before the next test starts. Returns how many failed."""
+    the node runs in its own process in every test, and is not what crashed. Each test
+    process leads a process group of its own, and what it started and left behind (a crash
+    runs no `finally`: its node, a foreign peer still announcing itself) is killed with the
+    group before the next test starts. Returns how many failed."""
     failed = 0
     for name in names:
         for attempt in range(1, ATTEMPTS + 1):
