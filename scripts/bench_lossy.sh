@@ -6,7 +6,8 @@
 # (tests/interop/setup.sh DISTRO; tests/interop/cyclone.sh jazzy for the Cyclone DDS peers).
 #   bash scripts/bench_lossy.sh [DISTRO [SCANS [RMWS [LOSSES [VARIANT]]]]]
 #   defaults: jazzy, 200 scans, "fastdds cyclone", "0 5 10 25", none
-#   VARIANT: delay, mtu1500 (DDS), keepall (keep all on both sides; zenoh: Block, not Drop)
+#   VARIANT: delay, mtu1500 (DDS), keepall (keep all on both sides; zenoh: Block, not Drop),
+#   rtomax1s (zenoh: TCP's retransmission timeout at most 1 s, net.ipv4.tcp_rto_max_ms)
 # Prints one line per scenario (contours back, latency p50/p99/max, calls, parameter
 # requests, the latched calibration, discovery, datagrams dropped).
 set -euo pipefail

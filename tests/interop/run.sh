@@ -158,8 +158,9 @@ for d in $DISTROS; do
     # (nftables, in a network namespace of each scenario's own), and under 10 % loss with
     # datagrams delayed and reordered, with Fast DDS peers and, on Jazzy, Cyclone DDS and
     # Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's lossy_cyclone_* and lossy_zenoh_*
-    # say they are skipped); ten cells started at once under 10 % (Fast DDS planner) and
-    # 25 % loss (Cyclone DDS planner).
+    # say they are skipped; Zenoh under 25 % loss also with TCP's retransmission timeout
+    # capped at 1 s); ten cells started at once under 10 % (Fast DDS planner) and 25 % loss
+    # (Cyclone DDS planner).
     if [ "$all" -eq 1 ] || [ "${#lossy[@]}" -gt 0 ]; then
         # iptables' NFQUEUE and a venv with NetfilterQueue (built against
         # libnetfilter-queue): tests/interop/netdelay.py, the *_delay scenarios' delay.
@@ -179,7 +180,7 @@ for d in $DISTROS; do
         if [ "$d" = jazzy ] && ! "$HERE/zenoh.sh" "$d"; then
             failed+=("$d:zenoh_setup")
         fi
-        # 13 scenarios of 30-60 s, each bounded at 300 s by test_lossy.py itself.
+        # 14 scenarios of 30-60 s, each bounded at 300 s by test_lossy.py itself.
         SUITE_LIMIT=1200 suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
             ${lossy[@]+"${lossy[@]}"}
     fi
