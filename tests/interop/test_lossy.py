@@ -303,6 +303,19 @@ def scenario_main(server, loss, variant=""):
             Contour, "/contour", lambda c: arrivals.setdefault(c.scan_id, time.monotonic()), qos(50)
         )
         pub = peer.node.create_publisher(RawScan, "/raw_scan", qos(50))
+        # The node's own counts (its /diagnostics, once a second), to tell a scan lost on
+        # the way in from a contour lost on the way back.
+        counts = {}
+        if server == "node":
+            from diagnostic_msgs.msg import DiagnosticArray
+
+            wanted = ("scans_received", "contours_published")
+            peer.node.create_subscription(
+                DiagnosticArray,
+                "/diagnostics",
+                lambda d: counts.update((kv.key, int(kv.value)) for s in d.status for kv in s.values if kv.key in wanted),
+                qos(10),
+            )
         peer.spin_until(
             lambda: pub.get_subscription_count() > 0 and contour_sub.get_publisher_count() > 0,
             60,
@@ -339,6 +352,12 @@ def scenario_main(server, loss, variant=""):
         result["contours"] = len(lat)
         result["latency_ms"] = lat
         result["missing"] = sorted(s for s in published if s not in arrivals)
+        if result["missing"] and counts:
+            # A second for the node's next diagnostics to come.
+            end = time.monotonic() + 1.5
+            while time.monotonic() < end:
+                peer.executor.spin_once(timeout_sec=0.05)
+            result["node_counts"] = dict(counts)
 
         # /calibrate calls, one after the other.
         client = peer.node.create_client(Calibrate, "/calibrate")
@@ -498,7 +517,11 @@ def describe(r):
     if lat:
         text += f", p50 {percentile(lat, 50):.1f} ms, p99 {percentile(lat, 99):.1f} ms, max {max(lat):.0f} ms"
     if r.get("missing"):
-        text += f" (missing: scans {', '.join(map(str, r['missing']))})"
+        text += f" (missing: scans {', '.join(map(str, r['missing']))}"
+        if r.get("node_counts"):
+            # Scans sent: the plate's (at least once) and the lenses.
+            text += ", the node's diagnostics: " + ", ".join(f"{k} {v}" for k, v in r["node_counts"].items())
+        text += ")"
     text += f"; calls {len(calls)}/{len(r['calls'])}"
     if calls:
         text += f" (max {max(calls):.1f} ms)"
