@@ -56,6 +56,7 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 import time
 
 import rclpy
@@ -166,6 +167,32 @@ except Exception as e:
 print("bye", flush=True)
 """
 
+# nav2's lifecycle manager's end of the bond (stock bondpy), in a process of its own as
+# nav2's is: prints "started", then "formed" when the bond forms, and any error its
+# executor raises ("error: ..."), until killed.
+BOND_MANAGER = r"""
+import sys, time
+import rclpy
+from bondpy.bondpy import Bond
+rclpy.init()
+n = rclpy.create_node("zenoh_lifecycle_manager")
+bond = Bond(n, "/bond", "tracer_calibrator", on_formed=lambda: print("formed", flush=True))
+bond.heartbeat_period = 0.1
+bond.heartbeat_timeout = 4.0
+bond.connect_timeout = 60.0
+bond.start()
+print("started", flush=True)
+said = set()
+while True:
+    try:
+        rclpy.spin_once(n, timeout_sec=0.1)
+    except Exception as e:
+        if str(e) not in said:
+            said.add(str(e))
+            print(f"error: {e}", flush=True)
+        time.sleep(0.1)
+"""
+
 
 def peer(name, script, *args):
     return subprocess.Popen(
@@ -174,6 +201,8 @@ def peer(name, script, *args):
         text=True,
     )
 
+
+peer_process = peer  # for tests whose own `peer` is their rclpy peer
 
 
 def ros2(*args, spin=None):
@@ -438,10 +467,6 @@ def lines(text):
     return [ln.strip() for ln in text.splitlines()]
 
 
-# Bonds made by the tests, kept to the end (never shut down: see test_zenoh_node_lifecycle).
-BONDS = []
-
-
 def test_zenoh_node_lifecycle():
     if not shutil.which("ros2"):
         return "skipped: no ros2 command (tests/interop/ros2cli.sh installs it)"
@@ -449,6 +474,7 @@ def test_zenoh_node_lifecycle():
     router()
     node = zenoh_node("zenoh_lifecycle", ["-p", "managed:=true"])
     peer = peer_node()
+    manager = None
 
     try:
         events = peer.subscribe(TransitionEvent, "/tracer_calibrator/transition_event")
@@ -476,25 +502,24 @@ def test_zenoh_node_lifecycle():
         except AssertionError as e:
             if "inactive" in str(e):
                 raise
-        # nav2's bond on Zenoh, with the stock bondpy (tests/interop/bond.sh) as the manager.
-        # The node's end waits for its sister the connect timeout (10 s, bond_msgs'), then
-        # breaks, as bondcpp's does; nav2's manager starts its end as soon as the activation
-        # is answered, but `ros2 lifecycle set` on Zenoh can take 10 s more to exit (its
+        # nav2's bond on Zenoh, with the stock bondpy (tests/interop/bond.sh) as the manager,
+        # in a process of its own (BOND_MANAGER), as nav2's lifecycle manager is. The node's
+        # end waits for its sister the connect timeout (10 s, bond_msgs'), then breaks, as
+        # bondcpp's does; nav2's manager starts its end as soon as the activation is
+        # answered, but `ros2 lifecycle set` on Zenoh can take 10 s more to exit (its
         # session's close timing out). So the manager's end starts before the activation
-        # here, waiting for its sister longer than its default 10 s, and the peer spins (the
-        # bond's heartbeats) while the ros2 commands run.
+        # here, waiting for its sister longer than its default 10 s.
         try:
-            from bondpy.bondpy import Bond
+            import bondpy.bondpy  # noqa: F401
+            have_bond = True
         except ImportError:
-            Bond = None
-        formed = []
-        if Bond:
-            bond = Bond(peer.node, "/bond", "tracer_calibrator", on_formed=lambda: formed.append(time.monotonic()))
-            bond.heartbeat_period = 0.1
-            bond.heartbeat_timeout = 4.0
-            bond.connect_timeout = 60.0
-            bond.start()
-            BONDS.append(bond)  # bondpy's shutdown() would tear the peer's executor down
+            have_bond = False
+        manager_said = []
+        if have_bond:
+            manager = peer_process("zenoh_lifecycle_manager", BOND_MANAGER)
+            threading.Thread(target=lambda: manager_said.extend(iter(manager.stdout.readline, "")),
+                             daemon=True).start()
+            peer.spin_until(lambda: "started\n" in manager_said, 30, "the lifecycle manager's bond started")
         assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", "/tracer_calibrator", "activate",
                                                   spin=peer)
         assert "active [3]" in lines(ros2("lifecycle", "get", "--no-daemon", "/tracer_calibrator", spin=peer))
@@ -504,13 +529,30 @@ def test_zenoh_node_lifecycle():
         labels = [(e.start_state.label, e.goal_state.label) for e in events]
         assert labels == [("unconfigured", "configuring"), ("configuring", "inactive"),
                           ("inactive", "activating"), ("activating", "active")], labels
-        if not Bond:
+        if not have_bond:
             return "lifecycle on Zenoh passed; bond skipped: bondpy not installed (tests/interop/bond.sh)"
-        peer.spin_until(lambda: formed, 5, "nav2's bond formed on Zenoh")
+        peer.spin_until(lambda: "formed\n" in manager_said, 5, "nav2's bond formed on Zenoh")
+        errors = [line for line in manager_said if line.startswith("error")]
+        assert not errors, f"the lifecycle manager's bond: {errors}"
+        # The node leaves: its end says the bond is broken. Seen in about 1 run of 4 (issue
+        # 29's closing notes): the stock manager's rmw_zenoh then fails to take a Status
+        # ("Unexpected non-zero initial byte received in Cdr::read_encapsulation"), once
+        # aborting on a bad attachment; a process of its own keeps that from the other
+        # tests' peer, and the test says it (OPEN) until its cause is found.
+        node.stop()
+        deadline = time.monotonic() + 1.0
+        while time.monotonic() < deadline and manager.poll() is None:
+            time.sleep(0.05)
+        late = [line.strip() for line in manager_said if line.startswith("error")]
+        if manager.poll() is not None:
+            late.append(f"the manager's process exited ({manager.returncode})")
         return ("unconfigured -> inactive -> active by ros2 lifecycle on Zenoh, 4 transition events; "
-                "nav2's bond formed")
+                "nav2's bond formed" + (f"; OPEN: after the node left, the stock manager: {late[0]}" if late else ""))
     finally:
         node.stop()
+        if manager:
+            manager.kill()
+            manager.wait()
 
 
 def test_zenoh_node_namespaces():
