@@ -25,7 +25,8 @@ shutdown on rmw_zenoh can hang for 10 s: docs/ros2-peer.md).
 - zenoh_node_lifecycle: the node managed (`-p managed:=true`) on Zenoh: the real `ros2
   lifecycle get/set` configure and activate it; a scan while inactive is held (no contour),
   one after activation comes back; each transition on ~/transition_event; once active,
-  nav2's bond forms with the stock bondpy on rmw_zenoh_cpp as the manager's end.
+  nav2's bond forms with the stock bondpy on rmw_zenoh_cpp as the manager's end (a process of
+  its own, BOND_MANAGER).
 - zenoh_node_sim_time, zenoh_node_sim_time_no_clock: test_runtime.py's sim-time tests,
   run as they are against the node on Zenoh (an rclpy /clock at 5000 s: diagnostics, the
   calibration, its rosout record and history record stamped with it, a jump back
