@@ -18,8 +18,8 @@ def run_tests(tests, only, label, summary, after_each=None, log_dir=None):
     string), a failure's traceback and, if `log_dir` is given, the tail of every `.log`
     file in it written while the test ran, and a closing `SUMMARY: N passed, K skipped, M
     failed`. A test that returns "skipped: WHY" (what it needs is not on this machine) is
-    counted skipped, not passed, and printed `test LABELname ... skipped: WHY`. `after_each()` runs after every test.
-    Returns M."""
+    counted skipped, not passed, and printed `test LABELname ... skipped: WHY`.
+    `after_each()` runs after every test. Returns M."""
     passed = skipped = failed = 0
     for name, fn in tests:
         if only and name not in only:

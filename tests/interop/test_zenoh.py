@@ -172,7 +172,7 @@ print("bye", flush=True)
 # nav2's is: prints "started", then "formed" when the bond forms, and any error its
 # executor raises ("error: ..."), until killed.
 BOND_MANAGER = r"""
-import sys, time
+import time
 import rclpy
 from bondpy.bondpy import Bond
 rclpy.init()
