@@ -25,7 +25,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
 
-use crate::engine::calibrate::covariance_from_values;
+use crate::engine::calibrate::{InvalidCovariance, covariance_from_values};
 use crate::engine::geometry::Mounting;
 
 /// One applied calibration, as a line of the history file.
@@ -126,24 +126,41 @@ impl Record {
         serde_json::to_string(self).expect("a record always serializes")
     }
 
-    /// A record with a non-finite number or a stddev of the wrong length is not one
-    /// the node writes.
-    fn check(&self) -> Result<(), String> {
+    /// A record with a non-finite number, a stddev of the wrong length, a covariance that
+    /// is none or a time that is no UTC time is not one the node writes.
+    fn check(&self) -> Result<(), RecordError> {
         let numbers = [self.alpha0, self.offset, self.delta_l, self.scale, self.rms_residual, self.tip_radius];
         if !numbers.iter().chain(&self.stddev).all(|v| v.is_finite()) {
-            return Err("a number is not finite".into());
+            return Err(RecordError::NotFinite);
         }
         if !(self.stddev.is_empty() || (3..=4).contains(&self.stddev.len())) {
-            return Err(format!("stddev has {} entries, expected 3 or 4", self.stddev.len()));
+            return Err(RecordError::StddevLength(self.stddev.len()));
         }
         if !self.covariance.is_empty() {
-            covariance_from_values(&self.covariance).map_err(|e| format!("covariance: {e}"))?;
+            covariance_from_values(&self.covariance)?;
         }
         if self.applied_at().is_none() {
-            return Err(format!("time '{}' is not a UTC time (YYYY-MM-DDTHH:MM:SS[.fff]Z)", self.time));
+            return Err(RecordError::Time(self.time.clone()));
         }
         Ok(())
     }
+}
+
+/// Why a line of a history file is not a record ([`History::parse`] says it, with the
+/// file and line, and skips the line).
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// Not JSON, or JSON with a field missing or of the wrong type.
+    #[error("{0}")]
+    Json(#[from] serde_json::Error),
+    #[error("a number is not finite")]
+    NotFinite,
+    #[error("stddev has {0} entries, expected 3 or 4")]
+    StddevLength(usize),
+    #[error("covariance: {0}")]
+    Covariance(#[from] InvalidCovariance),
+    #[error("time '{0}' is not a UTC time (YYYY-MM-DDTHH:MM:SS[.fff]Z)")]
+    Time(String),
 }
 
 /// Are two calibrations the same (within what a round trip through JSON or YAML text
@@ -176,7 +193,8 @@ impl History {
                 continue;
             }
             let last = i + 1 == lines.len();
-            match serde_json::from_str::<Record>(line).map_err(|e| e.to_string()).and_then(|r| r.check().map(|()| r)) {
+            let record = serde_json::from_str::<Record>(line).map_err(RecordError::from);
+            match record.and_then(|r| r.check().map(|()| r)) {
                 Ok(r) => h.records.push(r),
                 Err(e) => {
                     let what = if last && !complete { "a torn last line (no newline)" } else { "not a record" };

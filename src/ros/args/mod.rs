@@ -112,11 +112,16 @@ impl LogLevel {
     }
 }
 
+/// A `--log-level` value that names no level ([`LogLevel`]'s `FromStr`).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown log level '{0}' (debug, info, warn, error, fatal, unset)")]
+pub struct UnknownLogLevel(pub String);
+
 impl FromStr for LogLevel {
-    type Err = String;
+    type Err = UnknownLogLevel;
 
     /// Case-insensitive `debug`, `info`, `warn`/`warning`, `error`, `fatal`, `unset`.
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, UnknownLogLevel> {
         Ok(match s.to_ascii_lowercase().as_str() {
             "unset" => LogLevel::Unset,
             "debug" => LogLevel::Debug,
@@ -124,7 +129,7 @@ impl FromStr for LogLevel {
             "warn" | "warning" => LogLevel::Warn,
             "error" => LogLevel::Error,
             "fatal" => LogLevel::Fatal,
-            _ => return Err(format!("unknown log level '{s}' (debug, info, warn, error, fatal, unset)")),
+            _ => return Err(UnknownLogLevel(s.to_string())),
         })
     }
 }
@@ -227,10 +232,14 @@ impl RosArgs {
                             if logger.is_empty() {
                                 return Err(bad(EXPECT_LOG_LEVEL, &v, "empty logger name".into()));
                             }
-                            let level = level.parse().map_err(|e| bad(EXPECT_LOG_LEVEL, &v, e))?;
+                            let level =
+                                level.parse().map_err(|e: UnknownLogLevel| bad(EXPECT_LOG_LEVEL, &v, e.to_string()))?;
                             out.logger_levels.push((logger.to_string(), level));
                         }
-                        None => out.log_level = Some(v.parse().map_err(|e| bad(EXPECT_LOG_LEVEL, &v, e))?),
+                        None => {
+                            out.log_level =
+                                Some(v.parse().map_err(|e: UnknownLogLevel| bad(EXPECT_LOG_LEVEL, &v, e.to_string()))?)
+                        }
                     }
                 }
                 "--log-config-file" => {

@@ -352,6 +352,9 @@ fn long_flags_and_ignored_flags() {
     assert_eq!(LogLevel::Fatal.level_filter(), Some(log::LevelFilter::Error));
     assert_eq!(LogLevel::Unset.level_filter(), None);
     assert_eq!("Warning".parse::<LogLevel>(), Ok(LogLevel::Warn));
+    let unknown = "loud".parse::<LogLevel>().unwrap_err();
+    assert_eq!(unknown, UnknownLogLevel("loud".into()));
+    assert_eq!(unknown.to_string(), "unknown log level 'loud' (debug, info, warn, error, fatal, unset)");
 }
 
 #[test]
