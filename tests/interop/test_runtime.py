@@ -404,6 +404,7 @@ def test_bond(peer):
     `bond` in the manager's namespace, heartbeat 0.1 s, timeout 4 s, formed within half the
     timeout of the activation."""
     try:
+        from bond.msg import Status
         from bondpy.bondpy import Bond
     except ImportError:
         return "skipped: bondpy not installed (tests/interop/bond.sh)"
@@ -464,13 +465,19 @@ def test_bond(peer):
         again = manager_bond()
         transition(change, Transition.TRANSITION_ACTIVATE)
         peer.spin_until(lambda: "formed" in again, 2.0, "a new bond after the second activation")
-        # The node stopped (SIGTERM): broken at once.
+        # The node stopped (SIGTERM): broken at once, said every 50 ms until the manager
+        # answers, for 300 ms at most: a few statuses, not one more for each it hears back
+        # (it once said it thousands of times).
+        statuses = peer.subscribe(Status, f"{ns}/bond")
         h.RUNNING.remove(node)  # it leaves: not a failure of the peer's waits
         t2 = time.monotonic()
         node.proc.send_signal(signal.SIGTERM)  # the manager spins on meanwhile, as nav2's does
         peer.spin_until(lambda: "broken" in again, 2.0, "the bond broken when the node stopped")
         on_stop = again["broken"] - t2
         assert node.proc.wait(timeout=5) == 0, node.output()
+        spin_for(0.5)
+        said = sum(s.instance_id == keep[-1].sister_instance_id and not s.active for s in statuses)
+        assert 1 <= said <= 10, f"the leaving node said the bond broken {said} times (7 at most: every 50 ms, 300 ms)"
     finally:
         if node in h.RUNNING:
             node.stop()
@@ -493,7 +500,8 @@ def test_bond(peer):
         if node in h.RUNNING:
             h.RUNNING.remove(node)
     return (f"formed {formed:.2f} s after activation, kept 5 s; broken {on_deactivate * 1e3:.0f} ms after deactivate, "
-            f"{on_stop * 1e3:.0f} ms after SIGTERM, {on_kill:.2f} s after SIGKILL (heartbeat timeout 4 s)")
+            f"{on_stop * 1e3:.0f} ms after SIGTERM (said in {said} status(es)), {on_kill:.2f} s after SIGKILL "
+            "(heartbeat timeout 4 s)")
 
 
 def test_rcl_param_rules(_peer):

@@ -97,7 +97,7 @@ fn step(shared: &Shared, id: &str, period: Duration) -> Option<BondStatus> {
 /// [`LEAVE_WAIT`]. Said more than once whatever the state: the node's endpoints close
 /// right after, and one status only queued when they do may never leave.
 pub(super) async fn leave(l: &impl LifecycleWire, shared: &Shared) {
-    let (id, ours, last) = {
+    let last = {
         let mut guard = shared.bond.lock().expect("bond lock");
         let Some(b) = guard.as_mut() else { return };
         if b.state() == BondState::Dead {
@@ -106,25 +106,38 @@ pub(super) async fn leave(l: &impl LifecycleWire, shared: &Shared) {
         let event = b.die(Instant::now());
         log_event(b, event);
         info!("bond {}: broken, the node is leaving", b.id());
-        (b.id().to_string(), b.instance_id().to_string(), status_msg(shared, b, false))
+        status_msg(shared, b, false)
     };
+    say_broken(l, last, LEAVE_WAIT).await;
+}
+
+/// Publishes `last` (the node's `active: false`) now and every [`DEAD_PUBLISH_PERIOD`],
+/// the last time at `wait`, or until the sister says `active: false` too. Only the clock
+/// publishes: the node's own statuses come back on its subscription (a ROS subscription
+/// hears its own node's publisher), and one more status for each one heard said it
+/// thousands of times in the wait (seen on Zenoh: 500 to 3900 in 300 ms).
+async fn say_broken(l: &impl LifecycleWire, last: BondStatus, wait: Duration) {
     let Some(statuses) = l.bond_statuses() else { return };
     let mut statuses = pin!(statuses.fuse());
-    let deadline = Instant::now() + LEAVE_WAIT;
+    let deadline = Instant::now() + wait;
+    let mut next = Instant::now();
     loop {
-        if let Err(err) = l.publish_bond(last.clone()).await {
-            debug!("cannot publish the bond's last status: {err}");
-        }
-        if Instant::now() >= deadline {
-            return;
+        if Instant::now() >= next {
+            if let Err(err) = l.publish_bond(last.clone()).await {
+                debug!("cannot publish the bond's last status: {err}");
+            }
+            if Instant::now() >= deadline {
+                return;
+            }
+            next = deadline.min(Instant::now() + DEAD_PUBLISH_PERIOD);
         }
         futures::select! {
             status = statuses.next() => if let Some(Ok(s)) = status
-                && s.id == id && s.instance_id != ours && !s.active
+                && s.id == last.id && s.instance_id != last.instance_id && !s.active
             {
                 return; // the sister knows
             },
-            _ = FutureExt::fuse(smol::Timer::at(deadline.min(Instant::now() + DEAD_PUBLISH_PERIOD))) => {}
+            _ = FutureExt::fuse(smol::Timer::at(next)) => {}
         }
     }
 }
@@ -156,4 +169,93 @@ fn status_msg(shared: &Shared, b: &Bond, active: bool) -> BondStatus {
 /// A random (version 4) UUID, as bondcpp's and bondpy's instance ids.
 fn instance_id() -> String {
     uuid::Uuid::new_v4().to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use std::cell::{Cell, RefCell};
+
+    use futures::{Stream, stream};
+
+    use super::*;
+    use crate::interfaces::TransitionEvent;
+    use crate::ros::node::lifecycle::{Call, Reply};
+
+    /// The bond's topic as a ROS subscription sees it: every status the node publishes
+    /// comes back to it, and the sister's, queued by the test, after them.
+    struct Echo {
+        published: Cell<usize>,
+        heard: RefCell<Vec<BondStatus>>,
+        sender: smol::channel::Sender<BondStatus>,
+        receiver: smol::channel::Receiver<BondStatus>,
+    }
+
+    impl Echo {
+        fn new() -> Echo {
+            let (sender, receiver) = smol::channel::unbounded();
+            Echo { published: Cell::new(0), heard: RefCell::default(), sender, receiver }
+        }
+    }
+
+    impl LifecycleWire for Echo {
+        type RequestId = ();
+
+        fn calls(&self) -> impl Stream<Item = Result<((), Call), String>> + '_ {
+            stream::pending()
+        }
+
+        async fn answer(&self, _: (), _: Reply) -> Result<(), String> {
+            Ok(())
+        }
+
+        async fn publish_event(&self, _: TransitionEvent) -> Result<(), String> {
+            Ok(())
+        }
+
+        fn bond_statuses(&self) -> Option<impl Stream<Item = Result<BondStatus, String>> + '_> {
+            Some(self.receiver.clone().map(Ok))
+        }
+
+        async fn publish_bond(&self, status: BondStatus) -> Result<(), String> {
+            self.published.set(self.published.get() + 1);
+            self.heard.borrow_mut().push(status.clone());
+            self.sender.send(status).await.map_err(|e| e.to_string())
+        }
+    }
+
+    fn status(instance_id: &str, active: bool) -> BondStatus {
+        BondStatus {
+            header: Header::default(),
+            id: "tracer_calibrator".into(),
+            instance_id: instance_id.into(),
+            active,
+            heartbeat_timeout: 4.0,
+            heartbeat_period: 0.1,
+        }
+    }
+
+    #[test]
+    fn leaving_says_broken_on_the_clock_not_once_per_status_heard() {
+        let wire = Echo::new();
+        let started = Instant::now();
+        smol::block_on(say_broken(&wire, status("ours", false), Duration::from_millis(300)));
+        let took = started.elapsed();
+        // At 0, 50, ..., 300 ms: 7 (one fewer if a timer fires late), not one more for each
+        // of its own statuses heard back.
+        assert!((5..=7).contains(&wire.published.get()), "published {} times in {took:?}", wire.published.get());
+        assert!(took >= Duration::from_millis(300), "{took:?}");
+        assert!(wire.heard.borrow().iter().all(|s| !s.active && s.instance_id == "ours"));
+    }
+
+    #[test]
+    fn leaving_ends_when_the_sister_says_broken_too() {
+        let wire = Echo::new();
+        // The manager's heartbeat (alive) changes nothing; its `active: false` ends the wait.
+        wire.sender.try_send(status("theirs", true)).unwrap();
+        wire.sender.try_send(status("theirs", false)).unwrap();
+        let started = Instant::now();
+        smol::block_on(say_broken(&wire, status("ours", false), Duration::from_secs(5)));
+        assert!(started.elapsed() < Duration::from_secs(1), "{:?}", started.elapsed());
+        assert_eq!(wire.published.get(), 1);
+    }
 }
