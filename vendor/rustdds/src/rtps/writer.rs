@@ -2393,7 +2393,11 @@ impl Writer {
           // With Durabilty::Volatile QoS we won't send the sequence numbers which existed
           // before matching with this reader. Therefore we set the reader as pending GAP
           // for all existing sequence numbers
-          new_proxy.set_pending_gap_up_to(self.send_buffer.last_change_sequence_number());
+          // tracer_calib patch: those already sent. A sample written but still queued
+          // goes out to every reader matched when it is sent, this one too: a GAP for it
+          // would say the reader never gets what it then gets (a Fast DDS reader that
+          // had part of such a sample, then the GAP, then the rest, spun for good).
+          new_proxy.set_pending_gap_up_to(self.last_sent);
         }
         new_proxy.resolve_send_route(
           &self.interface_observations.borrow(),
@@ -3421,6 +3425,42 @@ mod tests {
       f.writer.udp_sender.flush_control(SocketId::Unicast);
       assert_eq!(f.repair_round(), 5);
       assert!(!f.reader_proxy().repair_mode);
+    }
+
+    // tracer_calib patch: a volatile reader that matches while samples wait to be sent
+    // gets them, and no GAP for them; one that matches after they went out gets a GAP.
+    #[test]
+    fn volatile_reader_gets_the_queued_samples_and_a_gap_only_for_those_sent() {
+      let qos = QosPolicyBuilder::new()
+        .reliability(Reliability::Reliable {
+          max_blocking_time: Duration::from_millis(100),
+        })
+        .history(History::KeepAll)
+        .durability(Durability::Volatile)
+        .build();
+      let reader_id = EntityId::new([0, 0, 2], EntityKind::READER_WITH_KEY_USER_DEFINED);
+      let mut f = Fixture::new(
+        EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
+        qos.clone(),
+        reader_id,
+        &qos,
+        3,
+        8,
+        None,
+      );
+      // Samples 1..=3 were written before the reader matched, none sent yet.
+      assert!(f.reader_proxy().get_pending_gap().is_empty());
+      f.writer.process_pending();
+      assert_eq!(f.writer.last_sent, SequenceNumber::new(3));
+      let late = GUID::new(GuidPrefix::new(&[3; 12]), reader_id);
+      f.writer
+        .update_reader_proxy(&RtpsReaderProxy::new(late, qos.clone(), false), &qos);
+      let gap: Vec<i64> = f.writer.readers[&late]
+        .get_pending_gap()
+        .iter()
+        .map(|sn| i64::from(*sn))
+        .collect();
+      assert_eq!(gap, vec![1, 2, 3]);
     }
 
     // tracer_calib patch: a NACK_FRAG is answered at once, packed, with a HEARTBEAT.
