@@ -86,7 +86,18 @@ def terminate(proc, timeout=5):
     try:
         proc.wait(timeout=timeout)
     except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
+        kill(proc)
         return None
     return time.monotonic() - t0
+
+
+def kill(proc):
+    """SIGKILL to a running `proc`, and to what it runs when it is a `timeout` wrapper:
+    `timeout` puts itself and its command in a process group of their own and passes no
+    SIGKILL on, so the command would live on (a stray peer, a run). Waits for it."""
+    if proc.poll() is None:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)  # its group, if it leads one
+        except (ProcessLookupError, PermissionError):
+            proc.kill()
+    proc.wait()

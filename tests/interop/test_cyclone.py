@@ -40,6 +40,7 @@ from tracer_calib_msgs.srv import Calibrate
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 # The shared helpers (node processes, scans, an rclpy peer with deadlines).
 import harness as tn  # noqa: E402
+import runner  # noqa: E402
 
 # This process's environment is Cyclone's; the preload is already in this interpreter.
 # Children get it only when they are peers meant for Cyclone DDS.
@@ -242,8 +243,7 @@ def test_mixed_cell(peer):
         assert fits[21] != fits[22], fits
     finally:
         for p in locals().get("procs", {}).values():
-            if p.poll() is None:
-                p.kill()
+            runner.kill(p)
         node.stop()
     bad = node_warnings(node)
     assert not bad, "\n".join(bad)

@@ -141,6 +141,7 @@ def stock_node_main():
 def first_scans(peer, env, label, scan_base):
     """TRIES fresh peers, one scan each: the latencies (seconds; None: never arrived)."""
     import harness as h
+    import runner
     from tracer_calib_msgs.msg import Contour, RawScan
 
     arrivals = {}
@@ -196,8 +197,7 @@ def first_scans(peer, env, label, scan_base):
                     proc.stdin.close()
                     proc.wait(timeout=5)
                 except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
+                    runner.kill(proc)
         return latencies
     finally:
         peer.node.destroy_subscription(sub)

@@ -274,9 +274,7 @@ def test_zenoh_stock_pair():
         return f"{detail} ({took:.2f} s to the last message and the answer)"
     finally:
         for p in procs.values():
-            if p.poll() is None:
-                p.kill()
-                p.wait()
+            runner.kill(p)
         router.stop()
 
 
@@ -560,8 +558,7 @@ def test_zenoh_node_lifecycle():
     finally:
         node.stop()
         if manager:
-            manager.kill()
-            manager.wait()
+            runner.kill(manager)
 
 
 def test_zenoh_node_namespaces():
@@ -742,8 +739,7 @@ def test_zenoh_latency():
                 f"tracer_calib_node {fig(node_t)}; stock rclpy relay {fig(relay_t)}")
     finally:
         relay.stdin.close()
-        relay.kill()
-        relay.wait()
+        runner.kill(relay)
         node.stop()
         peer_.close()
 
