@@ -442,6 +442,7 @@ def test_bond(peer):
         return node, change
 
     node, change = managed("bond")
+    statuses = peer.subscribe(Status, f"{ns}/bond")  # matched long before the node leaves
     try:
         # Not active yet: no heartbeat, the bond does not form.
         early = manager_bond()
@@ -468,7 +469,6 @@ def test_bond(peer):
         # The node stopped (SIGTERM): broken at once, said every 50 ms until the manager
         # answers, for 300 ms at most: a few statuses, not one more for each it hears back
         # (it once said it thousands of times).
-        statuses = peer.subscribe(Status, f"{ns}/bond")
         h.RUNNING.remove(node)  # it leaves: not a failure of the peer's waits
         t2 = time.monotonic()
         node.proc.send_signal(signal.SIGTERM)  # the manager spins on meanwhile, as nav2's does
