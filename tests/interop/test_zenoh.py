@@ -539,9 +539,10 @@ def test_zenoh_node_lifecycle():
         assert not errors, f"the lifecycle manager's bond: {errors}"
         # The node leaves: its end says the bond is broken, every 50 ms for 300 ms at most. It
         # once said it again for each of its own statuses it heard back, thousands of times
-        # in those 300 ms, and the stock manager's rmw_zenoh then failed to take a Status in
-        # about 1 run of 4 ("Unexpected non-zero initial byte received in
-        # Cdr::read_encapsulation", once an abort on a bad attachment).
+        # in those 300 ms; in the same sessions the stock manager's rmw_zenoh failed to take
+        # a Status in about 1 run of 4 ("Unexpected non-zero initial byte received in
+        # Cdr::read_encapsulation", once an abort on a bad attachment): the flood its likely
+        # cause, not seen since it went (docs/ros2-peer.md, bond_core).
         manager_instance = next(line.split()[1] for line in manager_said if line.startswith("started"))
         node.stop()
         deadline = time.monotonic() + 1.0
