@@ -227,19 +227,17 @@ impl RosArgs {
                 }
                 "--log-level" => {
                     let v = value(EXPECT_LOG_LEVEL)?;
-                    match v.split_once(":=") {
-                        Some((logger, level)) => {
-                            if logger.is_empty() {
-                                return Err(bad(EXPECT_LOG_LEVEL, &v, "empty logger name".into()));
-                            }
-                            let level =
-                                level.parse().map_err(|e: UnknownLogLevel| bad(EXPECT_LOG_LEVEL, &v, e.to_string()))?;
-                            out.logger_levels.push((logger.to_string(), level));
-                        }
-                        None => {
-                            out.log_level =
-                                Some(v.parse().map_err(|e: UnknownLogLevel| bad(EXPECT_LOG_LEVEL, &v, e.to_string()))?)
-                        }
+                    let (logger, level) = match v.split_once(":=") {
+                        Some((logger, level)) => (Some(logger), level),
+                        None => (None, v.as_str()),
+                    };
+                    if logger == Some("") {
+                        return Err(bad(EXPECT_LOG_LEVEL, &v, "empty logger name".into()));
+                    }
+                    let level = level.parse().map_err(|e: UnknownLogLevel| bad(EXPECT_LOG_LEVEL, &v, e.to_string()))?;
+                    match logger {
+                        Some(logger) => out.logger_levels.push((logger.to_string(), level)),
+                        None => out.log_level = Some(level),
                     }
                 }
                 "--log-config-file" => {
