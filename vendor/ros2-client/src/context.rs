@@ -27,6 +27,10 @@ use crate::{
   qos::QosProfile,
 };
 
+/// PATCH (tracer_calib): the LATENCY_BUDGET of a service server's request reader
+/// (`Context::create_request_reader`).
+pub const REQUEST_LATENCY_BUDGET: std::time::Duration = std::time::Duration::from_millis(200);
+
 /// Basic BestEffort QoS for subscribers (same as
 /// [`QosProfile::subscription_default`]).
 ///
@@ -323,6 +327,40 @@ impl Context {
         .create_simple_datareader_no_key(topic, dds_qos)?,
     )
   }
+
+  // PATCH (tracer_calib): begin (a server's request reader has a latency budget)
+  /// A service server's request reader: as `create_simpledatareader`, with a
+  /// LATENCY_BUDGET of `REQUEST_LATENCY_BUDGET`. A request is often the last sample
+  /// its client writes for a while; when it is lost, RustDDS asks a client that has
+  /// been quiet for the reader's budget for a HEARTBEAT (`Reader::poll_quiet_writers`),
+  /// where without a budget it waits a second (and a Fast DDS client repeats its own
+  /// HEARTBEAT every 3 s). A writer offers a budget of 0 unless it sets one, so this
+  /// matches every client.
+  pub(crate) fn create_request_reader<M, DA>(
+    &self,
+    topic: &Topic,
+    qos: Option<QosProfile>,
+  ) -> CreateResult<no_key::SimpleDataReader<M, DA>>
+  where
+    M: 'static,
+    DA: 'static + DeserializerAdapter<M>,
+  {
+    let budget = QosPolicyBuilder::new()
+      .latency_budget(policy::LatencyBudget {
+        duration: Duration::from_std(REQUEST_LATENCY_BUDGET),
+      })
+      .build();
+    let dds_qos = self
+      .with_type_hash(topic, qos)
+      .unwrap_or_else(QosPolicies::qos_none)
+      .modify_by(&budget);
+    Ok(
+      self
+        .get_ros_default_subscriber()
+        .create_simple_datareader_no_key(topic, Some(dds_qos))?,
+    )
+  }
+  // PATCH (tracer_calib): end
 
   pub(crate) fn update_node(&mut self, node_info: NodeEntitiesInfo) {
     self.inner.lock().unwrap().update_node(node_info);

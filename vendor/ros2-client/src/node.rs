@@ -1298,6 +1298,22 @@ impl Node {
     Ok(r)
   }
 
+  // PATCH (tracer_calib): a service server's request reader
+  // (`Context::create_request_reader`).
+  pub(crate) fn create_request_reader<D, DA>(
+    &mut self,
+    topic: &Topic,
+    qos: Option<QosProfile>,
+  ) -> CreateResult<no_key::SimpleDataReader<D, DA>>
+  where
+    D: 'static,
+    DA: rustdds::no_key::DeserializerAdapter<D> + 'static,
+  {
+    let r = self.ros_context.create_request_reader(topic, qos)?;
+    self.add_reader(r.guid().into());
+    Ok(r)
+  }
+
   pub(crate) fn create_datawriter<D, SA>(
     &mut self,
     topic: &Topic,

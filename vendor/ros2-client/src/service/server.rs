@@ -136,7 +136,7 @@ where
     qos_response: Option<QosProfile>,
   ) -> CreateResult<Self> {
     let request_receiver =
-      node.create_simpledatareader
+      node.create_request_reader // PATCH (tracer_calib): with a latency budget
       ::<RequestWrapper<Req>, ServiceDeserializerAdapter<RequestWrapper<Req>>>(
         request_topic, qos_request)?;
     let response_sender = node

@@ -76,6 +76,9 @@ pub const GAP_NACK_REPEAT: Duration = Duration::from_millis(25);
 // one a writer sends (a service request, a scan before a pause) is otherwise repaired
 // only at the writer's periodic HEARTBEAT: 3 s for Fast DDS.
 pub const QUIET_WRITER_POLL_PERIOD: Duration = Duration::from_secs(1);
+// The shortest period a reader's LATENCY_BUDGET makes of it
+// (`Reader::quiet_writer_poll_period`): each poll of a quiet writer costs two datagrams.
+pub const MIN_QUIET_WRITER_POLL_PERIOD: Duration = Duration::from_millis(50);
 // tracer_calib patch: end
 
 // Fallback upper bound on the number of CacheChanges a Writer retains in its

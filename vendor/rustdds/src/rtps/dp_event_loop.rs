@@ -540,11 +540,25 @@ impl DPEventLoop {
         }
         // tracer_calib patch
         DpTimerEvent::PollQuietWriters => {
-          self.message_receiver.poll_quiet_writers(QUIET_WRITER_POLL_PERIOD);
+          // Back when the next quiet writer falls due (a reader with a short
+          // LATENCY_BUDGET) or a kept sample's writer is to be asked for again, and
+          // at least every quarter period (new writers).
+          let next_due = [
+            self.message_receiver.poll_quiet_writers(),
+            self.message_receiver.poll_discovery_of_unmatched(),
+          ]
+          .into_iter()
+          .flatten()
+          .min();
+          let wait = next_due.map_or(QUIET_WRITER_POLL_PERIOD / 4, |due| {
+            due
+              .saturating_duration_since(Instant::now())
+              .clamp(Duration::from_millis(1), QUIET_WRITER_POLL_PERIOD / 4)
+          });
           self
             .shared_timer
             .borrow_mut()
-            .set_timeout(QUIET_WRITER_POLL_PERIOD / 4, DpTimerEvent::PollQuietWriters);
+            .set_timeout(wait, DpTimerEvent::PollQuietWriters);
         }
         DpTimerEvent::CacheGc => {
           debug!("Clean DDSCache on timer");

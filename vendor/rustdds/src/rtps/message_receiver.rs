@@ -1,6 +1,6 @@
 use std::{
   cell::RefCell,
-  collections::{btree_map::Entry, BTreeMap, VecDeque}, // tracer_calib patch: VecDeque
+  collections::{btree_map::Entry, BTreeMap, BTreeSet, VecDeque}, // tracer_calib patch: BTreeSet, VecDeque
   rc::Rc,
   sync::mpsc::TrySendError,
   time::{Duration, Instant}, // tracer_calib patch
@@ -1261,6 +1261,22 @@ impl MessageReceiver {
     }
   }
 
+  // Samples of a writer no reader has matched are still kept: ask its participant's
+  // SEDP writers again (at most every UNKNOWN_WRITER_POLL_REPEAT), as a sample's
+  // arrival did. A client that sent one request sends nothing more, and when the
+  // HEARTBEAT answering the first ask was lost too, its announcement (so the
+  // request) waited for the writer's periodic HEARTBEAT: 1.5 s seen under 10 % loss.
+  // Returns when to ask again, if samples are kept.
+  pub fn poll_discovery_of_unmatched(&mut self) -> Option<Instant> {
+    let now = Instant::now();
+    self.expire_unmatched(now);
+    let prefixes: BTreeSet<GuidPrefix> = self.unmatched.iter().map(|u| u.writer.prefix).collect();
+    for prefix in &prefixes {
+      self.poll_discovery_of(*prefix, now);
+    }
+    (!prefixes.is_empty()).then_some(now + UNKNOWN_WRITER_POLL_REPEAT)
+  }
+
   fn expire_unmatched(&mut self, now: Instant) {
     while self
       .unmatched
@@ -1319,14 +1335,21 @@ impl MessageReceiver {
   }
 
   // sends 0 seqnum acknacks for those writer that haven't had any action
-  // tracer_calib patch: see `Reader::poll_quiet_writers`: the user readers.
-  pub fn poll_quiet_writers(&mut self, period: std::time::Duration) {
-    let now = std::time::Instant::now();
+  // tracer_calib patch: see `Reader::poll_quiet_writers`: the user readers, each with
+  // its own period (`Reader::quiet_writer_poll_period`). Returns when the next writer
+  // falls due, if one does.
+  pub fn poll_quiet_writers(&mut self) -> Option<Instant> {
+    let now = Instant::now();
+    let mut next_due: Option<Instant> = None;
     for reader in self.available_readers.values_mut() {
       if reader.entity_id().entity_kind.is_user_defined() {
-        reader.poll_quiet_writers(now, period, None);
+        let period = reader.quiet_writer_poll_period();
+        if let Some(due) = reader.poll_quiet_writers(now, period, None) {
+          next_due = Some(next_due.map_or(due, |next| next.min(due)));
+        }
       }
     }
+    next_due
   }
 
   // tracer_calib patch: the SEDP readers ask every remote SEDP writer for a

@@ -42,7 +42,7 @@ use crate::{
   network::udp_sender::UDPSender,
   polling::{ReadySender, SharedTimer, WakeReceiver},
   rtps::{
-    constant::GAP_NACK_REPEAT, // tracer_calib patch
+    constant::{GAP_NACK_REPEAT, MIN_QUIET_WRITER_POLL_PERIOD, QUIET_WRITER_POLL_PERIOD}, // tracer_calib patch
     fragment_assembler::FragmentAssembler, message_receiver::MessageReceiverState,
     rtps_writer_proxy::RtpsWriterProxy, timed_event::DpTimerEvent, Message,
   },
@@ -63,6 +63,16 @@ use super::Submessage;
 use crate::security::{security_plugins::SecurityPluginsHandle, SecurityResult};
 #[cfg(not(feature = "security"))]
 use crate::no_security::SecurityPluginsHandle;
+
+// tracer_calib patch: see `Reader::quiet_writer_poll_period`.
+fn quiet_writer_poll_period(qos: &QosPolicies) -> StdDuration {
+  match qos.latency_budget {
+    Some(policy::LatencyBudget { duration }) if duration > Duration::ZERO => {
+      StdDuration::from(duration).clamp(MIN_QUIET_WRITER_POLL_PERIOD, QUIET_WRITER_POLL_PERIOD)
+    }
+    _ => QUIET_WRITER_POLL_PERIOD,
+  }
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum TimedEvent {
@@ -1089,6 +1099,8 @@ impl Reader {
           // sequence numbers that are >= base.
           let reader_sn_state = match missing_seqnums.first() {
             Some(&first_missing) => {
+              // tracer_calib patch
+              writer_proxy.note_nacked(first_missing, heartbeat.last_sn, std::time::Instant::now());
               // Here we assume missing_seqnums are returned in order.
               // Limit the set to maximum that can be sent in acknack submessage.
 
@@ -1549,23 +1561,34 @@ impl Reader {
   /// for a reader to match (`DataWriter::wait_for_matched_reader`), and, `only_of` a
   /// participant, when a writer of it no reader has matched sends us samples
   /// (`MessageReceiver::poll_discovery_of`).
+  ///
+  /// Returns when the next of these writers falls due (`None` if there is none): the
+  /// event loop sleeps until then.
   pub fn poll_quiet_writers(
     &mut self,
     now: std::time::Instant,
     period: StdDuration,
     only_of: Option<GuidPrefix>, // the writers of this participant alone
-  ) {
+  ) -> Option<std::time::Instant> {
     if self.like_stateless || self.reliability == policy::Reliability::BestEffort {
-      return;
+      return None;
     }
+    let mut next_due: Option<std::time::Instant> = None;
     let mut writer_proxies = std::mem::take(&mut self.matched_writers);
     for writer_proxy in writer_proxies.values_mut() {
-      if writer_proxy.last_heard.is_some_and(|at| now < at + period)
-        || writer_proxy.remote_writer_guid.prefix == self.my_guid.prefix
+      if writer_proxy.remote_writer_guid.prefix == self.my_guid.prefix
         || only_of.is_some_and(|prefix| writer_proxy.remote_writer_guid.prefix != prefix)
       {
         continue;
       }
+      if let Some(due) = writer_proxy.last_heard.map(|at| at + period) {
+        if now < due {
+          next_due = Some(next_due.map_or(due, |next| next.min(due)));
+          continue;
+        }
+      }
+      let due = now + period;
+      next_due = Some(next_due.map_or(due, |next| next.min(due)));
       writer_proxy.last_heard = Some(now);
       let base = if writer_proxy.remote_vendor_id == VendorId::EPROSIMA {
         SequenceNumber::new(0)
@@ -1589,6 +1612,18 @@ impl Reader {
       );
     }
     self.matched_writers = writer_proxies;
+    next_due
+  }
+
+  /// How long a matched writer may stay quiet before this reader asks it for a
+  /// HEARTBEAT (`poll_quiet_writers`): the reader's LATENCY_BUDGET if it has one,
+  /// within [`MIN_QUIET_WRITER_POLL_PERIOD`, `QUIET_WRITER_POLL_PERIOD`], else
+  /// `QUIET_WRITER_POLL_PERIOD`. DDS 2.2.3.8 makes the budget a hint to the service
+  /// of how soon a written sample should reach the reader; a sample lost as the last
+  /// its writer sends reaches it about that long after it was written (and a round
+  /// trip more), where it took up to a second with the default.
+  pub fn quiet_writer_poll_period(&self) -> StdDuration {
+    quiet_writer_poll_period(&self.qos_policy)
   }
   // tracer_calib patch: end
 
@@ -1705,6 +1740,28 @@ mod tests {
     QosPolicyBuilder,
   };
   use super::*;
+
+  // tracer_calib patch: a reader's LATENCY_BUDGET is how long it lets a matched writer
+  // stay quiet before it asks it for a HEARTBEAT, within bounds.
+  #[test]
+  fn quiet_writer_poll_period_follows_the_latency_budget() {
+    use crate::QosPolicyBuilder;
+    let with_budget = |ms: u64| {
+      quiet_writer_poll_period(
+        &QosPolicyBuilder::new()
+          .latency_budget(policy::LatencyBudget {
+            duration: Duration::from_millis(ms as i64),
+          })
+          .build(),
+      )
+    };
+    assert_eq!(quiet_writer_poll_period(&QosPolicies::qos_none()), QUIET_WRITER_POLL_PERIOD);
+    assert_eq!(with_budget(0), QUIET_WRITER_POLL_PERIOD);
+    // (RTPS durations count 2^-32 s: 200 ms comes back a nanosecond short.)
+    assert_eq!((with_budget(200).as_secs_f64() * 1e3).round(), 200.0);
+    assert_eq!(with_budget(1), MIN_QUIET_WRITER_POLL_PERIOD);
+    assert_eq!(with_budget(5000), QUIET_WRITER_POLL_PERIOD);
+  }
 
   #[test]
   fn reader_sends_notification_when_receiving_data() {
