@@ -542,7 +542,9 @@ impl DPEventLoop {
         DpTimerEvent::PollQuietWriters => {
           // Back when the next quiet writer falls due (a reader with a short
           // LATENCY_BUDGET) or a kept sample's writer is to be asked for again, and
-          // at least every quarter period (new writers).
+          // at least every quarter period (new writers); not sooner than half the
+          // shortest period, so that writers falling due close together are asked
+          // together rather than each on a wakeup of its own.
           let next_due = [
             self.message_receiver.poll_quiet_writers(),
             self.message_receiver.poll_discovery_of_unmatched(),
@@ -553,7 +555,7 @@ impl DPEventLoop {
           let wait = next_due.map_or(QUIET_WRITER_POLL_PERIOD / 4, |due| {
             due
               .saturating_duration_since(Instant::now())
-              .clamp(Duration::from_millis(1), QUIET_WRITER_POLL_PERIOD / 4)
+              .clamp(MIN_QUIET_WRITER_POLL_PERIOD / 2, QUIET_WRITER_POLL_PERIOD / 4)
           });
           self
             .shared_timer
@@ -746,6 +748,20 @@ impl DPEventLoop {
       if let Some(found_writer) = self.writers.get_mut(&writer_guid.entity_id) {
         if found_writer.is_reliable() {
           found_writer.handle_ack_nack(acknack_sender_prefix, &acknack_submessage);
+        }
+        // tracer_calib patch: an ACKNACK from a reader this user writer has not
+        // matched: the reader knows us, its announcement to us was lost (a late
+        // subscriber's, typically); have discovery ask for it at once, as for a
+        // sample of an unknown writer (`MessageReceiver::poll_discovery_of`), not
+        // wait for that participant's periodic discovery HEARTBEAT.
+        let reader = GUID::new_with_prefix_and_id(acknack_sender_prefix, acknack_submessage.reader_id());
+        if writer_guid.entity_id.kind().is_user_defined()
+          && reader.entity_id.kind().is_user_defined()
+          && !found_writer.has_matched_reader(reader)
+        {
+          self
+            .message_receiver
+            .poll_discovery_of_participant(acknack_sender_prefix);
         }
       } else {
         // Note: when testing against FastDDS Shapes demo, this else branch is

@@ -1261,6 +1261,15 @@ impl MessageReceiver {
     }
   }
 
+  // A reader of `prefix` that a writer of ours has not matched sent it an ACKNACK:
+  // ask for that participant's announcements as for an unknown writer's sample
+  // (`poll_discovery_of`, paced alike; not in a secure participant, as there).
+  pub fn poll_discovery_of_participant(&mut self, prefix: GuidPrefix) {
+    if self.security_plugins.is_none() {
+      self.poll_discovery_of(prefix, Instant::now());
+    }
+  }
+
   // Samples of a writer no reader has matched are still kept: ask its participant's
   // SEDP writers again (at most every UNKNOWN_WRITER_POLL_REPEAT), as a sample's
   // arrival did. A client that sent one request sends nothing more, and when the

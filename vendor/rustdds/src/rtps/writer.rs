@@ -2534,6 +2534,12 @@ impl Writer {
     }
   }
 
+  // tracer_calib patch: whether `reader` is matched (an ACKNACK from one that is not
+  // has discovery ask for its announcement: `DPEventLoop::handle_writer_acknack_action`).
+  pub fn has_matched_reader(&self, reader: GUID) -> bool {
+    self.readers.contains_key(&reader)
+  }
+
   fn lookup_reader_proxy_mut(&mut self, guid: GUID) -> Option<&mut RtpsReaderProxy> {
     self.readers.get_mut(&guid)
   }

@@ -134,6 +134,14 @@ impl AckSubmessage {
       AckSubmessage::NackFrag(a) => a.writer_id,
     }
   }
+
+  // tracer_calib patch: the reader that sent it.
+  pub fn reader_id(&self) -> EntityId {
+    match self {
+      AckSubmessage::AckNack(a) => a.reader_id,
+      AckSubmessage::NackFrag(a) => a.reader_id,
+    }
+  }
 }
 
 pub trait HasEntityIds {
