@@ -759,6 +759,7 @@ impl DPEventLoop {
           && reader.entity_id.kind().is_user_defined()
           && !found_writer.has_matched_reader(reader)
         {
+          found_writer.note_early_reader(reader);
           self
             .message_receiver
             .poll_discovery_of_participant(acknack_sender_prefix);

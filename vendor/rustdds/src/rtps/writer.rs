@@ -273,7 +273,17 @@ pub(crate) struct Writer {
   // while readers stay behind). See `arm_heartbeat_after_data`.
   heartbeat_after_data_due: Option<std::time::Instant>,
   heartbeat_after_data_delay: std::time::Duration,
+
+  // tracer_calib patch: readers not matched yet that sent this (volatile) writer an
+  // ACKNACK, each with the newest sequence number written when the first one came, and
+  // when. See `note_early_reader`.
+  early_readers: BTreeMap<GUID, (SequenceNumber, std::time::Instant)>,
 }
+
+// tracer_calib patch: how long an early reader (`Writer::note_early_reader`) is kept
+// for its announcement, and how many at most.
+const EARLY_READER_KEEP: std::time::Duration = std::time::Duration::from_secs(10);
+const EARLY_READER_BOUND: usize = 64;
 
 impl Writer {
   pub fn new(
@@ -374,6 +384,7 @@ impl Writer {
       security_plugins: i.security_plugins,
       heartbeat_after_data_due: None, // tracer_calib patch
       heartbeat_after_data_delay: HEARTBEAT_AFTER_DATA_FIRST, // tracer_calib patch
+      early_readers: BTreeMap::new(),                         // tracer_calib patch
     }
   }
 
@@ -2255,7 +2266,13 @@ impl Writer {
     match self.qos_policies.compliance_failure_wrt(requested_qos) {
       // matched QoS
       None => {
-        let new_reader = self.matched_reader_update(reader_proxy);
+        // tracer_calib patch: what was written since the reader's first ACKNACK is for
+        // it (`note_early_reader`).
+        let early = self
+          .early_readers
+          .remove(&reader_proxy.remote_reader_guid)
+          .map(|(newest, _)| newest);
+        let new_reader = self.matched_reader_update(reader_proxy, early);
         // A (possibly new) reliable reader changes the acknowledgement frontier
         // and thus the back-pressure window.
         self.refresh_acked_frontier();
@@ -2296,10 +2313,11 @@ impl Writer {
             let new_reader_guid = reader_proxy.remote_reader_guid;
             let first = self.send_buffer.first_change_sequence_number();
             let last = self.heartbeat_last_sn(); // tracer_calib patch
-            // tracer_calib patch: the reader's stream begins here (`add_heartbeat`)
+            // tracer_calib patch: the reader's stream begins here (`add_heartbeat`), or
+            // where it sent us its first ACKNACK (`note_early_reader`)
             if let Some(rp) = self.readers.get_mut(&new_reader_guid) {
               if rp.qos().is_reliable() {
-                rp.stream_start = Some(last);
+                rp.stream_start = Some(early.map_or(last, |newest| min(newest, last)));
               }
             }
             let hb_message = MessageBuilder::new()
@@ -2369,7 +2387,12 @@ impl Writer {
 
   // Update the given reader proxy. Preserve data we are tracking.
   // return value: true = reader was new, false = reader was previously known
-  fn matched_reader_update(&mut self, updated_reader_proxy: &RtpsReaderProxy) -> bool {
+  // tracer_calib patch: `early`, see `note_early_reader`.
+  fn matched_reader_update(
+    &mut self,
+    updated_reader_proxy: &RtpsReaderProxy,
+    early: Option<SequenceNumber>,
+  ) -> bool {
     let mut is_new = false;
     let is_volatile = self.qos().is_volatile(); // Get this in advance to work with the borrow checker
                                                 // Capture the interface set once; resolution consults current observations.
@@ -2403,7 +2426,9 @@ impl Writer {
           // goes out to every reader matched when it is sent, this one too: a GAP for it
           // would say the reader never gets what it then gets (a Fast DDS reader that
           // had part of such a sample, then the GAP, then the rest, spun for good).
-          new_proxy.set_pending_gap_up_to(self.last_sent);
+          // And of those, not the ones written since the reader's first ACKNACK
+          // (`note_early_reader`).
+          new_proxy.set_pending_gap_up_to(early.map_or(self.last_sent, |newest| min(newest, self.last_sent)));
         }
         new_proxy.resolve_send_route(
           &self.interface_observations.borrow(),
@@ -2538,6 +2563,29 @@ impl Writer {
   // has discovery ask for its announcement: `DPEventLoop::handle_writer_acknack_action`).
   pub fn has_matched_reader(&self, reader: GUID) -> bool {
     self.readers.contains_key(&reader)
+  }
+
+  /// tracer_calib patch: `reader`, not matched, sent this writer an ACKNACK: it has
+  /// matched us from its side, and its announcement has not reached us yet (lost, or
+  /// behind a gap). A volatile writer marks as not for a new reader (a pending GAP)
+  /// what was sent before the match; but this reader exists and knows us since this
+  /// ACKNACK, so what is written from now on is for it (DDS: a volatile reader gets
+  /// what is written after it matched). Remember the newest sequence number written
+  /// now, for `update_reader_proxy`. Seen: a node's first contour, written 70 ms after
+  /// the rclpy driver's reader sent its preemptive ACKNACK, and 80 ms before that
+  /// reader's announcement was repaired, was GAPped to it.
+  pub fn note_early_reader(&mut self, reader: GUID) {
+    if !self.qos().is_volatile() {
+      return;
+    }
+    let now = std::time::Instant::now();
+    self
+      .early_readers
+      .retain(|_, (_, at)| now.duration_since(*at) < EARLY_READER_KEEP);
+    if self.early_readers.len() < EARLY_READER_BOUND || self.early_readers.contains_key(&reader) {
+      let newest = self.send_buffer.last_change_sequence_number();
+      self.early_readers.entry(reader).or_insert((newest, now));
+    }
   }
 
   fn lookup_reader_proxy_mut(&mut self, guid: GUID) -> Option<&mut RtpsReaderProxy> {
@@ -3473,6 +3521,61 @@ mod tests {
         .map(|sn| i64::from(*sn))
         .collect();
       assert_eq!(gap, vec![1, 2, 3]);
+    }
+
+    // tracer_calib patch: a reader that sent a volatile writer an ACKNACK before it was
+    // matched gets, when it matches, what was written since (no GAP for it), and its
+    // stream starts there; what was written before is still not for it.
+    #[test]
+    fn an_early_reader_gets_what_was_written_since_its_first_acknack() {
+      let qos = QosPolicyBuilder::new()
+        .reliability(Reliability::Reliable {
+          max_blocking_time: Duration::from_millis(100),
+        })
+        .history(History::KeepAll)
+        .durability(Durability::Volatile)
+        .build();
+      let reader_id = EntityId::new([0, 0, 2], EntityKind::READER_WITH_KEY_USER_DEFINED);
+      let mut f = Fixture::new(
+        EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
+        qos.clone(),
+        reader_id,
+        &qos,
+        3,
+        8,
+        None,
+      );
+      f.writer.process_pending();
+      assert_eq!(f.writer.last_sent, SequenceNumber::new(3));
+      let late = GUID::new(GuidPrefix::new(&[3; 12]), reader_id);
+      // Its first ACKNACK came when samples 1..=3 were written.
+      f.writer.note_early_reader(late);
+      assert_eq!(f.writer.early_readers[&late].0, SequenceNumber::new(3));
+      // As if it had come when only sample 1 was.
+      f.writer.early_readers.get_mut(&late).unwrap().0 = SequenceNumber::new(1);
+      f.writer
+        .update_reader_proxy(&RtpsReaderProxy::new(late, qos.clone(), false), &qos);
+      let gap: Vec<i64> = f.writer.readers[&late]
+        .get_pending_gap()
+        .iter()
+        .map(|sn| i64::from(*sn))
+        .collect();
+      assert_eq!(gap, vec![1]);
+      assert_eq!(f.writer.readers[&late].stream_start, Some(SequenceNumber::new(1)));
+      assert!(f.writer.early_readers.is_empty());
+      // A transient-local writer gets every reader its history anyway: nothing kept.
+      let tl = qos.modify_by(&QosPolicyBuilder::new().durability(Durability::TransientLocal).build());
+      let mut g = Fixture::new(
+        EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
+        tl.clone(),
+        reader_id,
+        &tl,
+        1,
+        8,
+        None,
+      );
+      g.writer.note_early_reader(late);
+      assert!(g.writer.early_readers.is_empty());
     }
 
     // tracer_calib patch: a reader that matches a writer holding samples for it is
