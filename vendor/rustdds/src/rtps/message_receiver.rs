@@ -1349,16 +1349,15 @@ impl MessageReceiver {
   // falls due, if one does.
   pub fn poll_quiet_writers(&mut self) -> Option<Instant> {
     let now = Instant::now();
-    let mut next_due: Option<Instant> = None;
-    for reader in self.available_readers.values_mut() {
-      if reader.entity_id().entity_kind.is_user_defined() {
+    self
+      .available_readers
+      .values_mut()
+      .filter(|reader| reader.entity_id().entity_kind.is_user_defined())
+      .filter_map(|reader| {
         let period = reader.quiet_writer_poll_period();
-        if let Some(due) = reader.poll_quiet_writers(now, period, None) {
-          next_due = Some(next_due.map_or(due, |next| next.min(due)));
-        }
-      }
-    }
-    next_due
+        reader.poll_quiet_writers(now, period, None)
+      })
+      .min()
   }
 
   // tracer_calib patch: the SEDP readers ask every remote SEDP writer for a

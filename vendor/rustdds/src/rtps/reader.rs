@@ -1581,35 +1581,31 @@ impl Reader {
       {
         continue;
       }
-      if let Some(due) = writer_proxy.last_heard.map(|at| at + period) {
-        if now < due {
-          next_due = Some(next_due.map_or(due, |next| next.min(due)));
-          continue;
-        }
+      if writer_proxy.last_heard.is_none_or(|at| now >= at + period) {
+        writer_proxy.last_heard = Some(now);
+        let base = if writer_proxy.remote_vendor_id == VendorId::EPROSIMA {
+          SequenceNumber::new(0)
+        } else {
+          writer_proxy.all_ackable_before()
+        };
+        let count = writer_proxy.next_ack_nack_sequence_number();
+        self.send_acknack_to(
+          BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness),
+          AckNack {
+            reader_id: self.entity_id(),
+            writer_id: writer_proxy.remote_writer_guid.entity_id,
+            reader_sn_state: SequenceNumberSet::new_empty(base),
+            count,
+          },
+          InfoDestination {
+            guid_prefix: writer_proxy.remote_writer_guid.prefix,
+          },
+          &writer_proxy.unicast_locator_list,
+          writer_proxy.remote_writer_guid,
+        );
       }
-      let due = now + period;
+      let due = writer_proxy.last_heard.unwrap_or(now) + period;
       next_due = Some(next_due.map_or(due, |next| next.min(due)));
-      writer_proxy.last_heard = Some(now);
-      let base = if writer_proxy.remote_vendor_id == VendorId::EPROSIMA {
-        SequenceNumber::new(0)
-      } else {
-        writer_proxy.all_ackable_before()
-      };
-      let count = writer_proxy.next_ack_nack_sequence_number();
-      self.send_acknack_to(
-        BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness),
-        AckNack {
-          reader_id: self.entity_id(),
-          writer_id: writer_proxy.remote_writer_guid.entity_id,
-          reader_sn_state: SequenceNumberSet::new_empty(base),
-          count,
-        },
-        InfoDestination {
-          guid_prefix: writer_proxy.remote_writer_guid.prefix,
-        },
-        &writer_proxy.unicast_locator_list,
-        writer_proxy.remote_writer_guid,
-      );
     }
     self.matched_writers = writer_proxies;
     next_due
