@@ -3231,22 +3231,46 @@ mod tests {
       }
 
       fn user(sample_count: i64, payload_len: usize, reader_locator: Option<SocketAddr>) -> Self {
-        let qos = QosPolicyBuilder::new()
-          .reliability(Reliability::Reliable {
-            max_blocking_time: Duration::from_millis(100),
-          })
-          .history(History::KeepAll)
-          .durability(Durability::TransientLocal)
-          .build();
-        Self::new(
-          EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
-          qos.clone(),
-          EntityId::new([0, 0, 2], EntityKind::READER_WITH_KEY_USER_DEFINED),
-          &qos,
+        Self::user_with(
+          &Self::user_qos(Durability::TransientLocal, History::KeepAll),
           sample_count,
           payload_len,
           reader_locator,
         )
+      }
+
+      // The QoS of a reliable user Writer and its reader.
+      fn user_qos(durability: Durability, history: History) -> QosPolicies {
+        QosPolicyBuilder::new()
+          .reliability(Reliability::Reliable {
+            max_blocking_time: Duration::from_millis(100),
+          })
+          .history(history)
+          .durability(durability)
+          .build()
+      }
+
+      // A user Writer and a remote reader, both of `qos`.
+      fn user_with(
+        qos: &QosPolicies,
+        sample_count: i64,
+        payload_len: usize,
+        reader_locator: Option<SocketAddr>,
+      ) -> Self {
+        Self::new(
+          EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
+          qos.clone(),
+          EntityId::new([0, 0, 2], EntityKind::READER_WITH_KEY_USER_DEFINED),
+          qos,
+          sample_count,
+          payload_len,
+          reader_locator,
+        )
+      }
+
+      // Another remote reader of the same topic, not matched yet.
+      fn late_reader(&self) -> GUID {
+        GUID::new(GuidPrefix::new(&[3; 12]), self.reader_guid.entity_id)
       }
 
       fn reader_proxy(&self) -> &RtpsReaderProxy {
@@ -3491,28 +3515,13 @@ mod tests {
     // gets them, and no GAP for them; one that matches after they went out gets a GAP.
     #[test]
     fn volatile_reader_gets_the_queued_samples_and_a_gap_only_for_those_sent() {
-      let qos = QosPolicyBuilder::new()
-        .reliability(Reliability::Reliable {
-          max_blocking_time: Duration::from_millis(100),
-        })
-        .history(History::KeepAll)
-        .durability(Durability::Volatile)
-        .build();
-      let reader_id = EntityId::new([0, 0, 2], EntityKind::READER_WITH_KEY_USER_DEFINED);
-      let mut f = Fixture::new(
-        EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
-        qos.clone(),
-        reader_id,
-        &qos,
-        3,
-        8,
-        None,
-      );
+      let qos = Fixture::user_qos(Durability::Volatile, History::KeepAll);
+      let mut f = Fixture::user_with(&qos, 3, 8, None);
       // Samples 1..=3 were written before the reader matched, none sent yet.
       assert!(f.reader_proxy().get_pending_gap().is_empty());
       f.writer.process_pending();
       assert_eq!(f.writer.last_sent, SequenceNumber::new(3));
-      let late = GUID::new(GuidPrefix::new(&[3; 12]), reader_id);
+      let late = f.late_reader();
       f.writer
         .update_reader_proxy(&RtpsReaderProxy::new(late, qos.clone(), false), &qos);
       let gap: Vec<i64> = f.writer.readers[&late]
@@ -3528,26 +3537,11 @@ mod tests {
     // stream starts there; what was written before is still not for it.
     #[test]
     fn an_early_reader_gets_what_was_written_since_its_first_acknack() {
-      let qos = QosPolicyBuilder::new()
-        .reliability(Reliability::Reliable {
-          max_blocking_time: Duration::from_millis(100),
-        })
-        .history(History::KeepAll)
-        .durability(Durability::Volatile)
-        .build();
-      let reader_id = EntityId::new([0, 0, 2], EntityKind::READER_WITH_KEY_USER_DEFINED);
-      let mut f = Fixture::new(
-        EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
-        qos.clone(),
-        reader_id,
-        &qos,
-        3,
-        8,
-        None,
-      );
+      let qos = Fixture::user_qos(Durability::Volatile, History::KeepAll);
+      let mut f = Fixture::user_with(&qos, 3, 8, None);
       f.writer.process_pending();
       assert_eq!(f.writer.last_sent, SequenceNumber::new(3));
-      let late = GUID::new(GuidPrefix::new(&[3; 12]), reader_id);
+      let late = f.late_reader();
       // Its first ACKNACK came when samples 1..=3 were written.
       f.writer.note_early_reader(late);
       assert_eq!(f.writer.early_readers[&late].0, SequenceNumber::new(3));
@@ -3564,16 +3558,7 @@ mod tests {
       assert_eq!(f.writer.readers[&late].stream_start, Some(SequenceNumber::new(1)));
       assert!(f.writer.early_readers.is_empty());
       // A transient-local writer gets every reader its history anyway: nothing kept.
-      let tl = qos.modify_by(&QosPolicyBuilder::new().durability(Durability::TransientLocal).build());
-      let mut g = Fixture::new(
-        EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
-        tl.clone(),
-        reader_id,
-        &tl,
-        1,
-        8,
-        None,
-      );
+      let mut g = Fixture::user(1, 8, None);
       g.writer.note_early_reader(late);
       assert!(g.writer.early_readers.is_empty());
     }
@@ -3583,26 +3568,11 @@ mod tests {
     // (`arm_heartbeat_after_data`), not at the next periodic one.
     #[test]
     fn a_new_reader_with_samples_due_gets_its_heartbeat_repeated_soon() {
-      let qos = QosPolicyBuilder::new()
-        .reliability(Reliability::Reliable {
-          max_blocking_time: Duration::from_millis(100),
-        })
-        .history(History::KeepLast { depth: 1 })
-        .durability(Durability::TransientLocal)
-        .build();
-      let reader_id = EntityId::new([0, 0, 2], EntityKind::READER_WITH_KEY_USER_DEFINED);
-      let mut f = Fixture::new(
-        EntityId::new([0, 0, 1], EntityKind::WRITER_WITH_KEY_USER_DEFINED),
-        qos.clone(),
-        reader_id,
-        &qos,
-        1,
-        8,
-        None,
-      );
+      let qos = Fixture::user_qos(Durability::TransientLocal, History::KeepLast { depth: 1 });
+      let mut f = Fixture::user_with(&qos, 1, 8, None);
       f.writer.process_pending();
       f.writer.heartbeat_after_data_due = None;
-      let late = GUID::new(GuidPrefix::new(&[3; 12]), reader_id);
+      let late = f.late_reader();
       f.writer
         .update_reader_proxy(&RtpsReaderProxy::new(late, qos.clone(), false), &qos);
       let due = f.writer.heartbeat_after_data_due.expect("a HEARTBEAT repeat armed");
