@@ -112,6 +112,39 @@ def ros2(*args, timeout=30, stdin=None, ok=True):
     return out
 
 
+# Each time a fresh `ros2` process answered "Node not found" (or `lifecycle nodes` listed
+# nothing) for a node listed a moment before, and was run again: see `ros2_node_verb`.
+CLI_MISSES = []
+
+
+def ros2_node_verb(*args, ok=True, tries=3, empty_is_miss=False):
+    """`ros2 ARGS...` (a --no-daemon verb that names a node: lifecycle, param), run again
+    (up to `tries` in all) when the stock CLI answered "Node not found" (or, with
+    `empty_is_miss`, printed nothing) for a node listed a moment before. Such a process
+    looks for the node only for half a second (its NodeStrategy's spin) before it does
+    anything, and a capture of one such miss (Kilted, about 1 run in 27 of managed_launch)
+    showed the `ros2` process itself stalled: from the moment it matched the node it
+    answered nobody's HEARTBEAT or ACKNACK, neither the node's nor the stock launch
+    process's, on any of its sockets, until its spin ended, while the node sent what it
+    sends in a passing run (docs/ros2-peer.md). "Node not found" comes before any service
+    call, so a second run repeats no transition or change. Each miss is counted
+    (CLI_MISSES) and shown by the test."""
+    for attempt in range(tries):
+        out = ros2(*args, ok=False)
+        missed = out.stdout.strip() == "" if empty_is_miss else "Node not found" in out.text
+        if not missed or attempt == tries - 1:
+            break
+        CLI_MISSES.append(" ".join(args[:2]))
+    if ok and out.returncode != 0:
+        raise AssertionError(f"`ros2 {' '.join(args)}` exited with {out.returncode}:\n{out.text[-2000:]}")
+    return out
+
+
+def lifecycle(verb, *args, ok=True):
+    """`ros2 lifecycle VERB --no-daemon ARGS...` by `ros2_node_verb`."""
+    return ros2_node_verb("lifecycle", verb, "--no-daemon", *args, ok=ok, empty_is_miss=verb == "nodes")
+
+
 def log_command(shown, status, took, text):
     with open(CLI_LOG, "a") as f:
         f.write(f"$ ros2 {shown}   [{status}, {took:.1f} s]\n{text[-1500:]}\n")
@@ -143,7 +176,7 @@ def node_listed(fqn, launch=None, timeout=20):
 
 def param_get(node, name):
     """`ros2 param get`: (label, value text), e.g. ('Double value is', '0.045')."""
-    out = ros2("param", "get", "--no-daemon", node, name).stdout.strip()
+    out = ros2_node_verb("param", "get", "--no-daemon", node, name).stdout.strip()
     label, _, value = out.partition(": ")
     return label, value
 
@@ -490,20 +523,23 @@ def test_managed_launch():
         assert argv[argv.index("--params-file"):][:6] == ["--params-file", params, "--log-level", "warn",
                                                          "-p", "managed:=true"], argv
         node_listed(fqn, launch)
-        assert ros2("lifecycle", "nodes", "--no-daemon").stdout.split() == [fqn]
-        assert ros2("lifecycle", "get", "--no-daemon", fqn).stdout.strip() == "unconfigured [1]"
+        misses = len(CLI_MISSES)
+        assert lifecycle("nodes").stdout.split() == [fqn]
+        assert lifecycle("get", fqn).stdout.strip() == "unconfigured [1]"
         r = calibrate("/m/calibrate")
         assert not r["success"] and "the node is unconfigured (managed)" in r["message"], r
-        out = ros2("lifecycle", "set", "--no-daemon", fqn, "activate", ok=False)
+        out = lifecycle("set", fqn, "activate", ok=False)
         assert out.returncode != 0 and "Unknown transition requested" in out.text, out.text
         for transition, state in (("configure", "inactive [2]"), ("activate", "active [3]")):
-            assert "Transitioning successful" in ros2("lifecycle", "set", "--no-daemon", fqn, transition).stdout
-            assert ros2("lifecycle", "get", "--no-daemon", fqn).stdout.strip() == state
+            assert "Transitioning successful" in lifecycle("set", fqn, transition).stdout
+            assert lifecycle("get", fqn).stdout.strip() == state
+        misses = CLI_MISSES[misses:]
         lens = h.simulate("managed_lens", "ellipse", seed=61)
         contour, lens_s = publish_scan("/m/raw_scan", 41, RawScan.TARGET_LENS, lens, echo, launch)
         assert contour["scan_id"] == 41, contour
         took = launch.interrupt()
-    return f"(scan to contour once active: {lens_s:.1f} s; Ctrl-C: {took:.2f} s)"
+    again = f"; run again after the stock CLI's \"Node not found\": {', '.join(misses)}" if misses else ""
+    return f"(scan to contour once active: {lens_s:.1f} s; Ctrl-C: {took:.2f} s{again})"
 
 
 def test_graph():
@@ -951,6 +987,8 @@ def main():
     tests = [(name, no_daemon_left(fn)) for name, fn in tests]
     only = [a.removeprefix("test_") for a in sys.argv[1:]]
     failed = h.run_tests(tests, only, "launch::", "launch")
+    if CLI_MISSES:
+        print(f"launch: run again after the stock CLI's \"Node not found\" ({len(CLI_MISSES)}): {', '.join(CLI_MISSES)}")
     if failed == 0:
         shutil.rmtree(WORK, ignore_errors=True)
     sys.stdout.flush()

@@ -342,6 +342,25 @@ impl RtpsReaderProxy {
     self.send_route
   }
 
+  // tracer_calib patch
+  /// Whether a datagram for this reader has anywhere to go: a narrowed route, or, on
+  /// the fallback route, a UDP locator (as `Writer::send_message_to_readers` chooses).
+  /// Not so for our own participant's readers while no packet of ours has come back
+  /// to show that we are on this host (multicast off: their locators are all loopback
+  /// ones, which serve only a peer confirmed on this host).
+  pub fn is_reachable(&self) -> bool {
+    let route = self.send_route;
+    if route.fallback {
+      self
+        .unicast_locator_list
+        .iter()
+        .chain(self.multicast_locator_list.iter())
+        .any(Locator::is_udp)
+    } else {
+      route.unicast.is_some() || route.multicast.is_some()
+    }
+  }
+
   /// Recompute this reader's [`SendRoute`] from its advertised locators and the
   /// per-participant [`InterfaceObservations`], using `selector`.
   pub fn resolve_send_route(

@@ -1079,7 +1079,7 @@ impl Writer {
     let behind = self
       .readers
       .values()
-      .any(|rp| rp.qos().is_reliable() && rp.all_acked_before <= sent);
+      .any(|rp| rp.qos().is_reliable() && rp.is_reachable() && rp.all_acked_before <= sent);
     if !behind {
       return;
     }
@@ -1251,7 +1251,13 @@ impl Writer {
     let first = self.send_buffer.first_change_sequence_number();
     let start = match to {
       Some(reader) => reader.stream_start,
-      None => self.readers.values().filter_map(|r| r.stream_start).min(),
+      // tracer_calib patch: `is_reachable`, as in `handle_heartbeat_tick`.
+      None => self
+        .readers
+        .values()
+        .filter(|r| r.is_reachable())
+        .filter_map(|r| r.stream_start)
+        .min(),
     };
     let builder = match start {
       Some(start) if start < last => builder.heartbeat_msg(
@@ -1303,9 +1309,17 @@ impl Writer {
     let first_change = self.send_buffer.first_change_sequence_number();
     let last_change = self.send_buffer.last_change_sequence_number();
 
+    // tracer_calib patch: a reader we cannot send to (`is_reachable`) gets no
+    // HEARTBEAT either, and its acknowledgement is not waited for. Our own
+    // participant's built-in readers are matched (`initialize_participant`), but
+    // with multicast off there is no route to them: they never acknowledged, and the
+    // discovery writers counted them as behind for good and sent a HEARTBEAT every
+    // HEARTBEAT_PERIOD_FAST (100 ms) to every peer, instead of none once all had
+    // acknowledged.
     if self
       .readers
       .values()
+      .filter(|rp| rp.is_reachable())
       .all(|rp| last_change < rp.all_acked_before)
     {
       trace!("heartbeat tick: all readers have all available data.");
@@ -3439,6 +3453,31 @@ mod tests {
       assert_eq!(f.repair_round(), 5);
     }
 
+    // tracer_calib patch: a reader we cannot send to (no locator: our own participant's
+    // built-in readers with multicast off) is not waited for: with only it behind, the
+    // periodic HEARTBEAT finds every reader caught up and goes back to the slow
+    // period, and no HEARTBEAT announces its stream start to the others.
+    #[test]
+    fn a_reader_without_a_route_gets_no_heartbeat_and_is_not_waited_for() {
+      let mut f = Fixture::user(5, 8, None);
+      assert!(!f.reader_proxy().is_reachable());
+      assert!(!f.writer.handle_heartbeat_tick(false), "no reader to wait for");
+      let builder = f.writer.add_heartbeat(
+        MessageBuilder::new(),
+        SequenceNumber::new(5),
+        EntityId::UNKNOWN,
+        None,
+        false,
+        false,
+      );
+      let message = builder.add_header_and_build(f.writer.my_guid.prefix);
+      assert_eq!(message.submessages.len(), 1, "no stream start before the HEARTBEAT");
+
+      let mut g = Fixture::user(5, 8, Some(SocketAddr::from(([192, 0, 2, 1], 9))));
+      assert!(g.reader_proxy().is_reachable());
+      assert!(g.writer.handle_heartbeat_tick(false), "the reader has acknowledged nothing");
+    }
+
     // tracer_calib patch: a reliable reader matched before the writer sent anything
     // gets the start of its stream, a final HEARTBEAT [1, 0], before each HEARTBEAT
     // [1, last] (`add_heartbeat`), until it acknowledges a sample: a preemptive
@@ -3449,7 +3488,8 @@ mod tests {
         messages::submessages::submessages::{HEARTBEAT_Flags, WriterSubmessage},
         rtps::submessage::SubmessageBody,
       };
-      let mut f = Fixture::user(5, 8, None);
+      // (A reader with a locator: one we cannot send to is left out, `is_reachable`.)
+      let mut f = Fixture::user(5, 8, Some(SocketAddr::from(([192, 0, 2, 1], 9))));
       let heartbeats = |f: &Fixture, to: Option<&RtpsReaderProxy>| -> Vec<(i64, i64, bool)> {
         let last = SequenceNumber::new(5);
         let builder = f.writer.add_heartbeat(
