@@ -71,6 +71,15 @@ pub const HEARTBEAT_AFTER_DATA_MAX: Duration = Duration::from_millis(80);
 // (Fast DDS, RustDDS: 5 ms) and a round trip after the request.
 pub const GAP_NACK_REPEAT: Duration = Duration::from_millis(25);
 
+// tracer_calib patch: how long a reliable Reader that knows samples of a writer to be
+// missing (it asked for them, `GAP_NACK_REPEAT`, `RtpsWriterProxy::note_nacked`) waits
+// for their repair before it asks again although no later sample has come to prompt it
+// (`Reader::poll_quiet_writers`): the writer's stream has paused, or the repair was lost
+// and the writer (Fast DDS) repeats it only at its next HEARTBEAT. Cyclone DDS readers
+// do the same (`AutoReschedNackDelay`, 3 s by default). An ACKNACK of a few dozen bytes
+// every 100 ms while something is missing.
+pub const QUIET_NACK_REPEAT: Duration = Duration::from_millis(100);
+
 // How often a reliable user Reader asks each matched writer it has not heard of for
 // that long for a HEARTBEAT (`Reader::poll_quiet_writers`). A sample lost as the last
 // one a writer sends (a service request, a scan before a pause) is otherwise repaired

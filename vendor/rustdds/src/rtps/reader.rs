@@ -42,7 +42,9 @@ use crate::{
   network::udp_sender::UDPSender,
   polling::{ReadySender, SharedTimer, WakeReceiver},
   rtps::{
-    constant::{GAP_NACK_REPEAT, MIN_QUIET_WRITER_POLL_PERIOD, QUIET_WRITER_POLL_PERIOD}, // tracer_calib patch
+    constant::{
+      GAP_NACK_REPEAT, MIN_QUIET_WRITER_POLL_PERIOD, QUIET_NACK_REPEAT, QUIET_WRITER_POLL_PERIOD,
+    }, // tracer_calib patch
     fragment_assembler::FragmentAssembler, message_receiver::MessageReceiverState,
     rtps_writer_proxy::RtpsWriterProxy, timed_event::DpTimerEvent, Message,
   },
@@ -1580,6 +1582,39 @@ impl Reader {
         || only_of.is_some_and(|prefix| writer_proxy.remote_writer_guid.prefix != prefix)
       {
         continue;
+      }
+      // Samples known to be missing whose request or repair was lost, with no later
+      // sample to ask again (`QUIET_NACK_REPEAT`): asked for again by name.
+      let missing = writer_proxy.still_missing_to_nack(now, QUIET_NACK_REPEAT);
+      let base = writer_proxy.all_ackable_before();
+      let in_set: std::collections::BTreeSet<SequenceNumber> = missing
+        .into_iter()
+        .filter(|s| *s >= base && *s < base + SequenceNumber::new(256))
+        .collect();
+      if !in_set.is_empty() {
+        debug!(
+          "Reader {:?} topic={:?}: {:?} still missing from quiet {:?}: NACK {in_set:?}",
+          self.my_guid.entity_id, self.topic_name, writer_proxy.remote_writer_guid, in_set
+        );
+        let count = writer_proxy.next_ack_nack_sequence_number();
+        self.send_acknack_to(
+          BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness)
+            | BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Final),
+          AckNack {
+            reader_id: self.entity_id(),
+            writer_id: writer_proxy.remote_writer_guid.entity_id,
+            reader_sn_state: SequenceNumberSet::from_base_and_set(base, &in_set),
+            count,
+          },
+          InfoDestination {
+            guid_prefix: writer_proxy.remote_writer_guid.prefix,
+          },
+          &writer_proxy.unicast_locator_list,
+          writer_proxy.remote_writer_guid,
+        );
+      }
+      if let Some(due) = writer_proxy.still_missing_due(QUIET_NACK_REPEAT) {
+        next_due = Some(next_due.map_or(due, |next| next.min(due)));
       }
       if writer_proxy.last_heard.is_none_or(|at| now >= at + period) {
         writer_proxy.last_heard = Some(now);

@@ -178,6 +178,37 @@ impl RtpsWriterProxy {
   }
   // tracer_calib patch: end
 
+  /// tracer_calib patch: what is still missing of this writer's stream (from the first
+  /// sample seen to the newest seen or announced by a HEARTBEAT), to be asked for again
+  /// at `now` because the last request is `repeat` old and no later sample has come to
+  /// ask (`gap_to_nack`). Empty when nothing is missing or it is not due yet.
+  pub fn still_missing_to_nack(
+    &mut self,
+    now: std::time::Instant,
+    repeat: std::time::Duration,
+  ) -> Vec<SequenceNumber> {
+    let Some(first_seen) = self.first_seen else {
+      return vec![];
+    };
+    if self.gap_nacked_at.is_some_and(|at| now < at + repeat) {
+      return vec![];
+    }
+    let missing = self.missing_seqnums(max(first_seen, self.ack_base), self.newest_seen);
+    if !missing.is_empty() {
+      self.gap_nacked_at = Some(now);
+    }
+    missing
+  }
+
+  /// tracer_calib patch: when `still_missing_to_nack` falls due, if something of this
+  /// writer's stream is missing.
+  pub fn still_missing_due(&self, repeat: std::time::Duration) -> Option<std::time::Instant> {
+    let first_seen = self.first_seen?;
+    let at = self.gap_nacked_at?;
+    let missing = self.missing_seqnums(max(first_seen, self.ack_base), self.newest_seen);
+    (!missing.is_empty()).then_some(at + repeat)
+  }
+
   // tracer_calib patch: the remote participant's vendor (see `remote_vendor_id`).
   pub fn with_vendor_id(mut self, vendor_id: VendorId) -> Self {
     self.remote_vendor_id = vendor_id;
@@ -534,6 +565,40 @@ mod bounded_map_tests {
     let mut wp = test_proxy();
     wp.note_nacked(sn(1), sn(1), now);
     assert_eq!(wp.gap_to_nack(sn(3), now, repeat), vec![sn(1), sn(2)]);
+  }
+
+  // tracer_calib patch: samples known missing are asked for again while the writer is
+  // quiet, each `repeat` after the last request (`still_missing_to_nack`), until they
+  // arrive; nothing is asked before one is known missing.
+  #[test]
+  fn a_quiet_writer_is_asked_again_for_what_is_still_missing() {
+    let now = std::time::Instant::now();
+    let repeat = std::time::Duration::from_millis(100);
+    let ms = std::time::Duration::from_millis;
+    let sn = SequenceNumber::new;
+
+    let mut wp = test_proxy();
+    assert!(wp.still_missing_to_nack(now, repeat).is_empty());
+    assert_eq!(wp.still_missing_due(repeat), None);
+
+    // Samples 1 and 3 received, 2 lost: asked for when 3 came.
+    wp.received_changes_add(sn(1), Timestamp::INVALID);
+    assert!(wp.gap_to_nack(sn(1), now, repeat).is_empty());
+    wp.received_changes_add(sn(3), Timestamp::INVALID);
+    assert_eq!(wp.gap_to_nack(sn(3), now, repeat), vec![sn(2)]);
+    // No later sample comes. Not again before `repeat`; then at each `repeat`.
+    assert_eq!(wp.still_missing_due(repeat), Some(now + repeat));
+    assert!(wp.still_missing_to_nack(now + ms(50), repeat).is_empty());
+    assert_eq!(wp.still_missing_to_nack(now + ms(100), repeat), vec![sn(2)]);
+    assert_eq!(wp.still_missing_due(repeat), Some(now + ms(200)));
+    // A HEARTBEAT announced 4 as well, asked for: both, at the next due time.
+    wp.note_nacked(sn(2), sn(4), now + ms(150));
+    assert_eq!(wp.still_missing_to_nack(now + ms(250), repeat), vec![sn(2), sn(4)]);
+    // Once they arrive, nothing more.
+    wp.received_changes_add(sn(2), Timestamp::INVALID);
+    wp.received_changes_add(sn(4), Timestamp::INVALID);
+    assert!(wp.still_missing_to_nack(now + ms(400), repeat).is_empty());
+    assert_eq!(wp.still_missing_due(repeat), None);
   }
 
   // Regression: a best-effort writer sends no HEARTBEAT/GAP, so the changes map
