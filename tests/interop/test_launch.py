@@ -122,7 +122,7 @@ def ros2_node_verb(*args, ok=True, tries=3, empty_is_miss=False):
     (up to `tries` in all) when the stock CLI answered "Node not found" (or, with
     `empty_is_miss`, printed nothing) for a node listed a moment before. Such a process
     looks for the node only for half a second (its NodeStrategy's spin) before it does
-    anything, and a capture of one such miss (Kilted, about 1 run in 27 of managed_launch)
+    anything, and a capture of one such miss (Kilted, 2 runs in 115 of managed_launch)
     showed the `ros2` process itself stalled: from the moment it matched the node it
     answered nobody's HEARTBEAT or ACKNACK, neither the node's nor the stock launch
     process's, on any of its sockets, until its spin ended, while the node sent what it

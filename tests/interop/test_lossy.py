@@ -78,7 +78,8 @@ CALL_WAIT = 15.0  # for each call: generous, on a loaded CI machine
 # For the stragglers in the "keepall" variant (Zenoh): nothing is dropped, and a TCP link
 # under 25 % loss can stall for over 10 s while its retransmission timeout doubles.
 KEEP_ALL_WAIT = 40.0
-CAPTURE = None  # dumpcap, with LOSSY_PCAP
+CAPTURE = None  # dumpcap, with LOSSY_PCAP or LOSSY_PCAP_SENT
+CAPTURE_FILE = None  # its file: the servers' logs go beside it (FILE.log, FILE.cellK.log)
 # Delay and reordering (the *_delay scenarios): every UDP datagram lo sends held 0-20 ms
 # (uniformly: 10 ± 10 ms), so datagrams sent within a few ms of each other (a scan's
 # DATA and its HEARTBEAT, a repair round) often arrive in another order.
@@ -115,9 +116,10 @@ def apply_loss(percent, protocols="udp", per_frame=False):
     # it shows what each side sent and when, not what arrived.
     sent = os.environ.get("LOSSY_PCAP_SENT")
     if pcap or sent:
-        global CAPTURE
+        global CAPTURE, CAPTURE_FILE
+        CAPTURE_FILE = pcap or sent
         CAPTURE = subprocess.Popen(
-            ["dumpcap", "-q", "-i", "lo", "-w", pcap or sent], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+            ["dumpcap", "-q", "-i", "lo", "-w", CAPTURE_FILE], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
         time.sleep(1.0)
     if percent <= 0:
@@ -426,7 +428,7 @@ def scenario_main(server, loss, variant=""):
             if router:
                 router.stop()
     if CAPTURE:
-        shutil.copy(node.log_path, (os.environ.get("LOSSY_PCAP") or os.environ["LOSSY_PCAP_SENT"]) + ".log")
+        shutil.copy(node.log_path, CAPTURE_FILE + ".log")
     shutil.rmtree(h.WORK, ignore_errors=True)
     result["udp_received"], result["udp_dropped"] = loss_counters()
     result["reassembly"] = reassembly_counters()
@@ -458,7 +460,7 @@ def cells_main(loss):
             # The cells' logs beside the capture (FILE.cellK.log), as for a scenario.
             for name in os.listdir(h.WORK):
                 if name.startswith("cell") and name.endswith(".log"):
-                    shutil.copy(os.path.join(h.WORK, name), (os.environ.get("LOSSY_PCAP") or os.environ["LOSSY_PCAP_SENT"]) + "." + name)
+                    shutil.copy(os.path.join(h.WORK, name), CAPTURE_FILE + "." + name)
             stop_capture()
     shutil.rmtree(h.WORK, ignore_errors=True)
     out["udp_received"], out["udp_dropped"] = loss_counters()

@@ -1,5 +1,5 @@
 use std::{
-  collections::BTreeMap,
+  collections::{BTreeMap, BTreeSet},
   fmt, iter,
   rc::Rc,
   sync::{Arc, Mutex, MutexGuard},
@@ -974,46 +974,62 @@ impl Reader {
     if !self.matched_writers.contains_key(&writer_guid) {
       return;
     }
-    let reader_id = self.entity_id();
     self.with_mutable_writer_proxy(writer_guid, |this, writer_proxy| {
       let gap = writer_proxy.gap_to_nack(sn, std::time::Instant::now(), GAP_NACK_REPEAT);
       let Some(&first) = gap.first() else {
         return;
       };
-      let base = writer_proxy.all_ackable_before();
-      let in_set: Vec<SequenceNumber> = gap
-        .into_iter()
-        .filter(|s| *s >= base && *s < base + SequenceNumber::new(256))
-        .collect();
-      if in_set.is_empty() {
-        return;
-      }
-      debug!(
-        "Reader {:?} topic={:?}: sample {sn:?} of {writer_guid:?} came after a gap from \
-         {first:?}: NACK {in_set:?}",
-        reader_id, this.topic_name
-      );
-      let acknack = AckNack {
-        reader_id,
-        writer_id: writer_guid.entity_id,
-        reader_sn_state: SequenceNumberSet::from_base_and_set(base, &in_set.into_iter().collect()),
-        count: writer_proxy.next_ack_nack_sequence_number(),
-      };
       let reply_locators = match mr_state.unicast_reply_locator_list {
-        [] | [Locator::Invalid] => &writer_proxy.unicast_locator_list,
-        others => others,
+        [] | [Locator::Invalid] => None,
+        others => Some(others),
       };
-      this.send_acknack_to(
+      let sent = this.send_nack(writer_proxy, gap, reply_locators);
+      if !sent.is_empty() {
+        debug!(
+          "Reader {:?} topic={:?}: sample {sn:?} of {writer_guid:?} came after a gap from \
+           {first:?}: NACK {sent:?}",
+          this.entity_id(),
+          this.topic_name
+        );
+      }
+    });
+  }
+
+  /// A final ACKNACK to `writer_proxy`'s writer naming `missing`, those of them within
+  /// the 256 an ACKNACK can carry from its base (which acknowledges what lies below),
+  /// sent to `reply_locators` (None: the writer's unicast locators): how
+  /// `nack_gap_below` and `poll_quiet_writers` ask again. Returns the set sent, empty if
+  /// nothing was.
+  fn send_nack(
+    &self,
+    writer_proxy: &mut RtpsWriterProxy,
+    missing: Vec<SequenceNumber>,
+    reply_locators: Option<&[Locator]>,
+  ) -> BTreeSet<SequenceNumber> {
+    let base = writer_proxy.all_ackable_before();
+    let in_set: BTreeSet<SequenceNumber> = missing
+      .into_iter()
+      .filter(|s| *s >= base && *s < base + SequenceNumber::new(256))
+      .collect();
+    if !in_set.is_empty() {
+      let writer_guid = writer_proxy.remote_writer_guid;
+      self.send_acknack_to(
         BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness)
           | BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Final),
-        acknack,
+        AckNack {
+          reader_id: self.entity_id(),
+          writer_id: writer_guid.entity_id,
+          reader_sn_state: SequenceNumberSet::from_base_and_set(base, &in_set),
+          count: writer_proxy.next_ack_nack_sequence_number(),
+        },
         InfoDestination {
           guid_prefix: writer_guid.prefix,
         },
-        reply_locators,
+        reply_locators.unwrap_or(&writer_proxy.unicast_locator_list),
         writer_guid,
       );
-    });
+    }
+    in_set
   }
   // tracer_calib patch: end
 
@@ -1586,31 +1602,11 @@ impl Reader {
       // Samples known to be missing whose request or repair was lost, with no later
       // sample to ask again (`QUIET_NACK_REPEAT`): asked for again by name.
       let missing = writer_proxy.still_missing_to_nack(now, QUIET_NACK_REPEAT);
-      let base = writer_proxy.all_ackable_before();
-      let in_set: std::collections::BTreeSet<SequenceNumber> = missing
-        .into_iter()
-        .filter(|s| *s >= base && *s < base + SequenceNumber::new(256))
-        .collect();
-      if !in_set.is_empty() {
+      let sent = self.send_nack(writer_proxy, missing, None);
+      if !sent.is_empty() {
         debug!(
-          "Reader {:?} topic={:?}: {:?} still missing from quiet {:?}: NACK {in_set:?}",
-          self.my_guid.entity_id, self.topic_name, writer_proxy.remote_writer_guid, in_set
-        );
-        let count = writer_proxy.next_ack_nack_sequence_number();
-        self.send_acknack_to(
-          BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness)
-            | BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Final),
-          AckNack {
-            reader_id: self.entity_id(),
-            writer_id: writer_proxy.remote_writer_guid.entity_id,
-            reader_sn_state: SequenceNumberSet::from_base_and_set(base, &in_set),
-            count,
-          },
-          InfoDestination {
-            guid_prefix: writer_proxy.remote_writer_guid.prefix,
-          },
-          &writer_proxy.unicast_locator_list,
-          writer_proxy.remote_writer_guid,
+          "Reader {:?} topic={:?}: still missing from quiet {:?}: NACK {sent:?}",
+          self.my_guid.entity_id, self.topic_name, writer_proxy.remote_writer_guid
         );
       }
       if let Some(due) = writer_proxy.still_missing_due(QUIET_NACK_REPEAT) {

@@ -187,13 +187,10 @@ impl RtpsWriterProxy {
     now: std::time::Instant,
     repeat: std::time::Duration,
   ) -> Vec<SequenceNumber> {
-    let Some(first_seen) = self.first_seen else {
-      return vec![];
-    };
     if self.gap_nacked_at.is_some_and(|at| now < at + repeat) {
       return vec![];
     }
-    let missing = self.missing_seqnums(max(first_seen, self.ack_base), self.newest_seen);
+    let missing = self.still_missing();
     if !missing.is_empty() {
       self.gap_nacked_at = Some(now);
     }
@@ -203,10 +200,16 @@ impl RtpsWriterProxy {
   /// tracer_calib patch: when `still_missing_to_nack` falls due, if something of this
   /// writer's stream is missing.
   pub fn still_missing_due(&self, repeat: std::time::Duration) -> Option<std::time::Instant> {
-    let first_seen = self.first_seen?;
     let at = self.gap_nacked_at?;
-    let missing = self.missing_seqnums(max(first_seen, self.ack_base), self.newest_seen);
-    (!missing.is_empty()).then_some(at + repeat)
+    (!self.still_missing().is_empty()).then_some(at + repeat)
+  }
+
+  // What is missing of this writer's stream, from the first sample seen to the newest
+  // seen or announced (none before a first sample).
+  fn still_missing(&self) -> Vec<SequenceNumber> {
+    self.first_seen.map_or_else(Vec::new, |first_seen| {
+      self.missing_seqnums(max(first_seen, self.ack_base), self.newest_seen)
+    })
   }
 
   // tracer_calib patch: the remote participant's vendor (see `remote_vendor_id`).
