@@ -27,7 +27,7 @@ both side by side): lossy_fastdds_10, lossy_fastdds_25, lossy_cyclone_10, lossy_
 and say they are skipped without it). Each asserts: the node loses no more contours than
 the stock node (none at 10 %), every call and parameter request is answered, the latched
 calibration reaches the late subscriber. Latency is printed, not asserted (a loaded CI
-machine; BENCHMARKS.md has the figures). lossy_zenoh_10, lossy_zenoh_25: the same on Zenoh
+machine; BENCHMARKS.md has the figures). lossy_zenoh_10: the same on Zenoh
 (target/ros/DISTRO/zenoh_env.sh, made by tests/interop/zenoh.sh; rmw_zenohd in the
 scenario's namespace, TCP segments dropped as well as UDP datagrams: Zenoh's links are
 TCP). lossy_fastdds_10_delay, lossy_cyclone_10_delay: 10 % loss, and every UDP datagram lo
@@ -46,9 +46,10 @@ discovery samples unstamped, and Fast DDS misfiled the late repairs of such a st
 vendor/rustdds/PATCHES.md, "A sample written without a timestamp is stamped now").
 lossy_zenoh_25_rtomax1s: Zenoh under 25 % loss with TCP's retransmission timeout capped at
 1 s in the namespace (net.ipv4.tcp_rto_max_ms, as docs/zenoh.md advises a cell on a lossy
-link): every contour and call through, asserted. lossy_zenoh_25, under the kernel's default
-backoff (up to 120 s), says rather than asserts contours lost beyond the stock node's and
-calls unanswered (OPEN below: TCP's, not the node's).
+link): every contour and call through, asserted. Under the kernel's default backoff (up to
+120 s) TCP itself stalls a link for longer than any wait a test can afford in about one run
+in eight, for the stock node as for the node: no test asserts on that, scripts/bench_lossy.sh
+with REPEAT=N tallies it (`LOSSY_RUN="node zenoh 25"` runs one).
 
     python test_lossy.py [lossy | lossy_fastdds_10 | ...]...
 
@@ -208,6 +209,18 @@ def reassembly_counters():
         rows = [ln.split() for ln in f if ln.startswith("Ip:")]
     counters = dict(zip(rows[0][1:], (int(v) for v in rows[1][1:])))
     return {k: counters.get(k) for k in ("ReasmReqds", "ReasmOKs", "ReasmFails", "ReasmTimeout")}
+
+
+def tcp_counters():
+    """This namespace's TCP retransmission counters (/proc/net/netstat, TcpExt), a dict:
+    on Zenoh a sample waits for TCP, and a segment lost again after a retransmission
+    timeout waits twice as long each time (TCPTimeouts: retransmission timeouts;
+    TCPLostRetransmit: retransmissions lost again; TCPSynRetrans: connection attempts
+    sent again, after which Linux starts the connection's timeout at 3 s)."""
+    with open("/proc/net/netstat") as f:
+        rows = [ln.split() for ln in f if ln.startswith("TcpExt:")]
+    counters = dict(zip(rows[0][1:], (int(v) for v in rows[1][1:])))
+    return {k: counters.get(k) for k in ("TCPTimeouts", "TCPLostRetransmit", "TCPSynRetrans")}
 
 
 def stock_server_main():
@@ -432,6 +445,7 @@ def scenario_main(server, loss, variant=""):
     shutil.rmtree(h.WORK, ignore_errors=True)
     result["udp_received"], result["udp_dropped"] = loss_counters()
     result["reassembly"] = reassembly_counters()
+    result["tcp"] = tcp_counters()
     if delay:
         result["udp_delayed"], result["udp_reordered"] = stop_delay(delay)
     stop_capture()
@@ -569,19 +583,6 @@ def describe(r):
     return text
 
 
-# What TCP, not the node, leaves open under 25 % loss (BENCHMARKS.md, "A lossy network"):
-# said as "OPEN: ..." in the test's line, not asserted. On Zenoh (TCP through the router, a
-# quarter of its segments and their acknowledgements dropped) the kernel's default
-# retransmission timeout, doubling with each loss of the same segment up to 120 s, stalls a
-# link for seconds in some runs, the stock node's as the node's (stock: 54 of 100 contours
-# within the wait, calls up to 13.8 s in one run of seven), and a stall past any wait a test
-# can afford comes in a share of runs, keep last or keep all. With that timeout capped at
-# 1 s (the "rtomax1s" variant, asserted: lossy_zenoh_25_rtomax1s) no stall outlasts the
-# node's transmission queue (src/rmw/zenoh.rs's NODE_DEFAULTS, 3.2 s of contours) and
-# every contour and call goes through (docs/zenoh.md, "On a lossy link").
-OPEN = {("zenoh", 25): {"contours", "calls"}}
-
-
 VARIANTS = {"": "", "delay": f", delayed {DELAY_MS} ± {JITTER_MS} ms", "mtu1500": ", MTU 1500",
             "keepall": ", keep all", "rtomax1s": f", TCP RTO at most {TCP_RTO_MAX_MS} ms"}
 
@@ -609,18 +610,12 @@ def test_lossy(envs, rmw, loss, variant=""):
     lost_stock = node["scans"] if stock is None else stock["scans"] - stock["contours"]
     # Zenoh with TCP's backoff capped: every scan and call through (issue 29, item 4).
     allowed = 0 if loss <= 10 or variant == "rtomax1s" else lost_stock
-    unanswered = node["calls"].count(None) + node["param_calls"].count(None)
-    said = []
-    if lost_node > allowed:
-        assert "contours" in OPEN.get((rmw, loss), ()), f"the node lost {lost_node} contours, the stock node {lost_stock}"
-        said.append(f"OPEN: the node lost {lost_node} contours, the stock node {lost_stock}")
-    if unanswered:
-        assert "calls" in OPEN.get((rmw, loss), ()), (
-            f"calls unanswered within {CALL_WAIT} s: /calibrate {node['calls']}, parameters {node['param_calls']}"
-        )
-        said.append(f"OPEN: {unanswered} call(s) unanswered within {CALL_WAIT} s")
+    assert lost_node <= allowed, f"the node lost {lost_node} contours, the stock node {lost_stock}"
+    assert None not in node["calls"] + node["param_calls"], (
+        f"calls unanswered within {CALL_WAIT} s: /calibrate {node['calls']}, parameters {node['param_calls']}"
+    )
     assert node["latched_ms"] is not None, f"the latched calibration did not reach a late subscriber in {WAIT} s"
-    return "; ".join(said + [f"node {describe(node)} | stock {stock_text}"])
+    return f"node {describe(node)} | stock {stock_text}"
 
 
 def test_ten_cells(envs, rmw, loss):
@@ -664,10 +659,15 @@ def main():
             print(f"{server} {rmw} {loss} %{VARIANTS[variant]}: {describe(r)}", flush=True)
         print(json.dumps(r), flush=True)
         os._exit(0)
+    # Zenoh at 25 % only with TCP's backoff capped: under the kernel's default, TCP stalls
+    # a link past any wait a test can afford in about one run in eight, the stock node's as
+    # the node's (docs/zenoh.md, "On a lossy link"); REPEAT=N bash scripts/bench_lossy.sh
+    # jazzy 100 zenoh 25 tallies them over N runs.
     tests = [
         (f"{rmw}_{loss}", lambda rmw=rmw, loss=loss: test_lossy(envs, rmw, loss))
         for rmw in ("fastdds", "cyclone", "zenoh")
         for loss in (10, 25)
+        if (rmw, loss) != ("zenoh", 25)
     ] + [
         (f"{rmw}_10_{variant}", lambda rmw=rmw, variant=variant: test_lossy(envs, rmw, 10, variant))
         for variant in ("delay", "mtu1500")
