@@ -62,6 +62,7 @@ waited for 40 s; rtomax1s: TCP's retransmission timeout at most 1 s), as
 scripts/bench_lossy.sh does for other losses.
 """
 
+import atexit
 import json
 import os
 import shutil
@@ -122,6 +123,8 @@ def apply_loss(percent, protocols="udp", per_frame=False):
         CAPTURE = subprocess.Popen(
             ["dumpcap", "-q", "-i", "lo", "-w", CAPTURE_FILE], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
+        # A scenario that fails (an assertion) exits without reaching stop_capture.
+        atexit.register(stop_capture)
         time.sleep(1.0)
     if percent <= 0:
         return
