@@ -12,19 +12,9 @@ import sys
 from collections import defaultdict
 
 
-def whole(run):
-    """Everything through: contours, calls, parameter requests, the latched calibration."""
-    return (
-        not run.get("failed")
-        and run["contours"] == run["scans"]
-        and all(c is not None for c in run["calls"])
-        and all(c is not None for c in run["param_calls"])
-        and run["latched_ms"] is not None
-    )
-
-
 def shortfall(run):
-    """What a run that did not get everything through lost, in words."""
+    """What a run lost, in words: empty when everything went through (every contour, call
+    and parameter request, and the latched calibration)."""
     if run.get("failed"):
         return "the scenario failed (no figures)"
     said = []
@@ -45,9 +35,9 @@ def main(path):
             run = json.loads(line)
             groups[(run["rmw"], run["loss"], run.get("variant", ""), run["server"])].append(run)
     for (rmw, loss, variant, server), runs in sorted(groups.items()):
-        ok = [r for r in runs if whole(r)]
-        line = f"{server} {rmw} {loss} %{' ' + variant if variant else ''}: everything through in {len(ok)} of {len(runs)} runs"
-        lost = [shortfall(r) for r in runs if not whole(r)]
+        lost = [said for said in map(shortfall, runs) if said]
+        through = len(runs) - len(lost)
+        line = f"{server} {rmw} {loss} %{' ' + variant if variant else ''}: everything through in {through} of {len(runs)} runs"
         if lost:
             line += " (the others lost: " + "; ".join(lost) + ")"
         timed = [r for r in runs if not r.get("failed") and r["latency_ms"]]

@@ -204,14 +204,20 @@ def loss_counters():
     return tuple(counts[:2]) if len(counts) >= 2 else (None, None)
 
 
+def proc_net_counters(path, section, keys):
+    """Counters of this namespace from a /proc/net table (`path`: snmp, netstat), a dict of
+    `keys`: the `section` ("Ip:", "TcpExt:") has a line of names, then one of values."""
+    with open(path) as f:
+        rows = [ln.split() for ln in f if ln.startswith(section)]
+    counters = dict(zip(rows[0][1:], (int(v) for v in rows[1][1:])))
+    return {k: counters.get(k) for k in keys}
+
+
 def reassembly_counters():
     """This namespace's IP reassembly counters (/proc/net/snmp: ReasmReqds, ReasmOKs,
     ReasmFails, ReasmTimeout), a dict; per-frame loss leaves the frames of a datagram
     that lost one waiting for the rest (`ipfrag_time`, 30 s) in memory of its own."""
-    with open("/proc/net/snmp") as f:
-        rows = [ln.split() for ln in f if ln.startswith("Ip:")]
-    counters = dict(zip(rows[0][1:], (int(v) for v in rows[1][1:])))
-    return {k: counters.get(k) for k in ("ReasmReqds", "ReasmOKs", "ReasmFails", "ReasmTimeout")}
+    return proc_net_counters("/proc/net/snmp", "Ip:", ("ReasmReqds", "ReasmOKs", "ReasmFails", "ReasmTimeout"))
 
 
 def tcp_counters():
@@ -220,10 +226,7 @@ def tcp_counters():
     timeout waits twice as long each time (TCPTimeouts: retransmission timeouts;
     TCPLostRetransmit: retransmissions lost again; TCPSynRetrans: connection attempts
     sent again, after which Linux starts the connection's timeout at 3 s)."""
-    with open("/proc/net/netstat") as f:
-        rows = [ln.split() for ln in f if ln.startswith("TcpExt:")]
-    counters = dict(zip(rows[0][1:], (int(v) for v in rows[1][1:])))
-    return {k: counters.get(k) for k in ("TCPTimeouts", "TCPLostRetransmit", "TCPSynRetrans")}
+    return proc_net_counters("/proc/net/netstat", "TcpExt:", ("TCPTimeouts", "TCPLostRetransmit", "TCPSynRetrans"))
 
 
 def stock_server_main():
