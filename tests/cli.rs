@@ -320,6 +320,7 @@ fn history_table_json_and_svg_with_a_torn_last_line() {
     let mut previous = None;
     for (i, offset) in [0.005, 0.005_001, 0.005_2].iter().enumerate() {
         let r = Record {
+            format: tracer_calib::records::HISTORY_FORMAT,
             time: format!("2026-11-{:02}T08:00:00.000Z", 20 + i),
             node: "/cell1/tracer".into(),
             scan_id: 10 + i as u32,

@@ -67,3 +67,45 @@ fn history_file_defaults_beside_the_params_file_unless_set() {
     let e = load(&["n", "--ros-args", "-p", "plate.side:=-2.0"]).unwrap_err();
     assert!(e.starts_with("-p plate.side:=-2.0: must be positive (greater than 0), got -2"), "{e}");
 }
+
+/// A temporary directory of its own for one test.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("tracer_calib_config_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn a_params_file_apart_from_the_files_read_is_created_from_them_then_read_after_them() {
+    // What the launch files do without params_file: the installed defaults read, the
+    // node's own file under $ROS_HOME created from them, then read after them.
+    let root = env!("CARGO_MANIFEST_DIR");
+    let defaults = format!("{root}/config/tracer_calib.yaml");
+    let d = scratch("seed");
+    let state = d.join("ros_home/tracer_calib/tracer_calibrator.yaml");
+    let state_s = state.display().to_string();
+    let argv = ["n", "--ros-args", "--params-file", &defaults, "-p", &format!("params_file:={state_s}")];
+    let c = load(&argv).unwrap();
+    assert_eq!(c.params.params_file, state_s);
+    assert_eq!(std::fs::read_to_string(&state).unwrap(), std::fs::read_to_string(&defaults).unwrap());
+    assert_eq!(c.persist_problem, "");
+    // Once the node has edited it, its values win over the defaults'.
+    std::fs::write(&state, "tracer_calibrator:\n  ros__parameters:\n    model: full_tip\n").unwrap();
+    assert_eq!(load(&argv).unwrap().params.model.as_str(), "full_tip");
+    // A sibling file (a persist that could not edit the file) is read after it, and said.
+    let sibling = d.join("ros_home/tracer_calib/tracer_calibrator.persisted.tracer_calibrator.yaml");
+    std::fs::write(&sibling, "tracer_calibrator:\n  ros__parameters:\n    model: paper\n").unwrap();
+    let c = load(&argv).unwrap();
+    assert_eq!(c.params.model.as_str(), "paper");
+    assert!(c.persist_problem.contains(&sibling.display().to_string()), "{}", c.persist_problem);
+    // A file of a newer format is refused, naming it.
+    std::fs::write(&state, "# tracer_calib: params format 9\ntracer_calibrator:\n  ros__parameters: {}\n").unwrap();
+    let e = load(&argv).unwrap_err();
+    assert!(e.starts_with(&format!("{state_s}:1: params format 9, written by a newer tracer_calib")), "{e}");
+    // A params file given with --params-file that does not exist still stops the node.
+    let missing = d.join("missing.yaml").display().to_string();
+    let e = load(&["n", "--ros-args", "--params-file", &missing]).unwrap_err();
+    assert!(e.starts_with(&format!("{missing}: cannot read")), "{e}");
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -117,6 +117,7 @@ impl NodeState {
             return CalibrateOutcome { response, applied: None };
         }
         let record = Record {
+            format: records::HISTORY_FORMAT,
             time: records::format_utc(now.wall),
             node: self.fqn.clone(),
             scan_id,

@@ -58,6 +58,9 @@ impl NodeState {
         if !self.clock_problem.is_empty() {
             warnings.push(self.clock_problem.clone());
         }
+        if !self.persist_problem.is_empty() {
+            warnings.push(self.persist_problem.clone());
+        }
         if !self.is_active() {
             notes.push(format!(
                 "lifecycle state {}: scans are taken, no contour is published, /calibrate is refused",
@@ -108,6 +111,7 @@ impl NodeState {
                         kv("history_file", p.history_file.clone()),
                         kv("history_records", self.history_records.to_string()),
                         kv("history_problem", self.history_problem.clone()),
+                        kv("persist_problem", self.persist_problem.clone()),
                         kv("alpha0_deg", format!("{:.5}", p.calibration.alpha0.to_degrees())),
                         kv("offset_mm", format!("{:.5}", p.calibration.offset * 1e3)),
                         kv("delta_l_mm", format!("{:.5}", p.calibration.delta_l * 1e3)),

@@ -25,7 +25,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use crate::engine::correct::Corrector;
 use crate::interfaces::{Header, Time, tracer_calib_msgs as msgs};
-use crate::params::{Parameters, file as params_file};
+use crate::params::{Parameters, names, persist as params_persist};
 use crate::records::{self, Drift, History, Record};
 
 pub mod bond;
@@ -109,6 +109,9 @@ pub struct NodeState {
     pub history_records: usize,
     /// What is wrong with the history file (skipped lines, unreadable), for /diagnostics.
     pub history_problem: String,
+    /// Where the last persist went when the params file could not be edited safely (the
+    /// sibling file, and why), for /diagnostics; empty if it was edited.
+    pub persist_problem: String,
     /// Parameters persisted beside [`Parameters`]: the QoS overrides in force.
     pub extra_params: Vec<(String, crate::params::ParamValue)>,
     /// What is wrong with the node's clock (simulated time with no `/clock`), for
@@ -139,6 +142,7 @@ impl NodeState {
             drift: None,
             history_records: 0,
             history_problem: String::new(),
+            persist_problem: String::new(),
             extra_params: Vec::new(),
             clock_problem: String::new(),
             driver: driver::DriverWatch::new(std::time::Instant::now()),
@@ -202,21 +206,55 @@ impl NodeState {
         Ok(())
     }
 
-    /// Write every parameter to `params_file` (if set), atomically; the error is
+    /// The parameters a persist writes: every one but the start-up settings a launch
+    /// gives each time (`params_file`, `managed`, `use_sim_time`) and a `history_file`
+    /// that is its default (beside `params_file`), and the QoS overrides in force.
+    pub fn persisted_params(&self) -> Vec<(String, crate::params::ParamValue)> {
+        let derived_history = records::file::default_path(&self.params.params_file);
+        let mut list: Vec<_> = self
+            .params
+            .to_list()
+            .into_iter()
+            .filter(|(name, value)| match name.as_str() {
+                names::PARAMS_FILE | names::MANAGED | names::USE_SIM_TIME => false,
+                names::HISTORY_FILE => *value != crate::params::ParamValue::String(derived_history.clone()),
+                _ => true,
+            })
+            .collect();
+        list.extend(self.extra_params.iter().cloned());
+        list
+    }
+
+    /// Write the parameters to `params_file` (if set): what differs from what the file
+    /// gives this node, in this node's own section, the rest of the file kept
+    /// ([`params_persist`]); to the sibling file when the file cannot be edited safely,
+    /// with a warning, and said on /diagnostics (`persist_problem`). The error is
     /// [`PersistError::Params`].
-    pub fn persist(&self) -> Result<(), PersistError> {
+    pub fn persist(&mut self) -> Result<(), PersistError> {
         if self.params.params_file.is_empty() {
             return Ok(());
         }
         let path = Path::new(&self.params.params_file);
-        let mut list = self.params.to_list();
-        list.extend(self.extra_params.iter().cloned());
-        let text = params_file::render(
-            &self.fqn,
-            &list,
-            "Parameters of tracer_calib_node, written by the node after each change.\nLoad with: --ros-args --params-file THIS_FILE",
-        );
-        params_file::write_atomic(path, &text)
-            .map_err(|source| PersistError::Params { path: path.display().to_string(), source })
+        let wanted = self.persisted_params();
+        let comment = "Parameters of tracer_calib_node: it edits only its own section after each change.\nLoad with: --ros-args --params-file THIS_FILE";
+        match params_persist::persist(path, &self.fqn, &wanted, comment) {
+            Ok(params_persist::Persisted::Sibling { path: sibling, why }) => {
+                let problem = format!(
+                    "{} cannot be edited safely ({why}): it is left as it was, and the parameters are persisted to {} (read after it at start)",
+                    path.display(),
+                    sibling.display()
+                );
+                if problem != self.persist_problem {
+                    log::warn!("{problem}");
+                }
+                self.persist_problem = problem;
+                Ok(())
+            }
+            Ok(_) => {
+                self.persist_problem.clear();
+                Ok(())
+            }
+            Err(source) => Err(PersistError::Params { path: path.display().to_string(), source }),
+        }
     }
 }

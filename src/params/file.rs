@@ -22,7 +22,7 @@ use std::path::Path;
 use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
 use yaml_rust2::scanner::{Marker, TScalarStyle};
 
-use super::value::{ParamValue, yaml_string};
+use super::value::ParamValue;
 
 /// One parameter as the file gives it.
 #[derive(Debug, Clone, PartialEq)]
@@ -141,8 +141,23 @@ impl MarkedEventReceiver for TreeBuilder {
     }
 }
 
-/// Parse the text of a parameter file; `path` only names it in errors.
+/// Parse the text of a parameter file; `path` only names it in errors. A file whose
+/// format line ([`super::edit::declared_format`]) names a newer format than this node's
+/// is refused.
 pub fn parse(text: &str, path: &str) -> Result<ParamsFile, ParamsFileError> {
+    if let Some((line, n)) = super::edit::declared_format(text)
+        && n > super::edit::PARAMS_FORMAT
+    {
+        return Err(ParamsFileError::new(
+            path,
+            Some(line + 1),
+            None,
+            format!(
+                "params format {n}, written by a newer tracer_calib: this one reads formats up to {} (run the newer version, or give this one a file of its own)",
+                super::edit::PARAMS_FORMAT
+            ),
+        ));
+    }
     let mut builder = TreeBuilder::default();
     let mut parser = Parser::new_from_str(text);
     parser.load(&mut builder, true).map_err(|e| {
@@ -288,16 +303,13 @@ pub fn node_matches(key: &str, fqn: &str) -> bool {
 /// At the root namespace the key is the bare node name (`tracer_calibrator:`), else
 /// the fully qualified name (`/cell1/tracer:`); both are what ROS writes and reads.
 pub fn render(fqn: &str, params: &[(String, ParamValue)], comment: &str) -> String {
-    let key = match fqn.strip_prefix('/') {
-        Some(bare) if !bare.contains('/') => bare.to_string(),
-        _ => fqn.to_string(),
-    };
-    let plain = key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/');
-    let key = if plain { key } else { yaml_string(&key) };
+    let key = super::edit::section_key(fqn);
     let mut out = String::new();
     for line in comment.lines() {
         out.push_str(&format!("# {line}\n"));
     }
+    out.push_str(&super::edit::format_line());
+    out.push('\n');
     if params.is_empty() {
         // A bare `ros__parameters:` would be null, not a map: no reader takes it.
         out.push_str(&format!("{key}:\n  ros__parameters: {{}}\n"));

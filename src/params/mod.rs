@@ -4,7 +4,9 @@
 //! persisted. [`Parameters`] is the typed view the node and the offline tool share;
 //! [`file`](mod@file) reads and writes ROS 2 parameter files; [`value`] is the untyped value.
 
+pub mod edit;
 pub mod file;
+pub mod persist;
 pub mod spec;
 pub mod value;
 

@@ -6,7 +6,7 @@
 //! node applies:
 //!
 //! ```json
-//! {"time":"2026-11-23T10:12:37.123Z","node":"/tracer_calibrator","scan_id":10,"model":"full",
+//! {"format":2,"time":"2026-11-23T10:12:37.123Z","node":"/tracer_calibrator","scan_id":10,"model":"full",
 //!  "alpha0":0.0349,"offset":0.005,"delta_l":0.002,"scale":1.0,"stddev":[1.2e-4,5.6e-6,1.0e-6],
 //!  "rms_residual":4.9e-6,"samples_used":400,"iterations":7,
 //!  "previous":{"alpha0":0.0348,"offset":0.005,"delta_l":0.002,"scale":1.0}}
@@ -31,6 +31,10 @@ use crate::engine::geometry::Mounting;
 /// One applied calibration, as a line of the history file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Record {
+    /// The record format ([`HISTORY_FORMAT`]): absent (1) in records written before it
+    /// existed; a newer one than this node's is skipped with the reason.
+    #[serde(default = "format_1")]
+    pub format: u32,
     /// When it was applied: UTC, ISO 8601 (`2026-11-23T10:12:37.123Z`).
     pub time: String,
     /// The node's fully qualified name.
@@ -68,6 +72,13 @@ pub struct Record {
     /// else the system time, as `time`). Absent in records written before it existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ros_time: Option<RosTime>,
+}
+
+/// The history record format this node writes: 1, records without `format`; 2, with it.
+pub const HISTORY_FORMAT: u32 = 2;
+
+fn format_1() -> u32 {
+    1
 }
 
 /// A ROS time (`builtin_interfaces/Time`): seconds and nanoseconds.
@@ -129,6 +140,9 @@ impl Record {
     /// A record with a non-finite number, a stddev of the wrong length, a covariance that
     /// is none or a time that is no UTC time is not one the node writes.
     fn check(&self) -> Result<(), RecordError> {
+        if self.format > HISTORY_FORMAT {
+            return Err(RecordError::Newer(self.format));
+        }
         let numbers = [self.alpha0, self.offset, self.delta_l, self.scale, self.rms_residual, self.tip_radius];
         if !numbers.iter().chain(&self.stddev).all(|v| v.is_finite()) {
             return Err(RecordError::NotFinite);
@@ -153,6 +167,8 @@ pub enum RecordError {
     /// Not JSON, or JSON with a field missing or of the wrong type.
     #[error("{0}")]
     Json(#[from] serde_json::Error),
+    #[error("record format {0}, written by a newer tracer_calib: this one reads formats up to {HISTORY_FORMAT}")]
+    Newer(u32),
     #[error("a number is not finite")]
     NotFinite,
     #[error("stddev has {0} entries, expected 3 or 4")]
@@ -327,6 +343,7 @@ impl Record {
     /// A full-model calibration record, for tests to vary.
     pub(crate) fn example() -> Record {
         Record {
+            format: HISTORY_FORMAT,
             time: "2026-11-23T10:12:37.123Z".into(),
             node: "/tracer_calibrator".into(),
             scan_id: 10,
@@ -386,6 +403,27 @@ mod tests {
     }
 
     #[test]
+    fn an_older_record_reads_and_a_newer_one_is_skipped_with_the_reason() {
+        let mut line = serde_json::to_value(Record::example()).unwrap();
+        assert_eq!(line["format"], 2, "written with the format");
+        line.as_object_mut().unwrap().remove("format");
+        let old = line.to_string();
+        line["format"] = 3.into();
+        let newer = line.to_string();
+        let h = History::parse(&format!("{old}\n{newer}\n"), "h.jsonl");
+        assert_eq!(h.records.len(), 1);
+        assert_eq!(h.records[0].format, 1, "a record without a format is format 1");
+        assert_eq!(h.skipped.len(), 1);
+        assert!(
+            h.skipped[0].starts_with("h.jsonl:2: ")
+                && h.skipped[0]
+                    .contains("record format 3, written by a newer tracer_calib: this one reads formats up to 2"),
+            "{}",
+            h.skipped[0]
+        );
+    }
+
+    #[test]
     fn records_round_trip_as_lines_of_the_contracts_fields() {
         let r = record(
             "2026-11-23T10:12:37.123Z",
@@ -399,6 +437,7 @@ mod tests {
         assert_eq!(
             keys,
             [
+                "format",
                 "time",
                 "node",
                 "scan_id",

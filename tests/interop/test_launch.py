@@ -45,7 +45,8 @@ kills whatever is left in the network namespace).
 
 No `ros2 daemon`: every verb that has it is given --no-daemon; after each test, a daemon
 process left in this network namespace fails the test (and is stopped). Launch and rcl
-logs go to the test's temporary directory (ROS_LOG_DIR), not ~/.ros.
+logs go to the test's temporary directory (ROS_LOG_DIR), and so does ROS_HOME (where a
+launch without params_file persists), not ~/.ros.
 
 Run by tests/interop/run.sh inside a private network namespace (tests/interop/netns.sh),
 with the workspace's install/setup.bash sourced. Prints one line per test and a closing
@@ -85,6 +86,8 @@ from tracer_calib_msgs.srv import Calibrate  # noqa: E402
 
 WORK = h.WORK
 os.environ["ROS_LOG_DIR"] = os.path.join(WORK, "ros_log")
+# Where a launch without params_file persists ($ROS_HOME/tracer_calib/...): here, not ~/.ros.
+ROS_HOME = os.environ["ROS_HOME"] = os.path.join(WORK, "ros_home")
 CLI_LOG = os.path.join(WORK, "ros2_commands.log")
 STOP_WITHIN = 5.0  # seconds from Ctrl-C until the launch and its nodes are gone
 
@@ -395,14 +398,20 @@ def copy_config(name, dest):
     return path
 
 
-def wait_file_has(path, key, value, timeout=5):
-    """Wait until the params file at `path` (the node writes it after each change) holds
-    `key: value` for its one node."""
+def node_section(path, fqn):
+    """The parameters of node `fqn`'s own section of the params file at `path` (keyed by
+    its fully qualified name, or by its bare name at the root)."""
+    with open(path) as f:
+        doc = yaml.safe_load(f)
+    key = fqn if fqn in doc else fqn.lstrip("/")
+    return doc[key]["ros__parameters"]
+
+
+def wait_file_has(path, fqn, key, value, timeout=5):
+    """Wait until the params file at `path` (the node edits it after each change) holds
+    `key: value` in node `fqn`'s section."""
     def has():
-        with open(path) as f:
-            doc = yaml.safe_load(f)
-        (params,) = [v["ros__parameters"] for v in doc.values()]
-        return params.get(key) == value
+        return node_section(path, fqn).get(key) == value
     wait_for(has, timeout, f"{key}: {value!r} in {path}")
 
 
@@ -476,37 +485,58 @@ def test_installed():
     # The launch arguments, with their descriptions and defaults.
     out = ros2("launch", "tracer_calib", "tracer_calib.launch.xml", "--show-args").stdout
     names = re.findall(r"^    '(\w+)':$", out, re.M)
-    assert names == ["namespace", "node_name", "params_file", "log_level"], out
+    assert names == ["namespace", "node_name", "params_file", "log_level", "defaults_file"], out
     assert "(default: 'tracer_calibrator')" in out and "(default: 'warn')" in out, out
-    assert "/config/tracer_calib.yaml'" in out, out
+    assert "(default: '')" in out and "/config/tracer_calib.yaml'" in out, out
     out = ros2("launch", "tracer_calib", "edging_cell.launch.xml", "--show-args").stdout
     names = re.findall(r"^    '(\w+)':$", out, re.M)
     # (then the included tracer_calib.launch.xml's, which the include sets)
-    assert names == ["cell1_params_file", "cell2_params_file", "log_level", "namespace", "node_name", "params_file"], out
+    assert names == ["cell1_params_file", "cell2_params_file", "log_level", "namespace", "node_name", "params_file",
+                     "defaults_file"], out
     out = ros2("launch", "tracer_calib", "no_such.launch.xml", ok=False)
     assert out.returncode != 0 and "no_such.launch.xml" in out.text, out.text
 
 
 def test_default_launch():
     """tracer_calib.launch.xml with its defaults: one node at the root namespace, named
-    tracer_calibrator, reading the installed config/tracer_calib.yaml (left unchanged)."""
+    tracer_calibrator, reading the installed config/tracer_calib.yaml (left unchanged) and
+    persisting to $ROS_HOME/tracer_calib/tracer_calibrator.yaml, created from it at start
+    and edited by a parameter change; a namespaced node gets its own file below."""
     installed = os.path.join(SHARE, "config", "tracer_calib.yaml")
     with open(installed) as f:
         before = f.read()
+    state = os.path.join(ROS_HOME, "tracer_calib", "tracer_calibrator.yaml")
+    shutil.rmtree(os.path.join(ROS_HOME, "tracer_calib"), ignore_errors=True)
     with launched("default_launch", "launch", "tracer_calib", "tracer_calib.launch.xml") as launch:
         ((_, argv),) = launch.nodes(1)
-        want = [NODE, "--ros-args", "--params-file", installed, "--log-level", "warn",
+        want = [NODE, "--ros-args", "--params-file", installed, "-p", f"params_file:={state}", "--log-level", "warn",
                 "--ros-args", "-r", "__node:=tracer_calibrator", "-r", "__ns:=/"]
         assert argv == want, argv
         node_listed("/tracer_calibrator", launch)
-        assert param_get("/tracer_calibrator", "params_file") == ("String value is", installed)
+        assert param_get("/tracer_calibrator", "params_file") == ("String value is", state)
         assert param_get("/tracer_calibrator", "plate.side") == ("Double value is", "0.045")
         assert param_get("/tracer_calibrator", "model") == ("String value is", "full")
+        with open(state) as f:
+            assert f.read() == before, "created as a copy of the installed defaults"
         r = calibrate("/calibrate", "{dry_run: true}")
         assert not r["success"] and "no calibration-plate scan received yet" in r["message"], r
+        out = ros2("param", "set", "--no-daemon", "/tracer_calibrator", "output_frame_id", "bench_axis").text
+        assert out.strip() == "Set parameter successful", out
+        wait_file_has(state, "/tracer_calibrator", "output_frame_id", "bench_axis")
         took = launch.interrupt()
     with open(installed) as f:
         assert f.read() == before, "the installed params file changed"
+    with open(state) as f:
+        edited = f.read()
+    # The copy keeps every line of the defaults, the value edited in place.
+    assert edited == "# tracer_calib: params format 2\n" + before.replace(
+        "output_frame_id: tracer_axis", "output_frame_id: bench_axis"), edited
+    with launched("default_launch_ns", "launch", "tracer_calib", "tracer_calib.launch.xml", "namespace:=/bench",
+                  "node_name:=tracer") as launch:
+        ((_, argv),) = launch.nodes(1)
+        assert f"params_file:={ROS_HOME}/tracer_calib/bench/tracer.yaml" in argv, argv
+        node_listed("/bench/tracer", launch)
+        launch.interrupt()
     return f"(Ctrl-C: {took:.2f} s)"
 
 
@@ -520,8 +550,8 @@ def test_managed_launch():
                   "node_name:=tracer", f"params_file:={params}") as launch, \
             ContourEcho("managed", "/m/contour") as echo:
         ((_, argv),) = launch.nodes(1)
-        assert argv[argv.index("--params-file"):][:6] == ["--params-file", params, "--log-level", "warn",
-                                                         "-p", "managed:=true"], argv
+        assert argv[argv.index("--params-file"):][:8] == ["--params-file", params, "-p", f"params_file:={params}",
+                                                         "--log-level", "warn", "-p", "managed:=true"], argv
         node_listed(fqn, launch)
         misses = len(CLI_MISSES)
         assert lifecycle("nodes").stdout.split() == [fqn]
@@ -666,7 +696,7 @@ def test_parameters():
         out = ros2("param", "set", "--no-daemon", node, "model", "paper").text
         assert out.strip() == "Set parameter successful", out
         assert param_get(node, "model") == ("String value is", "paper")
-        wait_file_has(params, "model", "paper")
+        wait_file_has(params, node, "model", "paper")
         out = ros2("param", "set", "--no-daemon", node, "model", "nonsense").text
         assert out.startswith("Setting parameter failed") and "unknown model 'nonsense'" in out, out
         out = ros2("param", "set", "--no-daemon", node, "plate.side", "wide").text
@@ -692,8 +722,7 @@ def test_parameters():
                     flat[prefix + k] = v
         flatten("", dump[node]["ros__parameters"])
         assert sorted(flat) == sorted(listed), (flat, listed)
-        with open(params) as f:
-            (in_file,) = [v["ros__parameters"] for v in yaml.safe_load(f).values()]
+        in_file = node_section(params, node)
         for key, value in in_file.items():
             assert flat[key] == value, (key, flat[key], value)
         # `ros2 param load` of a params file. (Not of the node's own file: rclpy's loader
@@ -710,7 +739,7 @@ def test_parameters():
             out = ros2("param", "load", "--no-daemon", node, load).text
             assert sorted(re.findall(r"^Set parameter (\S+) (\w+)", out, re.M)) == [
                 ("output_frame_id", "successful"), ("plate.side", "successful")], out
-            wait_file_has(params, "output_frame_id", "loaded_axis")
+            wait_file_has(params, node, "output_frame_id", "loaded_axis")
         took = launch.interrupt()
     back = h.read_back_with_rclpy(params, "tracer", "/par")
     assert back["model"] == "paper", back
@@ -761,7 +790,7 @@ def test_edging_cell(peer):
                   f"cell1_params_file:={files['cell1']}", f"cell2_params_file:={files['cell2']}",
                   "log_level:=info") as launch:
         argvs = sorted(argv for _, argv in launch.nodes(2))
-        want = [[NODE, "--ros-args", "--params-file", files[c], "--log-level", "info",
+        want = [[NODE, "--ros-args", "--params-file", files[c], "-p", f"params_file:={files[c]}", "--log-level", "info",
                  "--ros-args", "-r", "__node:=tracer", "-r", f"__ns:=/{c}"] for c in ("cell1", "cell2")]
         assert argvs == want, argvs
         pubs = {c: peer.publisher(f"/{c}/raw_scan") for c in cells}

@@ -145,7 +145,7 @@ fn log_history_read(read: &crate::cell::HistoryRead) {
 
 /// Run the node until `shutdown` resolves (SIGINT/SIGTERM in the binary).
 pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> Result<(), String> {
-    let Config { identity, args, env, params, mut qos, security } = config;
+    let Config { identity, args, env, params, mut qos, security, persist_problem } = config;
     let middleware = env.middleware;
     for w in &env.warnings {
         warn!("{w}");
@@ -172,6 +172,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     let endpoints = Endpoints::resolve(&args, &identity, &mut qos, bond_period.is_some())?;
     let mut initial = initial_state(&fqn, &params);
     initial.extra_params = qos.to_list();
+    initial.persist_problem = persist_problem;
     initial.driver.topic = endpoints.raw_scan.0.to_string();
     let state = Arc::new(Mutex::new(initial));
     let (calibration_changed, calibration_changes) = smol::channel::unbounded::<()>();
