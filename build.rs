@@ -25,8 +25,21 @@ mod syntax;
 
 /// Types whose `Default` is written by hand beside the generated code (`Default` is derived
 /// for the others): a header's stamp is ros2-client's `Time`, which has no `Default`; the
-/// Calibrate response's default is a failure with scale 1.0, the scale of no fit, not 0.
-const DEFAULT_BY_HAND: &[&str] = &["std_msgs/msg/Header", "tracer_calib_msgs/srv/Calibrate_Response"];
+/// Calibrate response's default is a failure with scale 1.0, the scale of no fit, not 0; a
+/// contour's calibration stamp is a `Time` too.
+const DEFAULT_BY_HAND: &[&str] =
+    &["std_msgs/msg/Header", "tracer_calib_msgs/srv/Calibrate_Response", "tracer_calib_msgs/msg/Contour"];
+
+/// Fields appended to a type after it was first published, by generation: each name is
+/// the first field a later version added. A message written before (a bag recorded by an
+/// earlier version) ends before that field; it still decodes, the fields it lacks taking
+/// their "absent" value (zero, empty; a `Time` zero): `RosMsg::from_earlier_cdr`.
+const APPENDED: &[(&str, &[&str])] = &[
+    // The size figures (metrology), then the calibration it was corrected with (adoption).
+    ("tracer_calib_msgs/msg/Contour", &["circumference", "calibration_stamp"]),
+    // The tip radius and the covariance (metrology).
+    ("tracer_calib_msgs/msg/Calibration", &["tip_radius"]),
+];
 
 /// Rust names of types whose ROS names would clash with another type's (`KeyValue` is
 /// diagnostic_msgs' too) or say too little on their own (lifecycle_msgs' `State`).
@@ -180,13 +193,14 @@ fn generate(t: &Type, known: &mut Traits, out: &mut String) {
         }
         writeln!(out, "}}\n").unwrap();
     }
+    let earlier = earlier_layouts(t, &fields, out);
     writeln!(
         out,
         "impl ros2_client::Message for {rust} {{}}\n\n\
          impl crate::interfaces::RosMsg for {rust} {{\n    \
              const NAME: crate::interfaces::InterfaceName = crate::interfaces::InterfaceName::{kind}({package:?}, {name:?});\n    \
              const DEFINITION: crate::interfaces::Definition = {definition};\n\
-         }}\n",
+         {earlier}}}\n",
         rust = t.rust,
         kind = t.kind,
         package = t.package,
@@ -194,6 +208,52 @@ fn generate(t: &Type, known: &mut Traits, out: &mut String) {
         definition = t.definition,
     )
     .unwrap();
+}
+
+/// For a type with [`APPENDED`] fields: a struct of each earlier layout (the fields before
+/// a generation's first), written to `out`, and the `from_earlier_cdr` that tries them, the
+/// newest first (returned, for the `RosMsg` impl).
+fn earlier_layouts(t: &Type, fields: &[&syntax::Member], out: &mut String) -> String {
+    let Some((_, generations)) = APPENDED.iter().find(|(name, _)| *name == t.ros_name) else {
+        return String::new();
+    };
+    let mut tries = String::new();
+    for (g, first) in generations.iter().enumerate().rev() {
+        let cut = fields
+            .iter()
+            .position(|f| f.name == *first)
+            .unwrap_or_else(|| panic!("{}: APPENDED names no field {first}", t.ros_name));
+        let earlier = format!("{}Before{g}", t.rust);
+        writeln!(out, "/// `{}` as written before `{first}` was appended.", t.ros_name).unwrap();
+        writeln!(out, "#[derive(serde::Deserialize)]\nstruct {earlier} {{").unwrap();
+        for f in &fields[..cut] {
+            writeln!(out, "    {}: {},", field_ident(f.name), rust_field_type(f.ty, &t.package)).unwrap();
+        }
+        writeln!(out, "}}\n").unwrap();
+        let mut init = String::new();
+        for (i, f) in fields.iter().enumerate() {
+            let ident = field_ident(f.name);
+            let value = if i < cut {
+                format!("e.{ident}")
+            } else if syntax::split_array(f.ty).1.is_empty()
+                && syntax::field_message_type(f.ty, &t.package).as_deref() == Some("builtin_interfaces/msg/Time")
+            {
+                "crate::interfaces::Time::ZERO".to_string()
+            } else {
+                "Default::default()".to_string()
+            };
+            init.push_str(&format!("{ident}: {value}, "));
+        }
+        tries.push_str(&format!(
+            "        if let Some(e) = crate::interfaces::cdr::decode_whole::<{earlier}>(payload, rep) {{\n            \
+                 return Some({rust} {{ {init}}});\n        }}\n",
+            rust = t.rust
+        ));
+    }
+    format!(
+        "    fn from_earlier_cdr(payload: &[u8], rep: rustdds::RepresentationIdentifier) -> Option<Self> {{\n\
+         {tries}        None\n    }}\n"
+    )
 }
 
 /// The `.msg` / `.srv` files of a folder, sorted.

@@ -110,6 +110,8 @@ fn relay(prefix: &str) {
         effective_diameter: 0.05,
         size_u95: [4e-6; 4],
         radii_u95: vec![2e-6; 400],
+        calibration_stamp: tracer_calib::interfaces::Time::from_nanos(1_700_000_000_000_000_000),
+        calibration_scan_id: 1,
     };
     smol::block_on(async {
         let mut stream = std::pin::pin!(sub.async_stream());

@@ -93,6 +93,8 @@ fn contour(scan_id: u32, stamp_ns: u64) -> Contour {
         effective_diameter: 0.0501,
         size_u95: [4e-6, 3e-6, 5e-6, 6e-6],
         radii_u95: vec![2e-6; n],
+        calibration_stamp: if scan_id.is_multiple_of(2) { stamp(1_700_000_000_000_000_000) } else { stamp(0) },
+        calibration_scan_id: if scan_id.is_multiple_of(2) { 1 } else { 0 },
     }
 }
 

@@ -11,7 +11,7 @@ use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
 use crate::engine::size::{self, Correction};
 use crate::engine::stylus::{Traced, touched_surface};
-use crate::interfaces::{Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan};
+use crate::interfaces::{Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan, Time};
 
 /// Largest coordinate of a corrected point, metres: what a `Point32` of the polygon holds.
 /// (Any contour of a real tracer is a few centimetres.)
@@ -140,6 +140,8 @@ impl NodeState {
             effective_diameter: figures[3],
             size_u95,
             radii_u95,
+            calibration_stamp: if calibration.is_some() { self.in_force.ros_time } else { Time::ZERO },
+            calibration_scan_id: if calibration.is_some() { self.in_force.scan_id } else { 0 },
         };
         self.stats.contours_published += 1;
         Ok(Corrected { contour, polygon })

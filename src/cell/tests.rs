@@ -7,6 +7,7 @@ use crate::engine::model::PlateSpec;
 use crate::engine::simulate::{SimOptions, simulate};
 use crate::interfaces::{CalibrateRequest, DiagnosticArray, DiagnosticStatus, Header, RawScan, Time};
 use crate::params::Parameters;
+use crate::params::file as params_file;
 use crate::records::Previous;
 use nalgebra::Vector2;
 use rand::SeedableRng;
@@ -37,6 +38,7 @@ fn scans_are_corrected_once_calibrated() {
     let mut st = NodeState::new("/tracer_calibrator".into(), Parameters::default());
     let before = st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
     assert!(!before.contour.calibrated);
+    assert_eq!((before.contour.calibration_stamp, before.contour.calibration_scan_id), (Time::ZERO, 0));
     assert_eq!(before.contour.points.len(), 400);
     assert_eq!(before.contour.radii.len(), 400);
     assert_eq!(before.polygon.as_ref().unwrap().polygon.points.len(), 400);
@@ -55,6 +57,10 @@ fn scans_are_corrected_once_calibrated() {
     assert_eq!((out.response.tip_radius, out.response.tip_radius_stddev), (0.0, 0.0));
     let after = st.on_raw_scan(&plate_msg(2, &m), true).unwrap();
     assert!(after.contour.calibrated);
+    // Traced to the calibration that corrected it: the calibration message's stamp and scan.
+    let cal = st.calibration_msg();
+    assert_eq!((after.contour.calibration_stamp, after.contour.calibration_scan_id), (cal.header.stamp, 1));
+    assert_ne!(cal.header.stamp, Time::ZERO);
     assert_eq!(st.stats.calibrations_applied, 1);
 }
 
@@ -260,12 +266,16 @@ fn applied_calibrations_are_recorded_naming_the_one_they_replaced() {
     assert_eq!(Some(msg.header.stamp.to_nanos()), b.ros_time.map(records::RosTime::to_nanos));
     let stamp = UNIX_EPOCH + Duration::from_nanos(msg.header.stamp.to_nanos() as u64);
     assert!(stamp.duration_since(b.applied_at().unwrap()).unwrap() < Duration::from_millis(1));
+    // A contour corrected now joins the message and the record on stamp and scan id.
+    let traced = st.on_raw_scan(&plate_msg(3, &m), false).unwrap().contour;
+    assert_eq!((traced.calibration_stamp, traced.calibration_scan_id), (msg.header.stamp, b.scan_id));
+    assert_eq!(Some(traced.calibration_stamp.to_nanos()), b.ros_time.map(records::RosTime::to_nanos));
 
     // A restart with the parameters the node persisted: the history supplies the fit.
     let file = params_file::read(Path::new(&params.params_file)).unwrap();
     let mut reloaded = Parameters::default();
     reloaded.apply_file(&file, "/cell1/tracer", "p.yaml").unwrap();
-    assert_eq!(reloaded.history_file, params.history_file);
+    assert_eq!(reloaded.history_file, "", "at its default, beside the params file: not written");
     assert_eq!(reloaded.covariance, b.covariance, "persisted, read back to the bit");
     let mut again = NodeState::new("/cell1/tracer".into(), reloaded.clone());
     again.adopt_history(&h);

@@ -58,6 +58,28 @@ pub fn to_cdr<T: Serialize>(value: &T) -> Result<Vec<u8>, CdrError> {
 /// Up to 3 trailing bytes are accepted (DDS and rosbag2 pad payloads to a multiple of 4);
 /// more is an error, since it usually means the bytes are of another type.
 pub fn from_cdr<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, CdrError> {
+    let (payload, rep_id) = split_header(bytes)?;
+    let (value, used) = rustdds::serialization::deserialize_from_cdr_with_rep_id::<T>(payload, rep_id)
+        .map_err(|e| CdrError::Codec(e.to_string()))?;
+    let rest = payload.len().saturating_sub(used);
+    if rest > 3 {
+        return Err(CdrError::TrailingBytes(rest));
+    }
+    Ok(value)
+}
+
+/// [`from_cdr`] for a message type, which also reads what an earlier version of its
+/// definition wrote (a bag recorded before fields were appended to it):
+/// [`super::RosMsg::from_earlier_cdr`]. The error is the current layout's.
+pub fn from_cdr_msg<T: super::RosMsg>(bytes: &[u8]) -> Result<T, CdrError> {
+    from_cdr(bytes).or_else(|e| {
+        let (payload, rep_id) = split_header(bytes)?;
+        T::from_earlier_cdr(payload, rep_id).ok_or(e)
+    })
+}
+
+/// The payload and byte order of CDR bytes with their encapsulation header.
+fn split_header(bytes: &[u8]) -> Result<(&[u8], RepresentationIdentifier), CdrError> {
     if bytes.len() < 4 {
         return Err(CdrError::TooShort(bytes.len()));
     }
@@ -66,12 +88,12 @@ pub fn from_cdr<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, CdrError> {
         [0x00, 0x01] => RepresentationIdentifier::CDR_LE,
         other => return Err(CdrError::Encapsulation(other)),
     };
-    let payload = &bytes[4..];
-    let (value, used) = rustdds::serialization::deserialize_from_cdr_with_rep_id::<T>(payload, rep_id)
-        .map_err(|e| CdrError::Codec(e.to_string()))?;
-    let rest = payload.len().saturating_sub(used);
-    if rest > 3 {
-        return Err(CdrError::TrailingBytes(rest));
-    }
-    Ok(value)
+    Ok((&bytes[4..], rep_id))
+}
+
+/// `T` decoded from a CDR payload that it fills (up to 3 bytes of padding after it), or
+/// `None`: for the earlier layouts of a message ([`super::RosMsg::from_earlier_cdr`]).
+pub fn decode_whole<T: DeserializeOwned>(payload: &[u8], rep_id: RepresentationIdentifier) -> Option<T> {
+    let (value, used) = rustdds::serialization::deserialize_from_cdr_with_rep_id::<T>(payload, rep_id).ok()?;
+    (payload.len().saturating_sub(used) <= 3).then_some(value)
 }

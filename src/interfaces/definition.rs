@@ -156,11 +156,12 @@ mod tests {
         );
         assert_eq!(
             full_definition_of::<Contour>().unwrap(),
+            // Contour's own Time (calibration_stamp) sorts first, so Header's is not repeated.
             format!(
-                "{contour}{}{point}{}{header}{}{time}",
+                "{contour}{}{time}{}{point}{}{header}",
+                sep("builtin_interfaces/msg/Time"),
                 sep("geometry_msgs/msg/Point"),
-                sep("std_msgs/msg/Header"),
-                sep("builtin_interfaces/msg/Time")
+                sep("std_msgs/msg/Header")
             )
         );
         assert_eq!(

@@ -55,7 +55,7 @@ mod shape;
 #[cfg(test)]
 mod tests;
 
-pub use cdr::{CDR_LE_HEADER, CdrError, from_cdr, to_cdr};
+pub use cdr::{CDR_LE_HEADER, CdrError, from_cdr, from_cdr_msg, to_cdr};
 pub use definition::Definition;
 pub use name::{InterfaceKind, InterfaceName};
 // Every standard type at this level: the generated code names field types
@@ -74,6 +74,14 @@ pub trait RosMsg: Serialize + DeserializeOwned {
     const NAME: InterfaceName;
     /// The type's `.msg` text (for a service half, the part of the `.srv` text it is).
     const DEFINITION: Definition;
+
+    /// The message decoded from a CDR `payload` (no encapsulation header) as an earlier
+    /// version of its definition wrote it, before fields were appended (`build.rs`'s
+    /// `APPENDED`): the fields it lacks take their absent value. `None` if the payload is
+    /// no earlier layout of it, or the type has none.
+    fn from_earlier_cdr(_payload: &[u8], _rep: rustdds::RepresentationIdentifier) -> Option<Self> {
+        None
+    }
 }
 
 /// A ROS 2 service type: its name and its request and response mirrors.

@@ -83,6 +83,8 @@ impl Sample for Contour {
             effective_diameter: 0.0512,
             size_u95: [4.5e-6, 2.5e-6, 3.0e-6, 6.25e-6],
             radii_u95: vec![2e-6, 2.5e-6, 3e-6],
+            calibration_stamp: Time::from_nanos(1_700_000_010_000_000_250),
+            calibration_scan_id: 10,
         }
     }
 }
@@ -193,6 +195,37 @@ fn round_trip<T: RosMsg + Sample + PartialEq + fmt::Debug>() {
 #[test]
 fn cdr_round_trip_of_every_type() {
     for_every_type!(round_trip);
+}
+
+#[test]
+fn messages_of_an_earlier_layout_decode_with_the_appended_fields_absent() {
+    // A contour as the previous version wrote it: up to radii_u95, without the calibration
+    // it was corrected with (a Time and a uint32: 12 bytes after the 8-aligned doubles).
+    let now = Contour { calibration_stamp: Time::ZERO, calibration_scan_id: 0, ..Contour::sample() };
+    let full = to_cdr(&now).unwrap();
+    let earlier = &full[..full.len() - 12];
+    assert!(from_cdr::<Contour>(earlier).is_err(), "not the current layout");
+    assert_eq!(from_cdr_msg::<Contour>(earlier).unwrap(), now);
+    // And as the first version wrote it: up to radii, before the size figures.
+    let first = Contour {
+        circumference: 0.0,
+        box_width: 0.0,
+        box_height: 0.0,
+        effective_diameter: 0.0,
+        size_u95: [0.0; 4],
+        radii_u95: Vec::new(),
+        ..now.clone()
+    };
+    let tail = 4 * 8 + 4 * 8 + 4 + 12; // four figures, size_u95, radii_u95's count, the calibration
+    let full = to_cdr(&first).unwrap();
+    assert_eq!(from_cdr_msg::<Contour>(&full[..full.len() - tail]).unwrap(), first);
+    // Cut anywhere else, it is still an error.
+    for cut in [1, 4, 8, 13, 20] {
+        assert!(from_cdr_msg::<Contour>(&full[..full.len() - cut]).is_err(), "cut {cut}");
+    }
+    // A type without appended fields has no earlier layout.
+    let scan = to_cdr(&RawScan::sample()).unwrap();
+    assert!(from_cdr_msg::<RawScan>(&scan[..scan.len() - 4]).is_err());
 }
 
 #[test]

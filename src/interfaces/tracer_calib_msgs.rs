@@ -29,6 +29,28 @@ impl Default for CalibrateResponse {
     }
 }
 
+/// The default is an empty, uncorrected contour (its calibration stamp zero).
+impl Default for Contour {
+    fn default() -> Self {
+        Contour {
+            header: crate::interfaces::Header::default(),
+            scan_id: 0,
+            target: 0,
+            calibrated: false,
+            points: Vec::new(),
+            radii: Vec::new(),
+            circumference: 0.0,
+            box_width: 0.0,
+            box_height: 0.0,
+            effective_diameter: 0.0,
+            size_u95: [0.0; 4],
+            radii_u95: Vec::new(),
+            calibration_stamp: crate::interfaces::Time::ZERO,
+            calibration_scan_id: 0,
+        }
+    }
+}
+
 /// `tracer_calib_msgs/srv/Calibrate_Event`: one event of the `calibrate` service's
 /// introspection, as rosidl generates a service's `_Event` message (Iron and later):
 /// published on `<service>/_service_event`; the request or response present (one element)

@@ -8,7 +8,8 @@
 //! holds, per topic, its name, its type (`pkg/msg/Type`), its serialization format (always
 //! `cdr`) and QoS, and the messages: a log time (ns since the epoch, when the recorder received
 //! it) and the message as serialized CDR *including* the 4-byte encapsulation header, exactly as
-//! it travelled over DDS (so [`from_cdr`] decodes it as is).
+//! it travelled over DDS (so [`from_cdr_msg`] decodes it as is; a message an earlier version
+//! of its type wrote, before fields were appended to it, too).
 //!
 //! - MCAP (`.mcap`, default since Iron), see [`mcap`]: the `ros2` profile; every
 //!   type's complete `.msg` definition is stored in a schema record (see
@@ -48,7 +49,7 @@ mod writer;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::interfaces::{CdrError, RosMsg, definition, from_cdr};
+use crate::interfaces::{CdrError, RosMsg, definition, from_cdr_msg};
 
 pub use writer::BagWriter;
 
@@ -399,7 +400,7 @@ impl Bag {
             .into_iter()
             .enumerate()
             .map(|(index, m)| {
-                from_cdr::<T>(&m.data).map(|msg| (m.log_time_ns, msg)).map_err(|source| BagError::Decode {
+                from_cdr_msg::<T>(&m.data).map(|msg| (m.log_time_ns, msg)).map_err(|source| BagError::Decode {
                     path: self.path.clone(),
                     topic: topic.to_string(),
                     index,
