@@ -235,8 +235,8 @@ fn size_part(trials: usize) {
     let lens = Ellipse { center: Vector2::new(0.0005, -0.0003), a: 0.026, b: 0.016, angle: 0.3 };
     let frame = RoundedRect { center: Vector2::new(0.001, -0.0005), half_w: 0.025, half_h: 0.015, radius: 0.008 };
     println!(
-        "{:>9}  {:<28} {:>28} {:>26} {:>26} {:>9}",
-        "noise", "contour", "covered [C, A, B, FED] %", "mean U95 µm", "mean error µm", "radii %"
+        "{:>9}  {:<28} {:>28} {:>26} {:>26} {:>9} {:>8}",
+        "noise", "contour", "covered [C, A, B, FED] %", "mean U95 µm", "mean error µm", "radii %", "refused"
     );
     for (i, sigma) in [1e-6, 5e-6, 10e-6].into_iter().enumerate() {
         let rows = [
@@ -270,13 +270,14 @@ fn size_part(trials: usize) {
         for (name, c) in rows {
             let f = |v: [f64; 4], scale: f64| v.map(|x| format!("{:.1}", x * scale)).join(" ");
             println!(
-                "{:>6.3} mm  {:<28} {:>28} {:>26} {:>26} {:>9.1}",
+                "{:>6.3} mm  {:<28} {:>28} {:>26} {:>26} {:>9.1} {:>8}",
                 sigma * 1e3,
                 name,
                 f(c.covered.map(|k| k as f64 / c.n as f64), 100.0),
                 f(c.u95, 1e6),
                 f(c.bias, 1e6),
-                c.radii_covered * 100.0
+                c.radii_covered * 100.0,
+                c.refused
             );
         }
     }

@@ -39,6 +39,9 @@ fn fit(model: ModelKind, plate: &Scan, ring: &Scan, spec: (PlateSpec, RingSpec),
         tip_radius: if model.fits_tip() { 0.0 } else { TIP },
         plate_side_uncertainty: u.0,
         ring_diameter_uncertainty: u.1,
+        // Plates 20 µm off their certified side (2 µm noise) leave structure at harmonics 4
+        // and 8 that the lack-of-fit test sees; the test is of the covariance here.
+        lack_of_fit_alpha: 0.0,
         ..Options::default()
     };
     calibrate_with_ring(plate, Some(Ring { scan: ring, spec: spec.1 }), &spec.0, &opt).unwrap()

@@ -66,6 +66,11 @@ pub struct Args {
     /// not fit it.
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub tip_radius: Option<f64>,
+    /// Significance level of the harmonic lack-of-fit test of the plate's residuals
+    /// (calibration.lack_of_fit_alpha, default 0.001): a fit whose residuals show structure
+    /// at this level fails, naming the harmonics; 0 = no test.
+    #[arg(long, value_name = "ALPHA")]
+    pub lack_of_fit_alpha: Option<f64>,
     /// Steps per revolution of a CSV scan.
     #[arg(long, default_value_t = 400)]
     pub steps_per_rev: u32,
@@ -120,6 +125,7 @@ pub fn settings(args: &Args) -> Result<Parameters, String> {
     set("stylus.tip_radius", args.tip_radius)?;
     set("plate.side_uncertainty", args.plate_side_uncertainty)?;
     set("ring.diameter_uncertainty", args.ring_diameter_uncertainty)?;
+    set("calibration.lack_of_fit_alpha", args.lack_of_fit_alpha)?;
     if let Some(m) = args.model {
         p.model = m;
     }
@@ -133,6 +139,7 @@ fn flag(name: &str) -> &'static str {
         "ring.diameter" => "ring-diameter",
         "stylus.tip_radius" => "tip-radius",
         "plate.side_uncertainty" => "plate-side-uncertainty",
+        "calibration.lack_of_fit_alpha" => "lack-of-fit-alpha",
         "ring.diameter_uncertainty" => "ring-diameter-uncertainty",
         _ => "meters-per-count",
     }

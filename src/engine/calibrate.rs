@@ -29,9 +29,14 @@
 //!    the size error at the plate's own radius, and every lens larger or smaller than
 //!    the plate would come out the wrong size. Model `full_scale` fits `k` instead.
 //!
+//! 7. **the plate's residuals are tested for structure** the model lacks: their harmonics
+//!    1-12 a turn against the scan's own noise ([`super::lack_of_fit`]), at the level
+//!    [`Options::lack_of_fit_alpha`]. A turntable whose angle is off once or twice a turn
+//!    leaves a few micrometres there, which the residual RMS does not show.
+//!
 //! A fit that does not converge, uses too few samples, leaves a residual larger than a
-//! plate scan can have, or finds the encoder scale off is an error: the caller keeps the
-//! calibration it had.
+//! plate scan can have, finds the encoder scale off or leaves structure in the residuals is
+//! an error: the caller keeps the calibration it had.
 
 use nalgebra::{DVector, SMatrix, SVector, Vector2};
 use std::borrow::Cow;
@@ -39,6 +44,7 @@ use std::fmt;
 
 use super::correct::correct;
 use super::geometry::{Mounting, rotate_quarter_turns, wrap_quarter_turn};
+use super::lack_of_fit::{Structure, harmonic_test};
 use super::lm::{self, Problem, Termination};
 use super::model::full::{self, FullModel};
 use super::model::full_scale::{self, FullScaleModel};
@@ -67,6 +73,10 @@ pub struct Options {
     pub max_lack_of_fit: f64,
     /// Systematic residuals below this RMS (metres) are tolerated.
     pub systematic_floor: f64,
+    /// Significance level of the harmonic lack-of-fit test of the plate's residuals
+    /// ([`super::lack_of_fit`]): a fit whose residuals show structure at this level is
+    /// refused. 0 = not tested.
+    pub lack_of_fit_alpha: f64,
     /// The encoder scale in force, `k₀`: the models that do not fit the scale take the
     /// true length along the rail as `k₀ × rho`.
     pub scale: f64,
@@ -103,6 +113,7 @@ impl Default for Options {
             max_rms_residual: 0.5e-3,
             max_lack_of_fit: 4.0,
             systematic_floor: 20e-6,
+            lack_of_fit_alpha: 0.001,
             scale: 1.0,
             max_scale_sigma: 5.0,
             scale_tolerance: 1e-4,
@@ -295,6 +306,13 @@ pub enum CalibrationError {
         rms: f64,
         noise: f64,
     },
+    /// The residuals of a scan (`"plate"`) show structure the model lacks at level `alpha`
+    /// (the harmonic test, [`super::lack_of_fit`]).
+    Structure {
+        scan: &'static str,
+        structure: Box<Structure>,
+        alpha: f64,
+    },
     /// The scan shows an encoder scale off from the one in force (`k0`).
     ScaleOff {
         estimate: ScaleEstimate,
@@ -354,6 +372,11 @@ impl fmt::Display for CalibrationError {
                 "the residuals are systematic (rms {:.4} mm where neighbouring samples scatter by {:.4} mm): the scan does not match the plate (check plate.side, plate.corner_radius, encoder.meters_per_count, and stylus.tip_radius: a tip of a tenth of a millimetre or more shows in the corners, and the models full_tip and full_scale_tip fit it from a ring gauge)",
                 rms * 1e3,
                 noise * 1e3
+            ),
+            Self::Structure { scan, structure, alpha } => write!(
+                f,
+                "the {scan} scan's residuals show structure the model lacks (harmonic test at calibration.lack_of_fit_alpha = {alpha}): {}",
+                structure.describe()
             ),
             Self::ScaleOff { estimate, k0 } => {
                 let rel = estimate.scale / k0 - 1.0;
@@ -551,6 +574,20 @@ fn finish(
         }
         Some(estimate)
     };
+    // After the scale check: a scale off shows at harmonics 4, 8, 12 too, and that check
+    // says it more precisely.
+    if opt.lack_of_fit_alpha > 0.0 {
+        let steps: Vec<u32> = scan.samples().iter().map(|s| s.step).collect();
+        if let Some(structure) = harmonic_test(&steps, scan.steps_per_rev(), &fit.residuals, &fit.used)
+            && structure.refused_at(opt.lack_of_fit_alpha)
+        {
+            return Err(CalibrationError::Structure {
+                scan: "plate",
+                structure: Box::new(structure),
+                alpha: opt.lack_of_fit_alpha,
+            });
+        }
+    }
     let stddev_of = |i: usize| fit.covariance[(i, i)].max(0.0).sqrt();
     let tip_radius_stddev = stddev_of(layout::TIP_RADIUS);
     let ring_fit = match (fit.ring, ring) {

@@ -13,6 +13,8 @@
 //! 5. [`lm`] — the Levenberg-Marquardt solver, with covariance;
 //! 6. [`start`] — a start that converges from any mounting error in range;
 //! 7. [`calibrate`](mod@calibrate) — start, fit, outlier rejection, uncertainty: a [`Calibration`];
+//!    [`lack_of_fit`] — whether the fit left structure in the residuals (a test of their
+//!    low harmonics against the scan's own noise);
 //! 8. [`correct`](mod@correct) — every sample to the tip's centre, and equal-angle resampling;
 //! 9. [`stylus`] — from the tip's centre to the surface it touched;
 //! 10. [`size`] — circumference, box and FED of a corrected contour from a smooth fit, with
@@ -23,6 +25,7 @@
 pub mod calibrate;
 pub mod correct;
 pub mod geometry;
+pub mod lack_of_fit;
 pub mod lm;
 pub mod model;
 pub mod scan;

@@ -39,6 +39,14 @@ pub struct SimOptions {
     /// The shape is traced from inside (a frame, a ring gauge), the tip touching it
     /// from within; else from outside (a plate, a lens).
     pub inside: bool,
+    /// The turntable's angle error round the turn, `ε(θ) = Σ c_h cos hθ + s_h sin hθ`
+    /// (radians) added to the rail angle at `θ = 2π step / N`: up to three harmonics,
+    /// each `(h, c_h, s_h)`; `h = 0` unused. A disc or gear eccentricity is `h = 1`, an
+    /// elliptic disc `h = 2`.
+    pub angle_harmonics: [(u32, f64, f64); 3],
+    /// Lag-1 correlation `φ` of the encoder noise along the trace (AR(1), marginal standard
+    /// deviation `noise`): stick-slip, interpolation error. 0 = white.
+    pub noise_lag1: f64,
 }
 
 impl Default for SimOptions {
@@ -53,7 +61,21 @@ impl Default for SimOptions {
             spike_height: 0.5e-3,
             tip_radius: 0.0,
             inside: false,
+            angle_harmonics: [(0, 0.0, 0.0); 3],
+            noise_lag1: 0.0,
         }
+    }
+}
+
+impl SimOptions {
+    /// The angle error at step `step` of `n` (radians).
+    pub fn angle_error(&self, step: u32, n: u32) -> f64 {
+        let theta = std::f64::consts::TAU * f64::from(step) / f64::from(n);
+        self.angle_harmonics
+            .iter()
+            .filter(|(h, _, _)| *h > 0)
+            .map(|&(h, c, s)| c * (f64::from(h) * theta).cos() + s * (f64::from(h) * theta).sin())
+            .sum()
     }
 }
 
@@ -135,7 +157,14 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
     if !(opt.noise >= 0.0 && opt.quantum >= 0.0 && (0.0..1.0).contains(&opt.missing)) {
         return Err(SimError::Invalid("noise and quantum must be >= 0, missing in [0, 1)".into()));
     }
+    if !(opt.noise_lag1 > -1.0 && opt.noise_lag1 < 1.0) {
+        return Err(SimError::Invalid("noise_lag1 must be in (-1, 1)".into()));
+    }
     let noise = Normal::new(0.0, opt.noise).map_err(|e| SimError::Invalid(e.to_string()))?;
+    // AR(1) along the trace: e_k = φ e_(k-1) + √(1-φ²) w_k keeps the marginal σ.
+    // (White noise draws one number a sample, as it always has: seeded scans stay as they were.)
+    let phi = opt.noise_lag1;
+    let mut correlated = if phi == 0.0 { 0.0 } else { noise.sample(rng) };
     let mut samples = Vec::with_capacity(n as usize);
     let mut truth = Vec::with_capacity(n as usize);
     for i in 0..n {
@@ -143,11 +172,18 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
         if opt.missing > 0.0 && rng.random::<f64>() < opt.missing {
             continue;
         }
-        let (u, v) = rail_frame(rail_angle(m.alpha0, step, n));
+        let (u, v) = rail_frame(rail_angle(m.alpha0, step, n) + opt.angle_error(step, n));
         let origin = v * m.offset;
         let (t, touched) =
             tip_exit(shape, origin, u, opt.tip_radius, opt.inside).ok_or(SimError::RayMissesShape { step })?;
-        let mut rho = (t + m.delta_l) / m.scale + noise.sample(rng);
+        let e = if phi == 0.0 {
+            noise.sample(rng)
+        } else {
+            let now = correlated;
+            correlated = phi * correlated + (1.0 - phi * phi).sqrt() * noise.sample(rng);
+            now
+        };
+        let mut rho = (t + m.delta_l) / m.scale + e;
         if opt.quantum > 0.0 {
             rho = (rho / opt.quantum).round() * opt.quantum;
         }

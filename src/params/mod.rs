@@ -44,8 +44,9 @@ pub mod names {
     pub const SCAN_TIMEOUT: &str = "driver.scan_timeout";
     pub const INTROSPECTION: &str = "calibrate.introspection";
     pub const BOND_HEARTBEAT_PERIOD: &str = "bond_heartbeat_period";
+    pub const LACK_OF_FIT_ALPHA: &str = "calibration.lack_of_fit_alpha";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 26] = [
+    pub const ALL: [&str; 27] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -72,6 +73,7 @@ pub mod names {
         SCAN_TIMEOUT,
         INTROSPECTION,
         BOND_HEARTBEAT_PERIOD,
+        LACK_OF_FIT_ALPHA,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
@@ -113,6 +115,9 @@ pub struct Parameters {
     /// /diagnostics warns when a calibration moved a parameter by more than this many
     /// combined standard uncertainties from the one before; 0 = never.
     pub drift_warn_sigma: f64,
+    /// Significance level of the harmonic lack-of-fit test of the plate's residuals: a
+    /// calibration whose residuals show structure at this level is refused; 0 = no test.
+    pub lack_of_fit_alpha: f64,
     /// The node's clock follows `/clock`.
     pub use_sim_time: bool,
     /// A lifecycle (managed) node; read at start-up.
@@ -190,6 +195,7 @@ impl Default for Parameters {
             history_file: String::new(),
             max_age_days: 0.0,
             drift_warn_sigma: 10.0,
+            lack_of_fit_alpha: 0.001,
             use_sim_time: false,
             managed: false,
             hardware_id: String::new(),
@@ -250,6 +256,7 @@ impl Parameters {
             names::HISTORY_FILE => String(self.history_file.clone()),
             names::MAX_AGE_DAYS => Double(self.max_age_days),
             names::DRIFT_WARN_SIGMA => Double(self.drift_warn_sigma),
+            names::LACK_OF_FIT_ALPHA => Double(self.lack_of_fit_alpha),
             names::USE_SIM_TIME => Bool(self.use_sim_time),
             names::MANAGED => Bool(self.managed),
             names::HARDWARE_ID => String(self.hardware_id.clone()),
@@ -328,6 +335,7 @@ impl Parameters {
             names::HISTORY_FILE => next.history_file = string(value)?,
             names::MAX_AGE_DAYS => next.max_age_days = double(value)?,
             names::DRIFT_WARN_SIGMA => next.drift_warn_sigma = double(value)?,
+            names::LACK_OF_FIT_ALPHA => next.lack_of_fit_alpha = double(value)?,
             names::USE_SIM_TIME => next.use_sim_time = boolean(value)?,
             names::MANAGED => next.managed = boolean(value)?,
             names::HARDWARE_ID => next.hardware_id = string(value)?,
@@ -380,6 +388,7 @@ impl Parameters {
             tip_radius: self.tip_radius,
             plate_side_uncertainty: self.plate_side_uncertainty,
             ring_diameter_uncertainty: self.ring_diameter_uncertainty,
+            lack_of_fit_alpha: self.lack_of_fit_alpha,
             ..CalibrationOptions::default()
         }
     }
@@ -398,7 +407,8 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 26);
+        assert_eq!(list.len(), 27);
+        assert_eq!(p.get("calibration.lack_of_fit_alpha"), Some(ParamValue::Double(0.001)));
         assert_eq!(p.get("calibrate.introspection"), Some(ParamValue::String("off".into())));
         assert_eq!(p.get("bond_heartbeat_period"), Some(ParamValue::Double(0.1)));
         assert_eq!(p.get("calibration.covariance"), Some(ParamValue::DoubleArray(Vec::new())));

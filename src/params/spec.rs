@@ -117,7 +117,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 26] = [
+pub const SPECS: [Spec; 27] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -163,6 +163,8 @@ pub const SPECS: [Spec; 26] = [
     Spec::new(names::BOND_HEARTBEAT_PERIOD, "a managed node's bond with nav2's lifecycle manager (bond/msg/Status on bond, id: the node's name), kept while active: its heartbeat period (s); 0 = no bond; read at start-up")
         .bound(Bound::Float { from: 0.0, to: f64::INFINITY })
         .read_only(),
+    Spec::new(names::LACK_OF_FIT_ALPHA, "significance level of the harmonic lack-of-fit test: a calibration whose plate residuals show structure at this level (harmonics 1-12 a turn against the scan's own noise) is refused, naming the harmonics; 0 = no test")
+        .bound(Bound::Float { from: 0.0, to: 0.5 }),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.
