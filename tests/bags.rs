@@ -332,6 +332,9 @@ fn check_rosbags_fixture(bag: &Bag) {
     assert_eq!(u64::from(contour.scan_id), u64_of(&c["scan_id"]));
     assert_eq!(contour.target, RawScan::TARGET_LENS);
     assert!(contour.calibrated);
+    // Written by an earlier version of the message: the calibration it was corrected with
+    // is absent, read as zero.
+    assert_eq!((contour.calibration_stamp, contour.calibration_scan_id), (Time::ZERO, 0));
     assert_eq!(contour.points.len() as u64, u64_of(&c["points"]));
     assert_eq!(contour.points[0].x, c["first_point"][0].as_f64().unwrap());
     assert_eq!(contour.points[0].y, c["first_point"][1].as_f64().unwrap());
@@ -538,7 +541,9 @@ fn check_rosbags_view(seen: &Value, sample: &Sample) {
             "box_height",
             "effective_diameter",
             "size_u95",
-            "radii_u95"
+            "radii_u95",
+            "calibration_stamp",
+            "calibration_scan_id"
         ])
     );
     for ty in
@@ -577,6 +582,13 @@ fn check_rosbags_view(seen: &Value, sample: &Sample) {
         let radii = m["radii"].as_array().unwrap();
         assert_eq!(radii.len(), want.radii.len());
         assert!(want.radii.iter().zip(radii).all(|(a, b)| close(*a, b)));
+        // The calibration it was corrected with, as a foreign reader sees it.
+        let stamp = &m["calibration_stamp"];
+        assert_eq!(
+            stamp["sec"].as_i64(),
+            Some(i64::from(want.calibration_stamp.to_nanos().div_euclid(1_000_000_000) as i32))
+        );
+        assert_eq!(u64_of(&m["calibration_scan_id"]), u64::from(want.calibration_scan_id));
     }
     let polys = of("/contour_polygon");
     assert_eq!(polys.len(), 1);

@@ -109,3 +109,30 @@ fn a_params_file_apart_from_the_files_read_is_created_from_them_then_read_after_
     assert!(e.starts_with(&format!("{missing}: cannot read")), "{e}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// What a cell's operators open (docs/node.md): the diagnostic_aggregator analyzers match
+/// the node's two status names (as `cell::diagnostics` and `cell::driver` make them), and
+/// the RViz view shows the topic the node publishes polygons on, in its default frame.
+#[test]
+fn the_operators_files_name_what_the_node_publishes() {
+    use yaml_rust2::YamlLoader;
+    let root = env!("CARGO_MANIFEST_DIR");
+    let text = std::fs::read_to_string(format!("{root}/config/tracer_calib_analyzers.yaml")).unwrap();
+    let doc = &YamlLoader::load_from_str(&text).unwrap()[0];
+    let group = &doc["analyzers"]["ros__parameters"]["tracers"];
+    assert_eq!(group["type"].as_str(), Some("diagnostic_aggregator/AnalyzerGroup"));
+    let pattern = |name: &str| regex::Regex::new(group["analyzers"][name]["regex"][0].as_str().unwrap()).unwrap();
+    let (calibration, driver) = (pattern("calibration"), pattern("driver"));
+    for fqn in ["/tracer_calibrator", "/cell1/tracer", "/line3/cell2/tracer"] {
+        let status = format!("tracer_calib: {fqn}");
+        let driver_status = format!("tracer_calib: {fqn}: tracer driver");
+        assert!(calibration.is_match(&status) && !calibration.is_match(&driver_status), "{fqn}");
+        assert!(driver.is_match(&driver_status) && !driver.is_match(&status), "{fqn}");
+    }
+    let rviz = std::fs::read_to_string(format!("{root}/config/tracer_calib.rviz")).unwrap();
+    let view = &YamlLoader::load_from_str(&rviz).unwrap()[0]["Visualization Manager"];
+    assert_eq!(view["Global Options"]["Fixed Frame"].as_str(), Some("tracer_axis"));
+    let polygon =
+        view["Displays"].as_vec().unwrap().iter().find(|d| d["Class"].as_str() == Some("rviz_default_plugins/Polygon"));
+    assert_eq!(polygon.unwrap()["Topic"]["Value"].as_str(), Some("/contour_polygon"));
+}

@@ -163,6 +163,7 @@ for f in tracer_calib/lib/tracer_calib/tracer_calib_node tracer_calib/lib/tracer
 done
 for f in tracer_calib/share/tracer_calib/package.xml tracer_calib/share/tracer_calib/config/tracer_calib.yaml \
          tracer_calib/share/tracer_calib/config/cell1_tracer.yaml tracer_calib/share/tracer_calib/config/cell2_tracer.yaml \
+         tracer_calib/share/tracer_calib/config/tracer_calib_analyzers.yaml tracer_calib/share/tracer_calib/config/tracer_calib.rviz \
          tracer_calib/share/tracer_calib/launch/tracer_calib.launch.xml tracer_calib/share/tracer_calib/launch/edging_cell.launch.xml \
          tracer_calib/share/tracer_calib/launch/tracer_calib_managed.launch.xml \
          tracer_calib/share/ament_index/resource_index/packages/tracer_calib \
