@@ -31,10 +31,10 @@
 
 use std::fmt;
 
-use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
-use yaml_rust2::scanner::{Marker, TScalarStyle};
+use yaml_rust2::scanner::TScalarStyle;
 
 use super::file::{self, node_matches};
+use super::tree::{self, Pos, Y};
 use super::value::ParamValue;
 
 /// The params file format this node writes: 1, files without the format line (read and
@@ -84,89 +84,6 @@ pub fn section_key(fqn: &str) -> String {
     };
     let plain = key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/');
     if plain { key } else { super::value::yaml_string(&key) }
-}
-
-/// Where a node starts: 0-based line, column in characters.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Pos {
-    line: usize,
-    col: usize,
-}
-
-impl From<Marker> for Pos {
-    fn from(m: Marker) -> Self {
-        Pos { line: m.line().saturating_sub(1), col: m.col() }
-    }
-}
-
-/// A YAML node with where it starts.
-#[derive(Debug, Clone)]
-enum Y {
-    Scalar { text: String, style: TScalarStyle, pos: Pos },
-    Seq { items: Vec<Y>, pos: Pos },
-    Map { entries: Vec<(Y, Y)>, pos: Pos },
-}
-
-impl Y {
-    fn pos(&self) -> Pos {
-        match self {
-            Y::Scalar { pos, .. } | Y::Seq { pos, .. } | Y::Map { pos, .. } => *pos,
-        }
-    }
-}
-
-enum Frame {
-    Seq(Vec<Y>, Pos),
-    Map(Vec<(Y, Y)>, Option<Y>, Pos),
-}
-
-/// Builds [`Y`] trees from the parser's events, noting what the editor refuses.
-#[derive(Default)]
-struct Builder {
-    stack: Vec<Frame>,
-    docs: Vec<Y>,
-    /// An anchor, alias or tag seen.
-    shared: bool,
-}
-
-impl Builder {
-    fn push(&mut self, node: Y) {
-        match self.stack.last_mut() {
-            None => self.docs.push(node),
-            Some(Frame::Seq(items, _)) => items.push(node),
-            Some(Frame::Map(entries, pending, _)) => match pending.take() {
-                Some(key) => entries.push((key, node)),
-                None => *pending = Some(node),
-            },
-        }
-    }
-}
-
-impl MarkedEventReceiver for Builder {
-    fn on_event(&mut self, ev: Event, mark: Marker) {
-        let pos = Pos::from(mark);
-        match ev {
-            Event::Scalar(text, style, anchor, tag) => {
-                self.shared |= anchor != 0 || tag.is_some();
-                self.push(Y::Scalar { text, style, pos });
-            }
-            Event::SequenceStart(anchor, tag) => {
-                self.shared |= anchor != 0 || tag.is_some();
-                self.stack.push(Frame::Seq(Vec::new(), pos));
-            }
-            Event::MappingStart(anchor, tag) => {
-                self.shared |= anchor != 0 || tag.is_some();
-                self.stack.push(Frame::Map(Vec::new(), None, pos));
-            }
-            Event::SequenceEnd | Event::MappingEnd => match self.stack.pop() {
-                Some(Frame::Seq(items, pos)) => self.push(Y::Seq { items, pos }),
-                Some(Frame::Map(entries, _, pos)) => self.push(Y::Map { entries, pos }),
-                None => {}
-            },
-            Event::Alias(_) => self.shared = true,
-            _ => {}
-        }
-    }
 }
 
 /// The file's text as lines of characters (a `\r` before a newline kept in its line).
@@ -436,17 +353,14 @@ fn indents(text: &Text, top: Option<&Y>) -> (usize, usize) {
 pub fn edit(text: &str, fqn: &str, changes: &[(String, ParamValue)]) -> Result<String, Unsafe> {
     let before = file::parse(text, "the params file").map_err(|e| Unsafe(format!("it does not read: {e}")))?;
     let t = Text::new(text);
-    let mut builder = Builder::default();
-    Parser::new_from_str(text)
-        .load(&mut builder, true)
-        .map_err(|e| Unsafe(format!("it is not valid YAML: {}", e.info())))?;
-    if builder.shared {
+    let yaml = tree::load(text).map_err(|e| Unsafe(format!("it is not valid YAML: {}", e.info())))?;
+    if yaml.alias || yaml.anchor_or_tag {
         return unsafe_("it has a YAML anchor, alias or tag: a value may be shared with another node's");
     }
-    if builder.docs.len() > 1 {
+    if yaml.docs.len() > 1 {
         return unsafe_("it holds several YAML documents");
     }
-    let top = builder.docs.first();
+    let top = yaml.docs.first();
     if let Some(top) = top
         && is_flow(&t, top)
     {

@@ -19,8 +19,7 @@ use std::fs;
 use std::io::Write;
 use std::path::Path;
 
-use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
-use yaml_rust2::scanner::{Marker, TScalarStyle};
+use super::tree::{self, Y};
 
 use super::value::ParamValue;
 
@@ -79,68 +78,6 @@ impl ParamsFileError {
     }
 }
 
-/// A YAML node with the line it starts on.
-#[derive(Debug, Clone)]
-enum Node {
-    Scalar { text: String, quoted: bool, line: usize },
-    Seq { items: Vec<Node>, line: usize },
-    Map { entries: Vec<(Node, Node)>, line: usize },
-}
-
-impl Node {
-    fn line(&self) -> usize {
-        match self {
-            Node::Scalar { line, .. } | Node::Seq { line, .. } | Node::Map { line, .. } => *line,
-        }
-    }
-}
-
-/// Builds [`Node`]s from the parser's events.
-#[derive(Default)]
-struct TreeBuilder {
-    stack: Vec<Node>,
-    docs: Vec<Node>,
-    alias: bool,
-}
-
-impl TreeBuilder {
-    fn push_value(&mut self, node: Node) {
-        match self.stack.last_mut() {
-            None => self.docs.push(node),
-            Some(Node::Seq { items, .. }) => items.push(node),
-            Some(Node::Map { entries, .. }) => {
-                // Keys and values alternate; a key waits with a placeholder value.
-                match entries.last_mut() {
-                    Some((_, v @ Node::Scalar { line: 0, .. })) => *v = node,
-                    _ => entries.push((node, Node::Scalar { text: String::new(), quoted: false, line: 0 })),
-                }
-            }
-            Some(Node::Scalar { .. }) => unreachable!("scalars hold no children"),
-        }
-    }
-}
-
-impl MarkedEventReceiver for TreeBuilder {
-    fn on_event(&mut self, ev: Event, mark: Marker) {
-        let line = mark.line();
-        match ev {
-            Event::Scalar(text, style, _, _) => {
-                let quoted = !matches!(style, TScalarStyle::Plain);
-                self.push_value(Node::Scalar { text, quoted, line });
-            }
-            Event::SequenceStart(..) => self.stack.push(Node::Seq { items: Vec::new(), line }),
-            Event::MappingStart(..) => self.stack.push(Node::Map { entries: Vec::new(), line }),
-            Event::SequenceEnd | Event::MappingEnd => {
-                if let Some(done) = self.stack.pop() {
-                    self.push_value(done);
-                }
-            }
-            Event::Alias(_) => self.alias = true,
-            _ => {}
-        }
-    }
-}
-
 /// Parse the text of a parameter file; `path` only names it in errors. A file whose
 /// format line ([`super::edit::declared_format`]) names a newer format than this node's
 /// is refused.
@@ -158,30 +95,28 @@ pub fn parse(text: &str, path: &str) -> Result<ParamsFile, ParamsFileError> {
             ),
         ));
     }
-    let mut builder = TreeBuilder::default();
-    let mut parser = Parser::new_from_str(text);
-    parser.load(&mut builder, true).map_err(|e| {
+    let tree = tree::load(text).map_err(|e| {
         ParamsFileError::new(path, Some(e.marker().line()), None, format!("not valid YAML: {}", e.info()))
     })?;
-    if builder.alias {
+    if tree.alias {
         return Err(ParamsFileError::new(path, None, None, "YAML aliases are not supported in parameter files"));
     }
     let mut file = ParamsFile::default();
-    for doc in builder.docs {
-        let Node::Map { entries, .. } = doc else {
+    for doc in tree.docs {
+        let Y::Map { entries, .. } = doc else {
             return Err(ParamsFileError::new(
                 path,
-                Some(doc.line()),
+                Some(doc.pos().line_number()),
                 None,
                 "expected a map of node names to their ros__parameters",
             ));
         };
         for (key, body) in entries {
             let node = scalar_key(&key, path)?;
-            let Node::Map { entries: inner, .. } = &body else {
+            let Y::Map { entries: inner, .. } = &body else {
                 return Err(ParamsFileError::new(
                     path,
-                    Some(key.line()),
+                    Some(key.pos().line_number()),
                     Some(&node),
                     "expected 'ros__parameters:' under the node name",
                 ));
@@ -192,14 +127,14 @@ pub fn parse(text: &str, path: &str) -> Result<ParamsFile, ParamsFileError> {
                 if name != "ros__parameters" {
                     return Err(ParamsFileError::new(
                         path,
-                        Some(k.line()),
+                        Some(k.pos().line_number()),
                         Some(&name),
                         format!("expected 'ros__parameters' under node '{node}'"),
                     ));
                 }
                 flatten("", v, path, &mut params)?;
             }
-            file.sections.push(Section { node, line: key.line(), params });
+            file.sections.push(Section { node, line: key.pos().line_number(), params });
         }
     }
     Ok(file)
@@ -213,56 +148,54 @@ pub fn read(path: &Path) -> Result<ParamsFile, ParamsFileError> {
     parse(&text, &shown)
 }
 
-fn scalar_key(node: &Node, path: &str) -> Result<String, ParamsFileError> {
+fn scalar_key(node: &Y, path: &str) -> Result<String, ParamsFileError> {
     match node {
-        Node::Scalar { text, .. } => Ok(text.clone()),
-        other => Err(ParamsFileError::new(path, Some(other.line()), None, "a key must be a plain name")),
+        Y::Scalar { text, .. } => Ok(text.clone()),
+        other => Err(ParamsFileError::new(path, Some(other.pos().line_number()), None, "a key must be a plain name")),
     }
 }
 
 /// Nested maps under `ros__parameters` flatten to dotted names, as ROS does.
-fn flatten(prefix: &str, node: &Node, path: &str, out: &mut Vec<Entry>) -> Result<(), ParamsFileError> {
-    let Node::Map { entries, line } = node else {
+fn flatten(prefix: &str, node: &Y, path: &str, out: &mut Vec<Entry>) -> Result<(), ParamsFileError> {
+    let Y::Map { entries, pos } = node else {
         return Err(ParamsFileError::new(
             path,
-            Some(node.line()),
+            Some(node.pos().line_number()),
             Some(prefix),
             "expected a map of parameter names to values",
         ));
     };
     if entries.is_empty() && !prefix.is_empty() {
-        return Err(ParamsFileError::new(path, Some(*line), Some(prefix), "empty map: no value given"));
+        return Err(ParamsFileError::new(path, Some(pos.line_number()), Some(prefix), "empty map: no value given"));
     }
     for (k, v) in entries {
         let key = scalar_key(k, path)?;
         let name = if prefix.is_empty() { key } else { format!("{prefix}.{key}") };
+        let line = k.pos().line_number();
         match v {
-            Node::Map { .. } => flatten(&name, v, path, out)?,
-            Node::Scalar { line: 0, .. } => {
-                return Err(ParamsFileError::new(path, Some(k.line()), Some(&name), "no value given"));
-            }
-            Node::Scalar { text, quoted, .. } => {
-                if text.is_empty() && !quoted {
-                    return Err(ParamsFileError::new(path, Some(k.line()), Some(&name), "no value given"));
+            Y::Map { .. } => flatten(&name, v, path, out)?,
+            Y::Scalar { text, .. } => {
+                if text.is_empty() && !v.quoted() {
+                    return Err(ParamsFileError::new(path, Some(line), Some(&name), "no value given"));
                 }
-                out.push(Entry { name, value: ParamValue::from_yaml_scalar(text, *quoted), line: k.line() })
+                out.push(Entry { name, value: ParamValue::from_yaml_scalar(text, v.quoted()), line })
             }
-            Node::Seq { items, .. } => {
+            Y::Seq { items, .. } => {
                 let value = array(items).ok_or_else(|| {
-                    ParamsFileError::new(path, Some(k.line()), Some(&name), "an array must hold scalars of one type")
+                    ParamsFileError::new(path, Some(line), Some(&name), "an array must hold scalars of one type")
                 })?;
-                out.push(Entry { name, value, line: k.line() });
+                out.push(Entry { name, value, line });
             }
         }
     }
     Ok(())
 }
 
-fn array(items: &[Node]) -> Option<ParamValue> {
+fn array(items: &[Y]) -> Option<ParamValue> {
     let values: Vec<ParamValue> = items
         .iter()
         .map(|n| match n {
-            Node::Scalar { text, quoted, .. } => Some(ParamValue::from_yaml_scalar(text, *quoted)),
+            Y::Scalar { text, .. } => Some(ParamValue::from_yaml_scalar(text, n.quoted())),
             _ => None,
         })
         .collect::<Option<_>>()?;

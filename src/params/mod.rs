@@ -8,6 +8,7 @@ pub mod edit;
 pub mod file;
 pub mod persist;
 pub mod spec;
+mod tree;
 pub mod value;
 
 pub use file::{ParamsFile, ParamsFileError};
