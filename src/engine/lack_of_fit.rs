@@ -78,20 +78,16 @@ impl Structure {
     /// The harmonics that stand out (above three times what noise gives there), largest
     /// first, with what they usually mean on a square plate.
     pub fn describe(&self) -> String {
-        let mut standing: Vec<(usize, f64)> = self
-            .amplitudes
-            .iter()
-            .zip(&self.noise_amplitudes)
-            .enumerate()
-            .filter(|(_, (a, n))| **a > 3.0 * **n)
-            .map(|(i, (a, _))| (i + 1, *a))
-            .collect();
+        // (harmonic, amplitude, noise's amplitude), largest first; those that stand out, or
+        // else the three largest.
+        let mut ranked: Vec<(usize, f64, f64)> =
+            self.amplitudes.iter().zip(&self.noise_amplitudes).enumerate().map(|(i, (a, n))| (i + 1, *a, *n)).collect();
+        ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let mut standing: Vec<(usize, f64)> =
+            ranked.iter().filter(|(_, a, n)| *a > 3.0 * *n).map(|&(h, a, _)| (h, a)).collect();
         if standing.is_empty() {
-            standing = self.amplitudes.iter().enumerate().map(|(i, a)| (i + 1, *a)).collect();
-            standing.sort_by(|a, b| b.1.total_cmp(&a.1));
-            standing.truncate(3);
+            standing = ranked.iter().take(3).map(|&(h, a, _)| (h, a)).collect();
         }
-        standing.sort_by(|a, b| b.1.total_cmp(&a.1));
         let list: Vec<String> = standing.iter().map(|(h, a)| format!("{h} ({:.1} µm)", a * 1e6)).collect();
         let mut meanings = Vec::new();
         let has = |f: &dyn Fn(usize) -> bool| standing.iter().any(|(h, _)| f(*h));
@@ -170,13 +166,15 @@ pub fn harmonic_test(steps: &[u32], steps_per_rev: u32, residuals: &[f64], used:
     // little low would otherwise make correlated noise look like structure.
     let &(phi_up, (_, sigma2_up)) =
         grid.iter().rev().find(|(p, (l, _))| *p >= phi && *l <= best + 1.35).unwrap_or(&(phi, (best, sigma2)));
+    let dof = (2 * HARMONICS, 2 * high.len());
+    let amplitudes: Vec<f64> = (1..=HARMONICS).map(|h| 2.0 * spectrum[h].norm() / n as f64).collect();
     if sigma2.is_nan() || sigma2 <= 0.0 {
         // Noise-free: nothing to test against, and nothing an edger would see.
         return Some(Structure {
             f: 0.0,
-            dof: (2 * HARMONICS, 2 * high.len()),
+            dof,
             p_value: 1.0,
-            amplitudes: (1..=HARMONICS).map(|h| 2.0 * spectrum[h].norm() / n as f64).collect(),
+            amplitudes,
             noise_amplitudes: vec![0.0; HARMONICS],
             rms: 0.0,
             lag1: 0.0,
@@ -186,9 +184,7 @@ pub fn harmonic_test(steps: &[u32], steps_per_rev: u32, residuals: &[f64], used:
     // 2. The low harmonics against the noise's spectrum there.
     let s_at = |h: usize| sigma2_up / shape(phi_up, h);
     let t: f64 = (1..=HARMONICS).map(|h| 2.0 * periodogram[h] / s_at(h)).sum();
-    let dof = (2 * HARMONICS, 2 * high.len());
     let f = t / dof.0 as f64;
-    let amplitudes: Vec<f64> = (1..=HARMONICS).map(|h| 2.0 * spectrum[h].norm() / n as f64).collect();
     let noise_amplitudes = (1..=HARMONICS).map(|h| (4.0 * s_at(h) / n as f64).sqrt()).collect();
     let rms = (amplitudes.iter().map(|a| a * a).sum::<f64>() / 2.0).sqrt();
     Some(Structure {

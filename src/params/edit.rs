@@ -153,29 +153,26 @@ fn scalar_end(text: &Text, pos: Pos, style: TScalarStyle, value: &str) -> Option
             let read: String = line[pos.col..end].iter().collect();
             (read == value).then_some(end)?
         }
-        TScalarStyle::SingleQuoted => {
-            let mut i = pos.col + 1;
-            loop {
-                match line.get(i)? {
-                    '\'' if line.get(i + 1) == Some(&'\'') => i += 2,
-                    '\'' => break i + 1,
-                    _ => i += 1,
-                }
-            }
-        }
-        TScalarStyle::DoubleQuoted => {
-            let mut i = pos.col + 1;
-            loop {
-                match line.get(i)? {
-                    '\\' => i += 2,
-                    '"' => break i + 1,
-                    _ => i += 1,
-                }
-            }
-        }
+        TScalarStyle::SingleQuoted | TScalarStyle::DoubleQuoted => quoted_end(line, pos.col)?,
         _ => return None,
     };
     Some(end)
+}
+
+/// The column after the closing quote of a quoted scalar whose opening quote (`'` or `"`)
+/// is at `open`, if it closes on its line: `''` is a quote inside single quotes, `\`
+/// escapes the next character inside double quotes.
+fn quoted_end(line: &[char], open: usize) -> Option<usize> {
+    let quote = *line.get(open).filter(|q| matches!(q, '\'' | '"'))?;
+    let mut i = open + 1;
+    loop {
+        match *line.get(i)? {
+            '\'' if quote == '\'' && line.get(i + 1) == Some(&'\'') => i += 2,
+            '\\' if quote == '"' => i += 2,
+            c if c == quote => return Some(i + 1),
+            _ => i += 1,
+        }
+    }
 }
 
 /// The end (exclusive column) of a flow list starting at `pos` (its `[`), if it closes on
@@ -192,17 +189,9 @@ fn flow_end(text: &Text, pos: Pos) -> Option<usize> {
                     return Some(i + 1);
                 }
             }
-            '\'' => {
-                i += 1;
-                while i < line.len() && !(line[i] == '\'' && line.get(i + 1) != Some(&'\'')) {
-                    i += if line[i] == '\'' { 2 } else { 1 };
-                }
-            }
-            '"' => {
-                i += 1;
-                while i < line.len() && line[i] != '"' {
-                    i += if line[i] == '\\' { 2 } else { 1 };
-                }
+            '\'' | '"' => {
+                i = quoted_end(line, i)?;
+                continue;
             }
             _ => {}
         }

@@ -237,10 +237,7 @@ pub fn node_matches(key: &str, fqn: &str) -> bool {
 /// the fully qualified name (`/cell1/tracer:`); both are what ROS writes and reads.
 pub fn render(fqn: &str, params: &[(String, ParamValue)], comment: &str) -> String {
     let key = super::edit::section_key(fqn);
-    let mut out = String::new();
-    for line in comment.lines() {
-        out.push_str(&format!("# {line}\n"));
-    }
+    let mut out = comment_lines(comment);
     out.push_str(&super::edit::format_line());
     out.push('\n');
     if params.is_empty() {
@@ -258,6 +255,11 @@ pub fn render(fqn: &str, params: &[(String, ParamValue)], comment: &str) -> Stri
         out.push_str(&format!("    {name}: {}\n", value.to_yaml()));
     }
     out
+}
+
+/// `comment` as YAML comment lines (`# ` before each), for the top of a file.
+pub fn comment_lines(comment: &str) -> String {
+    comment.lines().map(|l| format!("# {l}\n")).collect()
 }
 
 /// Remove the temporary files a writer killed mid-write left beside `path`

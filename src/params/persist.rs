@@ -75,33 +75,27 @@ pub fn persist(path: &Path, fqn: &str, wanted: &[(String, ParamValue)], comment:
     };
     let sibling = sibling_path(path, fqn);
     let edited = changes(&text, fqn, wanted).and_then(|c| {
-        let new = if text.is_empty() {
-            format!("{}{}", comment_lines(comment), edit::edit("", fqn, &c)?)
-        } else {
-            edit::edit(&text, fqn, &c)?
-        };
-        Ok((c, new))
+        let edited = edit::edit(&text, fqn, &c)?;
+        Ok(if text.is_empty() { format!("{}{edited}", file::comment_lines(comment)) } else { edited })
     });
     match edited {
-        Ok((c, new)) => {
-            if !c.is_empty() || new != text {
+        Ok(new) => {
+            // A change always changes the text; the format line alone may too.
+            let written = new != text;
+            if written {
                 file::write_atomic(path, &new)?;
             }
             if sibling.exists() {
                 // Everything it held is in the file now.
                 fs::remove_file(&sibling)?;
             }
-            Ok(if c.is_empty() && new == text { Persisted::Unchanged } else { Persisted::Edited })
+            Ok(if written { Persisted::Edited } else { Persisted::Unchanged })
         }
         Err(why) => {
             file::write_atomic(&sibling, &file::render(fqn, wanted, comment))?;
             Ok(Persisted::Sibling { path: sibling, why })
         }
     }
-}
-
-fn comment_lines(comment: &str) -> String {
-    comment.lines().map(|l| format!("# {l}\n")).collect()
 }
 
 /// An exclusive `flock` on a file's directory while it lives.
