@@ -38,7 +38,8 @@
 //! plate scan can have, finds the encoder scale off or leaves structure in the residuals is
 //! an error: the caller keeps the calibration it had.
 
-use nalgebra::{DVector, SMatrix, SVector, Vector2};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DVector, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, Vector2};
 use std::borrow::Cow;
 use std::fmt;
 
@@ -768,9 +769,12 @@ impl Subset for TipScaleModel {
 }
 
 /// What the rejection rounds of a model fitted to every sample found.
-struct Rounds<const P: usize> {
-    x: SVector<f64, P>,
-    covariance: SMatrix<f64, P, P>,
+struct Rounds<D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    x: OVector<f64, D>,
+    covariance: OMatrix<f64, D, D>,
     /// Samples the fit used.
     active: Vec<bool>,
     /// Residual of every sample (used or not) at `x`.
@@ -781,11 +785,14 @@ struct Rounds<const P: usize> {
 
 /// Fit, reject outliers, refit from where the fit stands, until the set of samples
 /// stops changing (module docs, step 3).
-fn fit_rounds<const P: usize, M: Problem<P> + Subset>(
+fn fit_rounds<D: Dim, M: Problem<D> + Subset>(
     all: &M,
-    x0: SVector<f64, P>,
+    x0: OVector<f64, D>,
     opt: &Options,
-) -> Result<Rounds<P>, CalibrationError> {
+) -> Result<Rounds<D>, CalibrationError>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     let mut active = vec![true; all.residual_count()];
     let mut x = x0;
     let mut iterations = 0;
@@ -799,15 +806,15 @@ fn fit_rounds<const P: usize, M: Problem<P> + Subset>(
         if !rep.termination.converged() {
             return Err(CalibrationError::NotConverged { termination: rep.termination, iterations });
         }
-        x = rep.x;
+        x = rep.x.clone();
         let residuals = lm::residuals(all, &x).ok_or(CalibrationError::Singular)?;
         let mut keep = inliers(residuals.as_slice(), opt.outlier_threshold);
         if round >= FREE_ROUNDS {
             keep.iter_mut().zip(&active).for_each(|(k, a)| *k &= *a);
         }
         if keep == active || round + 1 == MAX_ROUNDS {
-            let ne = rep.normal.ok_or(CalibrationError::Singular)?;
-            let covariance = lm::covariance(&ne).ok_or(CalibrationError::Singular)?;
+            let ne = rep.normal.as_ref().ok_or(CalibrationError::Singular)?;
+            let covariance = lm::covariance(ne).ok_or(CalibrationError::Singular)?;
             return Ok(Rounds { x, covariance, active, residuals, iterations, termination: rep.termination });
         }
         active = keep;
@@ -819,13 +826,16 @@ impl Fit {
     /// A fit of every sample from its rejection rounds, the model's own parameters
     /// already turned into the full model's `x` and the scale; `tracer[i]`: where the
     /// model keeps [`Covariance`]'s parameter `i` (`None`: not fitted).
-    fn from_rounds<const P: usize>(
+    fn from_rounds<D: Dim>(
         model: ModelKind,
         x: full::Params,
         scale: f64,
         tracer: [Option<usize>; 5],
-        r: Rounds<P>,
-    ) -> Fit {
+        r: Rounds<D>,
+    ) -> Fit
+    where
+        DefaultAllocator: Allocator<D> + Allocator<D, D>,
+    {
         let mut covariance = Covariance::zeros();
         for (i, mi) in tracer.iter().enumerate() {
             for (j, mj) in tracer.iter().enumerate() {
@@ -856,23 +866,28 @@ impl Fit {
 /// used, `∂r/∂A` a value per row of `model`), and adds `s sᵀ u²` for a standard
 /// uncertainty `u` of `A`; returned in the tracer's [`Covariance`] layout (`tracer` as
 /// in `Fit::from_rounds`). Zero when `u` is.
-pub fn certificate<const P: usize>(
-    model: &impl Problem<P>,
-    x: &SVector<f64, P>,
+pub fn certificate<D: Dim>(
+    model: &impl Problem<D>,
+    x: &OVector<f64, D>,
     dr_da: &[f64],
     u: f64,
     tracer: [Option<usize>; 5],
-) -> Result<Covariance, CalibrationError> {
+) -> Result<Covariance, CalibrationError>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     let mut term = Covariance::zeros();
     if u == 0.0 {
         return Ok(term);
     }
-    let (mut jtj, mut jtb) = (SMatrix::<f64, P, P>::zeros(), SVector::<f64, P>::zeros());
+    let (dim, _) = x.shape_generic();
+    let mut jtj = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
+    let mut jtb = OVector::<f64, D>::zeros_generic(dim, nalgebra::Const::<1>);
     let mut rows = dr_da.iter();
     let ok = model.for_each_row(x, |_, j| {
         let b = rows.next().copied().unwrap_or(f64::NAN);
-        jtj += j * j.transpose();
-        jtb += j * b;
+        jtj.ger(1.0, j, j, 1.0);
+        jtb.axpy(b, j, 1.0);
     });
     let s = -(ok.then_some(jtj).and_then(|m| m.cholesky()).ok_or(CalibrationError::Singular)?.solve(&jtb));
     for (i, mi) in tracer.iter().enumerate() {

@@ -53,67 +53,97 @@
 //! ([`covariance`]); with the true `σ` in place of `σ̂` at the true parameters, the same
 //! matrix is the Cramér-Rao bound for Gaussian noise.
 
-use nalgebra::{DMatrix, DVector, SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, OMatrix, OVector};
 
-/// A least-squares problem: residuals and their Jacobian rows, streamed.
-pub trait Problem<const P: usize> {
+/// A least-squares problem: residuals and their Jacobian rows, streamed. `D` is the
+/// number of parameters: `Const<P>` for a model of fixed size (the plate models), `Dyn`
+/// for one whose size is chosen at run time (angle harmonics, several placements); the
+/// solver is the same.
+pub trait Problem<D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// How many residuals the problem has.
     fn residual_count(&self) -> usize;
 
     /// Calls `row(r_i, J_i)` for every residual at `x`, in a fixed order. Returns
     /// `false` (and may stop early) if the model cannot be evaluated at `x`.
-    fn for_each_row(&self, x: &SVector<f64, P>, row: impl FnMut(f64, &SVector<f64, P>)) -> bool;
+    fn for_each_row(&self, x: &OVector<f64, D>, row: impl FnMut(f64, &OVector<f64, D>)) -> bool;
 }
 
 /// `JᵀJ`, `Jᵀr` and the cost `½‖r‖²` at one point.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NormalEquations<const P: usize> {
-    pub jtj: SMatrix<f64, P, P>,
-    pub jtr: SVector<f64, P>,
+#[derive(Debug, Clone, PartialEq)]
+pub struct NormalEquations<D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    pub jtj: OMatrix<f64, D, D>,
+    pub jtr: OVector<f64, D>,
     /// `½ Σ r_i²`.
     pub cost: f64,
     /// Number of residuals summed.
     pub count: usize,
 }
 
+impl<D: Dim> Copy for NormalEquations<D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+    OMatrix<f64, D, D>: Copy,
+    OVector<f64, D>: Copy,
+{
+}
+
 /// Accumulate the normal equations at `x` in one pass (upper triangle, then mirrored).
 /// `None` if the model cannot be evaluated there or produced a non-finite number.
-pub fn normal_equations<const P: usize>(problem: &impl Problem<P>, x: &SVector<f64, P>) -> Option<NormalEquations<P>> {
-    // Plain arrays with constant bounds: the compiler unrolls the upper triangle.
-    let mut jtj = [[0.0f64; P]; P];
-    let mut jtr = [0.0f64; P];
+pub fn normal_equations<D: Dim>(problem: &impl Problem<D>, x: &OVector<f64, D>) -> Option<NormalEquations<D>>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    // For a fixed size the bounds are constants: the compiler unrolls the upper triangle.
+    let (dim, _) = x.shape_generic();
+    let p = dim.value();
+    let mut jtj = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
+    let mut jtr = OVector::<f64, D>::zeros_generic(dim, Const::<1>);
     let mut ss = 0.0;
     let mut count = 0;
     let ok = problem.for_each_row(x, |r, j| {
-        let j: [f64; P] = (*j).into();
-        for a in 0..P {
-            jtr[a] += j[a] * r;
-            for b in a..P {
-                jtj[a][b] += j[a] * j[b];
+        let j = j.as_slice();
+        let (upper, g) = (jtj.as_mut_slice(), jtr.as_mut_slice());
+        for a in 0..p {
+            g[a] += j[a] * r;
+            // Column-major: entry (a, b) at a + b p.
+            for b in a..p {
+                upper[a + b * p] += j[a] * j[b];
             }
         }
         ss += r * r;
         count += 1;
     });
-    let jtj = SMatrix::<f64, P, P>::from_fn(|a, b| if a <= b { jtj[a][b] } else { jtj[b][a] });
-    let jtr = SVector::<f64, P>::from(jtr);
+    jtj.fill_lower_triangle_with_upper_triangle();
     let finite = ss.is_finite() && jtr.iter().chain(jtj.iter()).all(|v| v.is_finite());
     (ok && finite).then_some(NormalEquations { jtj, jtr, cost: 0.5 * ss, count })
 }
 
 /// All residuals at `x` (for tests, plots and adapters; the solver never builds it).
-pub fn residuals<const P: usize>(problem: &impl Problem<P>, x: &SVector<f64, P>) -> Option<DVector<f64>> {
+pub fn residuals<D: Dim>(problem: &impl Problem<D>, x: &OVector<f64, D>) -> Option<DVector<f64>>
+where
+    DefaultAllocator: Allocator<D>,
+{
     let mut r = Vec::with_capacity(problem.residual_count());
     problem.for_each_row(x, |ri, _| r.push(ri)).then(|| DVector::from_vec(r))
 }
 
 /// The full `n×P` Jacobian at `x` (for tests and adapters; the solver never builds it).
-pub fn jacobian<const P: usize>(problem: &impl Problem<P>, x: &SVector<f64, P>) -> Option<DMatrix<f64>> {
+pub fn jacobian<D: Dim>(problem: &impl Problem<D>, x: &OVector<f64, D>) -> Option<DMatrix<f64>>
+where
+    DefaultAllocator: Allocator<D>,
+{
     let n = problem.residual_count();
-    let mut jac = DMatrix::zeros(n, P);
+    let mut jac = DMatrix::zeros(n, x.len());
     let mut i = 0;
     let ok = problem.for_each_row(x, |_, j| {
-        jac.row_mut(i).copy_from(&j.transpose());
+        jac.row_mut(i).iter_mut().zip(j.iter()).for_each(|(a, b)| *a = *b);
         i += 1;
     });
     (ok && i == n).then_some(jac)
@@ -121,17 +151,20 @@ pub fn jacobian<const P: usize>(problem: &impl Problem<P>, x: &SVector<f64, P>) 
 
 /// Central-difference Jacobian of `f` at `x`, step `h_j = eps·max(|x_j|, scale_j)`.
 /// For checking analytic Jacobians in tests.
-pub fn differentiate_numerically<const P: usize>(
-    x: &SVector<f64, P>,
-    scale: &SVector<f64, P>,
-    mut f: impl FnMut(&SVector<f64, P>) -> DVector<f64>,
-) -> DMatrix<f64> {
+pub fn differentiate_numerically<D: Dim>(
+    x: &OVector<f64, D>,
+    scale: &OVector<f64, D>,
+    mut f: impl FnMut(&OVector<f64, D>) -> DVector<f64>,
+) -> DMatrix<f64>
+where
+    DefaultAllocator: Allocator<D>,
+{
     let eps = 1e-6;
     let n = f(x).len();
-    let mut jac = DMatrix::zeros(n, P);
-    for j in 0..P {
+    let mut jac = DMatrix::zeros(n, x.len());
+    for j in 0..x.len() {
         let h = eps * x[j].abs().max(scale[j]);
-        let (mut xp, mut xm) = (*x, *x);
+        let (mut xp, mut xm) = (x.clone(), x.clone());
         xp[j] += h;
         xm[j] -= h;
         let col = (f(&xp) - f(&xm)) / (2.0 * h);
@@ -196,32 +229,50 @@ impl Termination {
 }
 
 /// What the solver found.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Report<const P: usize> {
-    pub x: SVector<f64, P>,
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report<D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    pub x: OVector<f64, D>,
     pub termination: Termination,
     /// Iterations (steps tried).
     pub iterations: usize,
     /// Passes over the residuals (each gives residuals and normal equations).
     pub evaluations: usize,
     /// Normal equations at `x` (`None` only for [`Termination::NonFinite`]).
-    pub normal: Option<NormalEquations<P>>,
+    pub normal: Option<NormalEquations<D>>,
 }
 
-impl<const P: usize> Report<P> {
+impl<D: Dim> Copy for Report<D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+    OMatrix<f64, D, D>: Copy,
+    OVector<f64, D>: Copy,
+{
+}
+
+impl<D: Dim> Report<D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     pub fn cost(&self) -> f64 {
-        self.normal.map_or(f64::INFINITY, |n| n.cost)
+        self.normal.as_ref().map_or(f64::INFINITY, |n| n.cost)
     }
 }
 
 /// Minimise `½‖r(x)‖²` from `x0`.
-pub fn minimize<const P: usize>(problem: &impl Problem<P>, x0: SVector<f64, P>, opt: &Options) -> Report<P> {
+pub fn minimize<D: Dim>(problem: &impl Problem<D>, x0: OVector<f64, D>, opt: &Options) -> Report<D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let p = x0.len();
     let mut x = x0;
     let mut evaluations = 1;
     let Some(mut ne) = normal_equations(problem, &x) else {
         return Report { x, termination: Termination::NonFinite, iterations: 0, evaluations, normal: None };
     };
-    let mut d2 = SVector::<f64, P>::from_fn(|i, _| ne.jtj[(i, i)].max(f64::MIN_POSITIVE));
+    let mut d2 = ne.jtj.diagonal().map(|v| v.max(f64::MIN_POSITIVE));
     let mut mu = opt.initial_damping;
     let mut nu = 2.0;
     let finish = |x, termination, iterations, evaluations, ne| Report {
@@ -239,8 +290,8 @@ pub fn minimize<const P: usize>(problem: &impl Problem<P>, x0: SVector<f64, P>, 
         if within_uncertainty(&ne, opt.stol) {
             return finish(x, Termination::Uncertainty, iteration - 1, evaluations, ne);
         }
-        let mut a = ne.jtj;
-        for i in 0..P {
+        let mut a = ne.jtj.clone();
+        for i in 0..p {
             a[(i, i)] += mu * d2[i];
         }
         let Some(chol) = a.cholesky() else {
@@ -248,23 +299,23 @@ pub fn minimize<const P: usize>(problem: &impl Problem<P>, x0: SVector<f64, P>, 
             nu *= 2.0;
             continue;
         };
-        let h = chol.solve(&(-ne.jtr));
+        let h = chol.solve(&(-&ne.jtr));
         let dh = h.component_mul(&d2.map(f64::sqrt)).norm();
         let dx = x.component_mul(&d2.map(f64::sqrt)).norm();
         if dh <= opt.xtol * (dx + opt.xtol) {
             return finish(x, Termination::Step, iteration, evaluations, ne);
         }
-        let predicted = 0.5 * h.dot(&(h.component_mul(&d2) * mu - ne.jtr));
-        let x_new = x + h;
+        let predicted = 0.5 * h.dot(&(h.component_mul(&d2) * mu - &ne.jtr));
+        let x_new = &x + h;
         evaluations += 1;
         let trial = normal_equations(problem, &x_new);
-        let actual = trial.map_or(f64::NEG_INFINITY, |t| ne.cost - t.cost);
+        let actual = trial.as_ref().map_or(f64::NEG_INFINITY, |t| ne.cost - t.cost);
         let gain = actual / predicted;
         if let (Some(t), true) = (trial, gain > 0.0 && predicted > 0.0) {
             let old_cost = ne.cost;
             x = x_new;
             ne = t;
-            for i in 0..P {
+            for i in 0..p {
                 d2[i] = d2[i].max(ne.jtj[(i, i)]);
             }
             mu *= (1.0 - (2.0 * gain - 1.0).powi(3)).max(1.0 / 3.0);
@@ -286,24 +337,31 @@ pub fn minimize<const P: usize>(problem: &impl Problem<P>, x0: SVector<f64, P>, 
 }
 
 /// The Gauss-Newton step's length in standard uncertainties: `gᵀ(JᵀJ)⁻¹g <= stol² σ̂²`.
-fn within_uncertainty<const P: usize>(ne: &NormalEquations<P>, stol: f64) -> bool {
-    if stol <= 0.0 || ne.count <= P {
+fn within_uncertainty<D: Dim>(ne: &NormalEquations<D>, stol: f64) -> bool
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let p = ne.jtr.len();
+    if stol <= 0.0 || ne.count <= p {
         return false;
     }
-    let sigma2 = 2.0 * ne.cost / (ne.count - P) as f64;
-    match ne.jtj.cholesky() {
+    let sigma2 = 2.0 * ne.cost / (ne.count - p) as f64;
+    match ne.jtj.clone().cholesky() {
         Some(c) => ne.jtr.dot(&c.solve(&ne.jtr)) <= stol * stol * sigma2,
         None => false,
     }
 }
 
 /// MINPACK's scale-free gradient test: `max_j |g_j| / (‖J_j‖ ‖r‖) <= gtol`.
-fn gradient_converged<const P: usize>(ne: &NormalEquations<P>, gtol: f64) -> bool {
+fn gradient_converged<D: Dim>(ne: &NormalEquations<D>, gtol: f64) -> bool
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     if ne.cost == 0.0 {
         return true;
     }
     let rnorm = (2.0 * ne.cost).sqrt();
-    (0..P).all(|j| {
+    (0..ne.jtr.len()).all(|j| {
         let cn = ne.jtj[(j, j)].sqrt();
         cn == 0.0 || ne.jtr[j].abs() / (cn * rnorm) <= gtol
     })
@@ -311,23 +369,28 @@ fn gradient_converged<const P: usize>(ne: &NormalEquations<P>, gtol: f64) -> boo
 
 /// Covariance `σ̂² (JᵀJ)⁻¹` of the fitted parameters, `σ̂² = ‖r‖² / (n - P)`.
 /// `None` if `JᵀJ` is singular or there are no degrees of freedom left.
-pub fn covariance<const P: usize>(ne: &NormalEquations<P>) -> Option<SMatrix<f64, P, P>> {
-    if ne.count <= P {
+pub fn covariance<D: Dim>(ne: &NormalEquations<D>) -> Option<OMatrix<f64, D, D>>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let p = ne.jtr.len();
+    if ne.count <= p {
         return None;
     }
-    let sigma2 = 2.0 * ne.cost / (ne.count - P) as f64;
-    ne.jtj.cholesky().map(|c| c.inverse() * sigma2)
+    let sigma2 = 2.0 * ne.cost / (ne.count - p) as f64;
+    ne.jtj.clone().cholesky().map(|c| c.inverse() * sigma2)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+    use nalgebra::SVector;
     use nalgebra::Vector2;
 
     /// Rosenbrock as least squares: r = (10 (y - x²), 1 - x), minimum at (1, 1).
     struct Rosenbrock;
-    impl Problem<2> for Rosenbrock {
+    impl Problem<nalgebra::U2> for Rosenbrock {
         fn residual_count(&self) -> usize {
             2
         }
@@ -352,7 +415,7 @@ mod tests {
         t: Vec<f64>,
         y: Vec<f64>,
     }
-    impl Problem<2> for Decay {
+    impl Problem<nalgebra::U2> for Decay {
         fn residual_count(&self) -> usize {
             self.t.len()
         }
@@ -395,7 +458,7 @@ mod tests {
     /// A model that cannot be evaluated at the start reports NonFinite; one that cannot
     /// be evaluated at a trial point just rejects the step.
     struct Sqrt;
-    impl Problem<1> for Sqrt {
+    impl Problem<nalgebra::U1> for Sqrt {
         fn residual_count(&self) -> usize {
             1
         }

@@ -22,6 +22,7 @@
 //!
 //! [`simulate`] makes scans of known shapes with known errors for tests and tools.
 
+pub mod angle;
 pub mod calibrate;
 pub mod correct;
 pub mod geometry;

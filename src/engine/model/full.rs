@@ -244,7 +244,7 @@ pub struct SizeDerivatives {
     pub side: f64,
 }
 
-impl Problem<5> for FullModel {
+impl Problem<nalgebra::Const<5>> for FullModel {
     fn residual_count(&self) -> usize {
         self.samples.len()
     }

@@ -71,7 +71,7 @@ impl FullScaleModel {
     }
 }
 
-impl Problem<6> for FullScaleModel {
+impl Problem<nalgebra::Const<6>> for FullScaleModel {
     fn residual_count(&self) -> usize {
         self.full.samples().len()
     }

@@ -19,6 +19,7 @@ pub mod full;
 pub mod full_scale;
 pub mod paper;
 pub mod tip;
+pub mod turntable;
 
 use nalgebra::Vector2;
 use std::fmt;

@@ -225,7 +225,7 @@ impl PaperModel {
     pub fn covariance(
         &self,
         x: &Params,
-        ne: &NormalEquations<2>,
+        ne: &NormalEquations<nalgebra::U2>,
         sigma2: f64,
         sample_count: usize,
     ) -> Option<SMatrix<f64, 3, 3>> {
@@ -261,7 +261,7 @@ impl PaperModel {
     }
 }
 
-impl Problem<2> for PaperModel {
+impl Problem<nalgebra::Const<2>> for PaperModel {
     fn residual_count(&self) -> usize {
         self.pairs.len()
     }

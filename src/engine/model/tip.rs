@@ -231,7 +231,7 @@ pub fn ring_exit(p: Vector2<f64>, u: Vector2<f64>, radius: f64) -> Option<(f64, 
     (t > 0.0).then(|| (t, (p + u * t) / radius))
 }
 
-impl Problem<8> for TipModel {
+impl Problem<nalgebra::Const<8>> for TipModel {
     fn residual_count(&self) -> usize {
         self.plate.samples().len() + self.ring.len()
     }
@@ -259,7 +259,7 @@ impl TipScaleModel {
     }
 }
 
-impl Problem<9> for TipScaleModel {
+impl Problem<nalgebra::Const<9>> for TipScaleModel {
     fn residual_count(&self) -> usize {
         self.tip.residual_count()
     }
