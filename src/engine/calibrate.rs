@@ -39,10 +39,11 @@
 //! an error: the caller keeps the calibration it had.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{DVector, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, Vector2};
+use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, Vector2};
 use std::borrow::Cow;
 use std::fmt;
 
+use super::angle::{AngleError, HarmonicOrders, coefficient_names};
 use super::correct::correct;
 use super::geometry::{Mounting, rotate_quarter_turns, wrap_quarter_turn};
 use super::lack_of_fit::{Structure, harmonic_test};
@@ -51,6 +52,7 @@ use super::model::full::{self, FullModel};
 use super::model::full_scale::{self, FullScaleModel};
 use super::model::paper::{self, PaperModel};
 use super::model::tip::{self, RingSpec, TipModel, TipScaleModel};
+use super::model::turntable::{self, TurntableModel};
 use super::model::{ModelKind, PlateError, PlateSpec};
 use super::scan::Scan;
 use super::start::initial_guess;
@@ -102,6 +104,10 @@ pub struct Options {
     /// A tip model's fitted radius is refused above this (metres): no stylus of a
     /// tracer is that large, and a ring gauge of the wrong diameter can make it so.
     pub max_tip_radius: f64,
+    /// Orders of the turntable's angle error fitted with the model
+    /// (`calibration.angle_harmonics`, [`super::angle`]); none: the angle encoder taken
+    /// as exact.
+    pub angle_harmonics: HarmonicOrders,
 }
 
 impl Default for Options {
@@ -123,6 +129,7 @@ impl Default for Options {
             plate_side_uncertainty: 0.0,
             ring_diameter_uncertainty: 0.0,
             max_tip_radius: 2e-3,
+            angle_harmonics: HarmonicOrders::NONE,
         }
     }
 }
@@ -233,9 +240,63 @@ pub struct Calibration {
     /// Residual (model - measured, metres) of every sample of the scan, in scan order,
     /// and whether the fit used it.
     pub residuals: Vec<(f64, bool)>,
+    /// The turntable's angle error fitted ([`Options::angle_harmonics`]); with none
+    /// fitted, [`AngleError::NONE`].
+    pub angle: AngleError,
+    /// The covariance over [`covariance_names`] of the angle's orders: [`Covariance`]'s
+    /// five in its order, then the angle coefficients (`[c_h₁, s_h₁, ...]`).
+    pub named_covariance: DMatrix<f64>,
+    /// The plate scans after the first, when several placements were fitted.
+    pub placements: Vec<PlacementFit>,
+}
+
+/// A plate scan after the first of a calibration of several placements.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlacementFit {
+    /// The plate's turn against the first placement (counter-clockwise), radians, in
+    /// `(-π/4, π/4]`.
+    pub turn: f64,
+    /// Its centre, metres (in its own frame, as [`Calibration::plate_center`]).
+    pub center: Vector2<f64>,
+    /// RMS of the residuals of its samples used, metres.
+    pub rms_residual: f64,
+    /// Residual of every sample, in scan order, and whether the fit used it.
+    pub residuals: Vec<(f64, bool)>,
+}
+
+/// The names of the rows of a calibration's named covariance: `alpha0, offset, delta_l,
+/// scale, tip_radius` (the fixed [`Covariance`] layout), then the angle coefficients of
+/// `orders` (`angle_c1, angle_s1, ...`).
+pub fn covariance_names(orders: HarmonicOrders) -> Vec<String> {
+    ["alpha0", "offset", "delta_l", "scale", "tip_radius"]
+        .into_iter()
+        .map(String::from)
+        .chain(coefficient_names(orders))
+        .collect()
+}
+
+/// What the scans of a plate are called in errors, placement by placement.
+const PLATE_NAMES: [&str; 8] = [
+    "plate",
+    "second plate",
+    "third plate",
+    "fourth plate",
+    "fifth plate",
+    "sixth plate",
+    "seventh plate",
+    "eighth plate",
+];
+
+fn plate_name(p: usize) -> &'static str {
+    PLATE_NAMES.get(p).copied().unwrap_or("plate")
 }
 
 impl Calibration {
+    /// The names of [`Calibration::named_covariance`]'s rows ([`covariance_names`]).
+    pub fn covariance_names(&self) -> Vec<String> {
+        covariance_names(self.angle.orders())
+    }
+
     /// A one-line summary in the units people read: degrees, millimetres, ppm.
     pub fn summary(&self) -> String {
         let scale = if self.model.fits_scale() {
@@ -256,8 +317,22 @@ impl Calibration {
             ),
             None => String::new(),
         };
+        let angle: Vec<String> = self
+            .angle
+            .orders()
+            .iter()
+            .zip(self.angle.coefficients().chunks_exact(2))
+            .map(|(h, cs)| format!("{h}: {:.4}°", cs[0].hypot(cs[1]).to_degrees()))
+            .collect();
+        let angle =
+            if angle.is_empty() { String::new() } else { format!(", angle error (amplitude) {}", angle.join(", ")) };
+        let placements = if self.placements.is_empty() {
+            String::new()
+        } else {
+            format!(", {} placements", self.placements.len() + 1)
+        };
         format!(
-            "{} model: alpha0 = {:.4}° ± {:.4}°, d = {:.4} ± {:.4} mm, dL = {:.4} ± {:.4} mm{scale}{tip}, rms residual {:.4} mm, {} samples used, {} rejected, {} iterations{check}",
+            "{} model: alpha0 = {:.4}° ± {:.4}°, d = {:.4} ± {:.4} mm, dL = {:.4} ± {:.4} mm{scale}{tip}{angle}{placements}, rms residual {:.4} mm, {} samples used, {} rejected, {} iterations{check}",
             self.model,
             self.mounting.alpha0.to_degrees(),
             self.stddev[0].to_degrees(),
@@ -314,6 +389,16 @@ pub enum CalibrationError {
         structure: Box<Structure>,
         alpha: f64,
     },
+    /// An angle harmonic the plate's placements cannot tell from the plate's own shape
+    /// ([`super::model::turntable`]): its order, its variance inflation, how many
+    /// placements there were.
+    HarmonicInseparable {
+        order: u32,
+        inflation: f64,
+        placements: usize,
+    },
+    /// More plate scans than a calibration takes.
+    TooManyPlacements(usize),
     /// The scan shows an encoder scale off from the one in force (`k0`).
     ScaleOff {
         estimate: ScaleEstimate,
@@ -394,10 +479,29 @@ impl fmt::Display for CalibrationError {
                 )
             }
             Self::InvalidScale(k) => write!(f, "the encoder scale in force must be a positive number, got {k}"),
+            Self::HarmonicInseparable { order, inflation, placements } => {
+                let what =
+                    if *placements == 1 { "one placement".to_string() } else { format!("{placements} placements") };
+                let why = if order % 4 == 0 {
+                    format!(
+                        "the square plate repeats every quarter turn, so an angle error {order} times a turn moves its lengths as a change of its own shape would"
+                    )
+                } else {
+                    format!("its coefficients' variance is {inflation:.0} times what it would be alone")
+                };
+                write!(
+                    f,
+                    "angle harmonic {order} cannot be told apart with {what} of the plate: {why}; add a scan of the plate turned by about {:.1}° (plate_scan_ids, or the offline --plate-scans) or leave {order} out of calibration.angle_harmonics",
+                    if *order <= 12 { 22.5 } else { 180.0 / f64::from(*order) }
+                )
+            }
+            Self::TooManyPlacements(n) => {
+                write!(f, "{n} plate scans given: a calibration takes at most {MAX_PLACEMENTS}")
+            }
             Self::TooManyOutliers { rejected, samples, scan } => write!(
                 f,
                 "{rejected} of the {samples} samples of the {scan} scan do not fit the model: it does not look like the {}",
-                if *scan == "plate" {
+                if *scan != "ring-gauge" {
                     "calibration plate (check plate.side, plate.corner_radius, encoder.meters_per_count, and that the plate is seated)"
                 } else {
                     "ring gauge (check ring.diameter, and that the scan is of the ring gauge)"
@@ -456,10 +560,37 @@ pub fn calibrate_with_ring(
     plate: &PlateSpec,
     opt: &Options,
 ) -> Result<Calibration, CalibrationError> {
+    calibrate_placements(&[scan], ring, plate, opt)
+}
+
+/// Plate scans a calibration takes at most.
+pub const MAX_PLACEMENTS: usize = 8;
+
+/// Fit the mounting errors to one or several scans of the calibration plate, each a
+/// placement with its own centre and turn ([`super::model::turntable`]), with the angle
+/// harmonics of [`Options::angle_harmonics`], and a ring-gauge scan for the tip models.
+/// One scan and no harmonics is the plain models' fit.
+pub fn calibrate_placements(
+    plates: &[&Scan],
+    ring: Option<Ring>,
+    plate: &PlateSpec,
+    opt: &Options,
+) -> Result<Calibration, CalibrationError> {
     plate.validate().map_err(CalibrationError::InvalidPlate)?;
     let need = opt.min_samples.max(6);
-    if scan.len() < need {
-        return Err(CalibrationError::TooFewSamples { got: scan.len(), need });
+    let Some(&scan) = plates.first() else {
+        return Err(CalibrationError::TooFewSamples { got: 0, need });
+    };
+    if plates.len() > MAX_PLACEMENTS {
+        return Err(CalibrationError::TooManyPlacements(plates.len()));
+    }
+    if let Some(short) = plates.iter().find(|s| s.len() < need) {
+        return Err(CalibrationError::TooFewSamples { got: short.len(), need });
+    }
+    if opt.model == ModelKind::Paper && (plates.len() > 1 || !opt.angle_harmonics.is_empty()) {
+        return Err(CalibrationError::Model(
+            "the paper's model fits one plate scan without angle harmonics: use model full (or full_scale, full_tip, full_scale_tip) for several placements or calibration.angle_harmonics".into(),
+        ));
     }
     if !(opt.scale.is_finite() && opt.scale > 0.0) {
         return Err(CalibrationError::InvalidScale(opt.scale));
@@ -489,10 +620,20 @@ pub fn calibrate_with_ring(
             )));
         }
         let ring_scan = if known_scale == 1.0 { Cow::Borrowed(ring.scan) } else { Cow::Owned(scaled(ring.scan)?) };
+        if plates.len() > 1 || !opt.angle_harmonics.is_empty() {
+            let plates = plates.iter().map(|s| scaled(s)).collect::<Result<Vec<_>, _>>()?;
+            return fit_turntable(&plates, Some((&ring_scan, &ring.spec)), plate, opt, known_scale);
+        }
         let fit = fit_tip(&scan, &ring_scan, &ring.spec, plate, opt)?;
         let fit = Fit { scale: fit.scale * known_scale, ..fit };
-        let grown = plate.grown(fit.tip_radius);
-        return finish(&scan, &FullModel::from_scan(&grown, &scan), fit, Some((&ring_scan, &ring.spec)), opt);
+        let grown = FullModel::from_scan(&plate.grown(fit.tip_radius), &scan);
+        let x = fit.x;
+        let score = |tested: &[bool]| scale_score(grown.retain(|i| tested[i]), &x, opt.plate_side_uncertainty);
+        return finish(&scan, &[], fit, Some((&ring_scan, &ring.spec)), opt, score);
+    }
+    if plates.len() > 1 || !opt.angle_harmonics.is_empty() {
+        let plates = plates.iter().map(|s| scaled(s)).collect::<Result<Vec<_>, _>>()?;
+        return fit_turntable(&plates, None, plate, opt, known_scale);
     }
     // The centre of a tip of radius ρ traces the plate grown by ρ.
     let grown = plate.grown(opt.tip_radius);
@@ -505,7 +646,9 @@ pub fn calibrate_with_ring(
         ModelKind::FullTip | ModelKind::FullScaleTip => unreachable!("fitted above"),
     };
     let fit = Fit { scale: fit.scale * known_scale, tip_radius: opt.tip_radius, ..fit };
-    finish(&scan, &all, fit, None, opt)
+    let x = fit.x;
+    let score = |tested: &[bool]| scale_score(all.retain(|i| tested[i]), &x, opt.plate_side_uncertainty);
+    finish(&scan, &[], fit, None, opt, score)
 }
 
 /// What a model's fit hands to [`finish`].
@@ -528,33 +671,74 @@ struct Fit {
     /// A tip model's ring: its centre (as fitted, before [`wrap`]), residuals and which
     /// samples it used.
     ring: Option<(Vector2<f64>, Vec<f64>, Vec<bool>)>,
+    /// The angle error fitted.
+    angle: AngleError,
+    /// The covariance over [`covariance_names`] when the angle has coefficients (else
+    /// `covariance`'s).
+    named: Option<DMatrix<f64>>,
+    /// The placements after the first.
+    placements: Vec<PlacementPart>,
 }
 
+/// A placement after the first as fitted: the plate's turn, its centre (before [`wrap`]),
+/// its residuals and the samples used.
+struct PlacementPart {
+    turn: f64,
+    center: Vector2<f64>,
+    residuals: Vec<f64>,
+    used: Vec<bool>,
+}
+
+/// The checks of one plate scan's residuals (`rejected` of its samples outliers; the
+/// paper's model uses fewer than it keeps): not too many outliers, an RMS a plate scan
+/// can have, and not systematic against the noise neighbouring samples show; its RMS.
+fn check_plate(
+    scan: &Scan,
+    residuals: &[f64],
+    used: &[bool],
+    rejected: usize,
+    opt: &Options,
+    name: &'static str,
+) -> Result<f64, CalibrationError> {
+    let n_used = used.iter().filter(|&&u| u).count();
+    if rejected as f64 > opt.max_rejected_fraction * used.len() as f64 {
+        return Err(CalibrationError::TooManyOutliers { rejected, samples: used.len(), scan: name });
+    }
+    let ss: f64 = residuals.iter().zip(used).filter(|(_, a)| **a).map(|(r, _)| r * r).sum();
+    let rms = (ss / n_used.max(1) as f64).sqrt();
+    if rms.is_nan() || rms > opt.max_rms_residual {
+        return Err(CalibrationError::ResidualTooLarge { rms, limit: opt.max_rms_residual });
+    }
+    if let Some(noise) = neighbour_noise(scan, residuals, used)
+        && rms > opt.systematic_floor
+        && rms > opt.max_lack_of_fit * noise
+    {
+        return Err(CalibrationError::SystematicResidual { rms, noise });
+    }
+    Ok(rms)
+}
+
+/// The checks of a fit and its report. `more`: the plate scans after the first, as
+/// `fit.placements`; `score`: the score test of the scale on the samples tested (those of
+/// the first scan given; a fit of several placements tests all of its own).
 fn finish(
     scan: &Scan,
-    all: &FullModel,
+    more: &[Scan],
     fit: Fit,
     ring: Option<(&Scan, &RingSpec)>,
     opt: &Options,
+    score: impl FnOnce(&[bool]) -> Option<ScaleEstimate>,
 ) -> Result<Calibration, CalibrationError> {
     let used = fit.used.iter().filter(|&&a| a).count();
     if used < opt.min_samples {
         return Err(CalibrationError::TooFewSamples { got: used, need: opt.min_samples });
     }
     let too_many = |rejected: usize, samples: usize| rejected as f64 > opt.max_rejected_fraction * samples as f64;
-    if too_many(fit.rejected, scan.len()) {
-        return Err(CalibrationError::TooManyOutliers { rejected: fit.rejected, samples: scan.len(), scan: "plate" });
-    }
-    let ss: f64 = fit.residuals.iter().zip(&fit.used).filter(|(_, a)| **a).map(|(r, _)| r * r).sum();
-    let rms = (ss / used as f64).sqrt();
-    if rms.is_nan() || rms > opt.max_rms_residual {
-        return Err(CalibrationError::ResidualTooLarge { rms, limit: opt.max_rms_residual });
-    }
-    if let Some(noise) = neighbour_noise(scan, &fit.residuals, &fit.used)
-        && rms > opt.systematic_floor
-        && rms > opt.max_lack_of_fit * noise
-    {
-        return Err(CalibrationError::SystematicResidual { rms, noise });
+    let rms = check_plate(scan, &fit.residuals, &fit.used, fit.rejected, opt, plate_name(0))?;
+    let mut placement_rms = Vec::with_capacity(more.len());
+    for (p, (scan, part)) in more.iter().zip(&fit.placements).enumerate() {
+        let rejected = part.used.iter().filter(|&&u| !u).count();
+        placement_rms.push(check_plate(scan, &part.residuals, &part.used, rejected, opt, plate_name(p + 1))?);
     }
     let scale_check = if fit.model.fits_scale() {
         None
@@ -566,8 +750,7 @@ fn finish(
             ModelKind::Paper => inliers(&fit.residuals, opt.outlier_threshold),
             _ => fit.used.clone(),
         };
-        let relative = scale_score(all.retain(|i| tested[i]), &fit.x, opt.plate_side_uncertainty)
-            .ok_or(CalibrationError::Singular)?;
+        let relative = score(&tested).ok_or(CalibrationError::Singular)?;
         let estimate = ScaleEstimate { scale: relative.scale * opt.scale, stddev: relative.stddev * opt.scale };
         let off = (relative.scale - 1.0).abs();
         if off > opt.scale_tolerance && off > opt.max_scale_sigma * relative.stddev {
@@ -578,19 +761,24 @@ fn finish(
     // After the scale check: a scale off shows at harmonics 4, 8, 12 too, and that check
     // says it more precisely.
     if opt.lack_of_fit_alpha > 0.0 {
-        let steps: Vec<u32> = scan.samples().iter().map(|s| s.step).collect();
-        if let Some(structure) = harmonic_test(&steps, scan.steps_per_rev(), &fit.residuals, &fit.used)
-            && structure.refused_at(opt.lack_of_fit_alpha)
-        {
-            return Err(CalibrationError::Structure {
-                scan: "plate",
-                structure: Box::new(structure),
-                alpha: opt.lack_of_fit_alpha,
-            });
+        let plates = std::iter::once((scan, &fit.residuals, &fit.used))
+            .chain(more.iter().zip(&fit.placements).map(|(s, part)| (s, &part.residuals, &part.used)));
+        for (p, (scan, residuals, used)) in plates.enumerate() {
+            let steps: Vec<u32> = scan.samples().iter().map(|s| s.step).collect();
+            if let Some(structure) = harmonic_test(&steps, scan.steps_per_rev(), residuals, used)
+                && structure.refused_at(opt.lack_of_fit_alpha)
+            {
+                return Err(CalibrationError::Structure {
+                    scan: plate_name(p),
+                    structure: Box::new(structure),
+                    alpha: opt.lack_of_fit_alpha,
+                });
+            }
         }
     }
     let stddev_of = |i: usize| fit.covariance[(i, i)].max(0.0).sqrt();
     let tip_radius_stddev = stddev_of(layout::TIP_RADIUS);
+    let (_, quarter_turns) = wrap_quarter_turn(fit.x[full::ALPHA0]);
     let ring_fit = match (fit.ring, ring) {
         (Some((center, residuals, used)), Some((ring_scan, spec))) => {
             let n_used = used.iter().filter(|&&u| u).count();
@@ -623,7 +811,6 @@ fn finish(
                     diameter,
                 });
             }
-            let (_, quarter_turns) = wrap_quarter_turn(fit.x[full::ALPHA0]);
             Some(RingFit {
                 center: rotate_quarter_turns(center, quarter_turns),
                 rms_residual: rms,
@@ -636,9 +823,27 @@ fn finish(
     let (mounting, plate_center) = full::unpack(&x);
     let stddev = [layout::ALPHA0, layout::OFFSET, layout::DELTA_L].map(stddev_of);
     let scale_stddev = stddev_of(layout::SCALE);
-    if !(fit.covariance.iter().all(|s| s.is_finite()) && x.iter().all(|v| v.is_finite()) && fit.scale.is_finite()) {
+    let named_covariance = fit.named.unwrap_or_else(|| DMatrix::from_fn(5, 5, |i, j| fit.covariance[(i, j)]));
+    if !(named_covariance.iter().all(|s| s.is_finite()) && x.iter().all(|v| v.is_finite()) && fit.scale.is_finite()) {
         return Err(CalibrationError::Singular);
     }
+    // Each later placement's centre turns with alpha0's quarter turns, then with its own.
+    let placements: Vec<PlacementFit> = fit
+        .placements
+        .into_iter()
+        .zip(placement_rms)
+        .map(|(part, rms_residual)| {
+            let (turn, own) = wrap_quarter_turn(part.turn);
+            PlacementFit {
+                turn,
+                center: rotate_quarter_turns(part.center, quarter_turns - own),
+                rms_residual,
+                residuals: part.residuals.into_iter().zip(part.used).collect(),
+            }
+        })
+        .collect();
+    let more_used: usize = placements.iter().map(|p| p.residuals.iter().filter(|r| r.1).count()).sum();
+    let more_rejected: usize = placements.iter().map(|p| p.residuals.iter().filter(|r| !r.1).count()).sum();
     Ok(Calibration {
         model: fit.model,
         mounting: mounting.with_scale(fit.scale),
@@ -652,10 +857,13 @@ fn finish(
         scale_check,
         rms_residual: rms,
         iterations: fit.iterations,
-        samples_used: used,
-        samples_rejected: fit.rejected,
+        samples_used: used + more_used,
+        samples_rejected: fit.rejected + more_rejected,
         termination: fit.termination,
         residuals: fit.residuals.into_iter().zip(fit.used).collect(),
+        angle: fit.angle,
+        named_covariance,
+        placements,
     })
 }
 
@@ -668,22 +876,34 @@ fn finish(
 /// sensitivity to the side, `-(JᵀJ)⁻¹ Jᵀ ∂r/∂S`, times `side_u` ([`certificate`]).
 pub fn scale_score(model: FullModel, x: &full::Params, side_u: f64) -> Option<ScaleEstimate> {
     let b = model.side_sensitivity(x, 0.0)?;
-    let model = FullScaleModel::new(model);
-    let x6 = full_scale::from_full(x, 1.0);
-    let ne = lm::normal_equations(&model, &x6)?;
-    let n = ne.count;
-    if n <= 6 {
+    score_test(&FullScaleModel::new(model), &full_scale::from_full(x, 1.0), full_scale::SCALE, &b, side_u)
+}
+
+/// [`scale_score`] of any model that fits the scale, at its parameters `x` with `k = 1`
+/// at index `k`; `b`: how each residual moves with the plate's side.
+fn score_test<D: Dim>(
+    model: &impl Problem<D>,
+    x: &OVector<f64, D>,
+    k: usize,
+    b: &[f64],
+    side_u: f64,
+) -> Option<ScaleEstimate>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let ne = lm::normal_equations(model, x)?;
+    let (n, p) = (ne.count, x.len());
+    if n <= p {
         return None;
     }
     let inv = ne.jtj.cholesky()?.inverse();
-    let step = -(inv * ne.jtr);
+    let step = -(&inv * &ne.jtr);
     // σ̂² from the residuals after the step: ‖r‖² - gᵀ(JᵀJ)⁻¹g, the linearised cost.
-    let ss = (2.0 * ne.cost - ne.jtr.dot(&(inv * ne.jtr))).max(0.0);
-    let sigma2 = ss / (n - 6) as f64;
-    let only_scale = [None, None, None, Some(full_scale::SCALE), None];
-    let side = certificate(&model, &x6, &b, side_u, only_scale).ok()?[(layout::SCALE, layout::SCALE)];
-    let var = inv[(full_scale::SCALE, full_scale::SCALE)] * sigma2 + side;
-    let est = ScaleEstimate { scale: 1.0 + step[full_scale::SCALE], stddev: var.max(0.0).sqrt() };
+    let ss = (2.0 * ne.cost - ne.jtr.dot(&(&inv * &ne.jtr))).max(0.0);
+    let sigma2 = ss / (n - p) as f64;
+    let side = certificate_of(model, x, b, side_u, &[Some(k)]).ok()?[(0, 0)];
+    let var = inv[(k, k)] * sigma2 + side;
+    let est = ScaleEstimate { scale: 1.0 + step[k], stddev: var.max(0.0).sqrt() };
     (est.scale.is_finite() && est.stddev.is_finite() && est.stddev > 0.0).then_some(est)
 }
 
@@ -753,6 +973,12 @@ impl Subset for FullModel {
 impl Subset for FullScaleModel {
     fn subset(&self, keep: impl FnMut(usize) -> bool) -> Self {
         FullScaleModel::new(self.full().retain(keep))
+    }
+}
+
+impl Subset for TurntableModel {
+    fn subset(&self, keep: impl FnMut(usize) -> bool) -> Self {
+        self.retain(keep)
     }
 }
 
@@ -856,6 +1082,9 @@ impl Fit {
             termination: r.termination,
             tip_radius: 0.0,
             ring: None,
+            angle: AngleError::NONE,
+            named: None,
+            placements: Vec::new(),
         }
     }
 }
@@ -876,22 +1105,38 @@ pub fn certificate<D: Dim>(
 where
     DefaultAllocator: Allocator<D> + Allocator<D, D>,
 {
-    let mut term = Covariance::zeros();
+    let term = certificate_of(model, x, dr_da, u, &tracer)?;
+    Ok(Covariance::from_fn(|i, j| term[(i, j)]))
+}
+
+/// [`certificate`] over any parameters: `rows[i]` where the model keeps row `i` of the
+/// result (`None`: a zero row).
+fn certificate_of<D: Dim>(
+    model: &impl Problem<D>,
+    x: &OVector<f64, D>,
+    dr_da: &[f64],
+    u: f64,
+    rows: &[Option<usize>],
+) -> Result<DMatrix<f64>, CalibrationError>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let mut term = DMatrix::zeros(rows.len(), rows.len());
     if u == 0.0 {
         return Ok(term);
     }
     let (dim, _) = x.shape_generic();
     let mut jtj = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
     let mut jtb = OVector::<f64, D>::zeros_generic(dim, nalgebra::Const::<1>);
-    let mut rows = dr_da.iter();
+    let mut b_rows = dr_da.iter();
     let ok = model.for_each_row(x, |_, j| {
-        let b = rows.next().copied().unwrap_or(f64::NAN);
+        let b = b_rows.next().copied().unwrap_or(f64::NAN);
         jtj.ger(1.0, j, j, 1.0);
         jtb.axpy(b, j, 1.0);
     });
     let s = -(ok.then_some(jtj).and_then(|m| m.cholesky()).ok_or(CalibrationError::Singular)?.solve(&jtb));
-    for (i, mi) in tracer.iter().enumerate() {
-        for (j, mj) in tracer.iter().enumerate() {
+    for (i, mi) in rows.iter().enumerate() {
+        for (j, mj) in rows.iter().enumerate() {
             if let (Some(mi), Some(mj)) = (mi, mj) {
                 term[(i, j)] = s[*mi] * s[*mj] * u * u;
             }
@@ -933,13 +1178,14 @@ fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fi
 /// tip's error in `dL` (`dL' ≈ dL + ρ - ρ₀`); through it the ring's samples lie on a
 /// circle about its centre (their centroid) of radius `R ≈ D/2 - ρ - (ρ - ρ₀)`, so
 /// `ρ ≈ (D/2 - R + ρ₀)/2`, and `dL = dL' - (ρ - ρ₀)`.
-fn fit_tip(
+/// The tip models' start (the docs of [`fit_tip`]), and the iterations it took.
+fn tip_start(
     scan: &Scan,
     ring_scan: &Scan,
     ring: &RingSpec,
     plate: &PlateSpec,
     opt: &Options,
-) -> Result<Fit, CalibrationError> {
+) -> Result<(tip::Params, usize), CalibrationError> {
     let tip0 = opt.tip_radius;
     let grown = plate.grown(tip0);
     let plate_only = FullModel::from_scan(&grown, scan);
@@ -952,6 +1198,17 @@ fn fit_tip(
     let tip = (ring.diameter / 2.0 - radius + tip0) / 2.0;
     let mut x0 = tip::from_full(&first.x, tip, centroid);
     x0[tip::DELTA_L] -= tip - tip0;
+    Ok((x0, first.iterations))
+}
+
+fn fit_tip(
+    scan: &Scan,
+    ring_scan: &Scan,
+    ring: &RingSpec,
+    plate: &PlateSpec,
+    opt: &Options,
+) -> Result<Fit, CalibrationError> {
+    let (x0, first_iterations) = tip_start(scan, ring_scan, ring, plate, opt)?;
     let model = TipModel::from_scans(FullModel::from_scan(plate, scan), ring, ring_scan);
     let n = scan.len();
     // Both certificates, through the samples each fit used (∂r/∂A = (∂q/∂A)/k).
@@ -996,8 +1253,130 @@ fn fit_tip(
     let ring_residuals = fit.residuals.split_off(n);
     let ring_used = fit.used.split_off(n);
     fit.rejected = fit.used.iter().filter(|&&u| !u).count();
-    fit.iterations += first.iterations;
+    fit.iterations += first_iterations;
     Ok(Fit { scale, tip_radius, ring: Some((ring_center, ring_residuals, ring_used)), ..fit })
+}
+
+/// Variance inflation above which an angle harmonic is refused before the fit: its
+/// coefficients' standard uncertainty ten times what it would be alone.
+pub const MAX_INFLATION: f64 = 100.0;
+
+/// Several placements, the angle harmonics, or both ([`super::model::turntable`]): each
+/// placement's start from the full model's, the tip models' start from the first
+/// placement and the ring; the harmonics the placements cannot separate refused; the fit
+/// with its rejection rounds, its covariance named, the certificates through it; then
+/// [`finish`], which checks every plate scan. `known_scale`: the scale the lengths were
+/// multiplied by (the scale in force, for the models that do not fit it).
+fn fit_turntable(
+    plates: &[Scan],
+    ring: Option<(&Scan, &RingSpec)>,
+    plate: &PlateSpec,
+    opt: &Options,
+    known_scale: f64,
+) -> Result<Calibration, CalibrationError> {
+    let tip0 = opt.tip_radius;
+    let grown = plate.grown(tip0);
+    let mut starts = Vec::with_capacity(plates.len());
+    for scan in plates {
+        starts.push(initial_guess(&FullModel::from_scan(&grown, scan), &grown).ok_or(CalibrationError::NoStart)?.x);
+    }
+    let (mut tip_radius, mut ring_center, mut iterations) = (tip0, Vector2::zeros(), 0);
+    if let Some((ring_scan, spec)) = ring {
+        let (x0, its) = tip_start(&plates[0], ring_scan, spec, plate, opt)?;
+        let (x5, tip, g) = tip::to_full(&x0);
+        // The other placements' turns are against the first's start as the tip start has it.
+        let turn0 = starts[0][full::ALPHA0] - x5[full::ALPHA0];
+        starts.iter_mut().skip(1).for_each(|x| x[full::ALPHA0] -= turn0);
+        starts[0] = x5;
+        (tip_radius, ring_center, iterations) = (tip, g, its);
+    }
+    let seen = if ring.is_some() { *plate } else { grown };
+    let refs: Vec<&Scan> = plates.iter().collect();
+    let model =
+        TurntableModel::new(&seen, &refs, ring.map(|(s, spec)| (spec, s)), opt.angle_harmonics, opt.model.fits_scale());
+    let l = *model.layout();
+    let x0 = turntable::start(&l, &starts, 1.0, tip_radius, ring_center);
+    separable(&model, &x0, &starts)?;
+    let r = fit_rounds(&model, x0, opt)?;
+    // The named covariance: the tracer's five, then the coefficients; the certificates
+    // through the samples the fit used (∂r/∂A = (∂q/∂A)/k).
+    let rows = l.tracer();
+    let mut named = DMatrix::from_fn(rows.len(), rows.len(), |i, j| match (rows[i], rows[j]) {
+        (Some(a), Some(b)) => r.covariance[(a, b)],
+        _ => 0.0,
+    });
+    let used = model.retain(|i| r.active[i]);
+    let (b_side, b_diameter) = used.size_sensitivities(&r.x).ok_or(CalibrationError::Singular)?;
+    named += certificate_of(&used, &r.x, &b_side, opt.plate_side_uncertainty, &rows)?;
+    if ring.is_some() {
+        named += certificate_of(&used, &r.x, &b_diameter, opt.ring_diameter_uncertainty, &rows)?;
+    }
+    // Residuals scan by scan.
+    let mut residuals = r.residuals.as_slice().to_vec();
+    let mut active = r.active.clone();
+    let mut split = |n: usize| -> (Vec<f64>, Vec<bool>) {
+        let rest = (residuals.split_off(n), active.split_off(n));
+        (std::mem::replace(&mut residuals, rest.0), std::mem::replace(&mut active, rest.1))
+    };
+    let (first_residuals, first_used) = split(model.plate_len(0));
+    let mut placements = Vec::with_capacity(plates.len() - 1);
+    for p in 1..plates.len() {
+        let (turn, c) = l.placement(p);
+        let (res, u) = split(model.plate_len(p));
+        placements.push(PlacementPart {
+            turn: turn.map_or(0.0, |i| r.x[i]),
+            center: Vector2::new(r.x[c], r.x[c + 1]),
+            residuals: res,
+            used: u,
+        });
+    }
+    let ring_part = l.ring().map(|g| (Vector2::new(r.x[g], r.x[g + 1]), residuals.clone(), active.clone()));
+    let scale = l.scale().map_or(1.0, |i| r.x[i]);
+    let fit = Fit {
+        model: opt.model,
+        x: model.placement_params(&r.x, 0),
+        scale: scale * known_scale,
+        covariance: Covariance::from_fn(|i, j| named[(i, j)]),
+        rejected: first_used.iter().filter(|&&u| !u).count(),
+        used: first_used,
+        residuals: first_residuals,
+        iterations: r.iterations + iterations,
+        termination: r.termination,
+        tip_radius: l.tip().map_or(tip0, |i| r.x[i]),
+        ring: ring_part,
+        angle: model.angle_error(&r.x),
+        named: Some(named),
+        placements,
+    };
+    // The score test of the scale on every sample the fit used, the scale inserted.
+    let score = |_: &[bool]| {
+        let with = used.with_scale(true);
+        let x = used.insert_scale(&r.x, 1.0);
+        let (b, _) = with.size_sensitivities(&x)?;
+        score_test(&with, &x, 3, &b, opt.plate_side_uncertainty)
+    };
+    finish(&plates[0], &plates[1..], fit, ring, opt, score)
+}
+
+/// Refuse the harmonics the placements cannot separate ([`super::model::turntable`]): an
+/// order that is a multiple of 4 needs a placement turned so that the error turns by at
+/// least 45° against the plate (`|sin(hθ/2)| ≥ sin 22.5°`); any order whose variance
+/// inflation at the start exceeds [`MAX_INFLATION`] is refused too.
+fn separable(model: &TurntableModel, x0: &DVector<f64>, starts: &[full::Params]) -> Result<(), CalibrationError> {
+    let l = model.layout();
+    if l.orders.is_empty() {
+        return Ok(());
+    }
+    let ne = lm::normal_equations(model, x0).ok_or(CalibrationError::Singular)?;
+    let turns: Vec<f64> = starts.iter().map(|x| starts[0][full::ALPHA0] - x[full::ALPHA0]).collect();
+    let min_turn = std::f64::consts::FRAC_PI_8.sin();
+    for (order, inflation) in l.inflation(&ne.jtj).ok_or(CalibrationError::Singular)? {
+        let symmetric = order % 4 == 0 && !turns.iter().any(|t| (f64::from(order) * t / 2.0).sin().abs() >= min_turn);
+        if symmetric || inflation > MAX_INFLATION {
+            return Err(CalibrationError::HarmonicInseparable { order, inflation, placements: starts.len() });
+        }
+    }
+    Ok(())
 }
 
 fn fit_paper(
@@ -1083,6 +1462,9 @@ fn fit_paper(
                 termination: rep.termination,
                 tip_radius: 0.0,
                 ring: None,
+                angle: AngleError::NONE,
+                named: None,
+                placements: Vec::new(),
             });
         }
         active = next;

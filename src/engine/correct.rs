@@ -3,7 +3,7 @@
 //!
 //! A sample at step `k` with encoder length `rho` touched
 //! `P = (k_s rho - dL) u + d v` (`k_s` the encoder scale) with `u, v` at rail angle
-//! `alpha0 + 2π k/N`
+//! `alpha0 + φ + ε(φ)`, `φ = 2π k/N` (`ε` the turntable's angle error, [`super::angle`])
 //! ([`super::geometry::probe_point`]). [`Corrector`] keeps the rotated table of rail
 //! directions for one `N`, so a scan costs four multiply-adds a sample.
 //!
@@ -21,6 +21,7 @@
 use nalgebra::Vector2;
 use std::f64::consts::TAU;
 
+use super::angle::AngleError;
 use super::geometry::{Mounting, rotate, step_angle};
 use super::scan::{Scan, counts_to_samples};
 
@@ -28,6 +29,7 @@ use super::scan::{Scan, counts_to_samples};
 #[derive(Debug, Clone)]
 pub struct Corrector {
     mounting: Mounting,
+    angle: AngleError,
     steps_per_rev: u32,
     /// `(cos, sin)` of `alpha0 + 2π k/N` for every step, when `N` is reasonable.
     table: Option<Vec<(f64, f64)>>,
@@ -37,21 +39,32 @@ pub struct Corrector {
 const MAX_TABLE: u32 = 1 << 19;
 
 impl Corrector {
+    /// A corrector of a turntable with no angle error.
     pub fn new(mounting: Mounting, steps_per_rev: u32) -> Self {
+        Self::with_angle(mounting, &AngleError::NONE, steps_per_rev)
+    }
+
+    /// A corrector of a turntable whose angle is off by `angle`.
+    pub fn with_angle(mounting: Mounting, angle: &AngleError, steps_per_rev: u32) -> Self {
         let table = (steps_per_rev > 0 && steps_per_rev <= MAX_TABLE).then(|| {
             let cs_alpha = (mounting.alpha0.cos(), mounting.alpha0.sin());
             (0..steps_per_rev)
                 .map(|k| {
-                    let (s, c) = step_angle(k, steps_per_rev).sin_cos();
+                    let phi = step_angle(k, steps_per_rev);
+                    let (s, c) = (phi + angle.at(phi)).sin_cos();
                     rotate((c, s), cs_alpha)
                 })
                 .collect()
         });
-        Corrector { mounting, steps_per_rev, table }
+        Corrector { mounting, angle: angle.clone(), steps_per_rev, table }
     }
 
     pub fn mounting(&self) -> &Mounting {
         &self.mounting
+    }
+
+    pub fn angle(&self) -> &AngleError {
+        &self.angle
     }
 
     pub fn steps_per_rev(&self) -> u32 {
@@ -64,7 +77,8 @@ impl Corrector {
         match &self.table {
             Some(t) => t[step as usize],
             None => {
-                let (s, c) = (self.mounting.alpha0 + step_angle(step, self.steps_per_rev)).sin_cos();
+                let phi = step_angle(step, self.steps_per_rev);
+                let (s, c) = (self.mounting.alpha0 + phi + self.angle.at(phi)).sin_cos();
                 (c, s)
             }
         }

@@ -102,6 +102,9 @@ impl Structure {
                 "harmonics 4, 8, 12: the plate's side or corner radius, the stylus tip or the encoder scale not as set",
             );
         }
+        if has(&|h| h % 4 != 0) {
+            meanings.push("an angle error is fitted with the calibration: set calibration.angle_harmonics (e.g. [1, 2]; the offline --angle-harmonics 1,2)");
+        }
         format!(
             "harmonics {} stand out (p = {:.1e}; structure {:.1} µm rms, noise {:.1} µm with lag-1 correlation {:.2}); {}",
             list.join(", "),

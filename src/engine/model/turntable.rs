@@ -2,11 +2,11 @@
 //! several placements of the plate, with any of the other models' parameters.
 //!
 //! A placement is one scan of the plate, set down anew: its own centre `c_p` and its own
-//! turn `θ_p` against the first (a square plate turned 22.5° between two scans). The rail
-//! angle of sample `n` of placement `p` seen from the plate is
+//! turn `θ_p` against the first (counter-clockwise: a square plate turned 22.5° between
+//! two scans). The rail angle of sample `n` of placement `p` seen from the plate is
 //!
 //! ```text
-//! a_pn = alpha0 + θ_p + φ_n + ε(φ_n),     θ_0 = 0
+//! a_pn = alpha0 - θ_p + φ_n + ε(φ_n),     θ_0 = 0
 //! ```
 //!
 //! and the length the encoder should read is the full model's ([`super::full`]) at that
@@ -21,7 +21,7 @@
 //! ```
 //!
 //! **Jacobian.** The angle enters only through `a`, so with the full model's row
-//! `∂q/∂alpha0` at the sample, `∂q/∂θ_p = ∂q/∂alpha0` (its own placement's rows) and
+//! `∂q/∂alpha0` at the sample, `∂q/∂θ_p = -∂q/∂alpha0` (its own placement's rows) and
 //! `∂q/∂c_h = ∂q/∂alpha0 · cos hφ_n`, `∂q/∂s_h = ∂q/∂alpha0 · sin hφ_n`; the rest is the
 //! full model's, the tip model's and the scale model's rows.
 //!
@@ -252,11 +252,11 @@ impl TurntableModel {
         AngleError::new(self.layout.orders, c).unwrap_or_else(|_| AngleError::zero(self.layout.orders))
     }
 
-    /// Placement `p`'s full-model parameters `[alpha0 + θ_p, d, dL, cx_p, cy_p]`.
+    /// Placement `p`'s full-model parameters `[alpha0 - θ_p, d, dL, cx_p, cy_p]`.
     pub fn placement_params(&self, x: &DVector<f64>, p: usize) -> full::Params {
         let (turn, c) = self.layout.placement(p);
         let theta = turn.map_or(0.0, |i| x[i]);
-        full::Params::from([x[ALPHA0] + theta, x[OFFSET], x[DELTA_L], x[c], x[c + 1]])
+        full::Params::from([x[ALPHA0] - theta, x[OFFSET], x[DELTA_L], x[c], x[c + 1]])
     }
 
     /// Calls `f(source, q, ∂q/∂x, (∂q/∂S, ∂q/∂D))` for every sample at `x` (module docs);
@@ -290,7 +290,7 @@ impl TurntableModel {
                     }
                 }
                 if let Some(i) = turn {
-                    row[i] = da;
+                    row[i] = -da;
                 }
                 row[c] = j[full::CX];
                 row[c + 1] = j[full::CY];
@@ -364,7 +364,7 @@ impl Problem<nalgebra::Dyn> for TurntableModel {
 }
 
 /// The start of the turntable model: every placement's full-model start (its own
-/// `alpha0` and centre: `θ_p` the difference), the first's `d` and `dL`, the scale and tip
+/// `alpha0` and centre: `θ_p` the first's less its own), the first's `d` and `dL`, the scale and tip
 /// given, no angle error, and the ring's centre given.
 pub fn start(
     layout: &Layout,
@@ -387,7 +387,7 @@ pub fn start(
     for (p, xp) in placements.iter().enumerate() {
         let (turn, c) = layout.placement(p);
         if let Some(i) = turn {
-            x[i] = xp[full::ALPHA0] - first[full::ALPHA0];
+            x[i] = first[full::ALPHA0] - xp[full::ALPHA0];
         }
         x[c] = xp[full::CX];
         x[c + 1] = xp[full::CY];
@@ -424,7 +424,10 @@ mod tests {
             &l,
             &[
                 full::params(&Mounting::new(0.0349, 0.005, 0.002), Vector2::new(0.0008, -0.0005)),
-                full::params(&Mounting::new(0.0349 + std::f64::consts::FRAC_PI_8, 0.005, 0.002), Vector2::new(-0.0004, 0.0003)),
+                full::params(
+                    &Mounting::new(0.0349 - std::f64::consts::FRAC_PI_8, 0.005, 0.002),
+                    Vector2::new(-0.0004, 0.0003),
+                ),
             ],
             1.001,
             0.0005,
