@@ -37,8 +37,8 @@ const DEFAULT_BY_HAND: &[&str] =
 const APPENDED: &[(&str, &[&str])] = &[
     // The size figures (metrology), then the calibration it was corrected with (adoption).
     ("tracer_calib_msgs/msg/Contour", &["circumference", "calibration_stamp"]),
-    // The tip radius and the covariance (metrology).
-    ("tracer_calib_msgs/msg/Calibration", &["tip_radius"]),
+    // The tip radius and the covariance, then the angle harmonics and the named covariance (metrology).
+    ("tracer_calib_msgs/msg/Calibration", &["tip_radius", "covariance_names"]),
 ];
 
 /// Rust names of types whose ROS names would clash with another type's (`KeyValue` is

@@ -140,8 +140,13 @@ fn bench(c: &mut Criterion) {
     });
     let contour_pts: Vec<Vector2<f64>> = pts.clone();
     let (radii, gain) = resample_radii_with_gain(&contour_pts, 400, default_max_gap(400)).unwrap();
-    let correction = size::Correction { mounting: m, tip_radius: 0.0, traced: tracer_calib::engine::Traced::Outside };
-    let cov = tracer_calib::engine::calibrate::covariance_from_values(&state.params.covariance).unwrap();
+    let correction = size::Correction {
+        mounting: m,
+        tip_radius: 0.0,
+        traced: tracer_calib::engine::Traced::Outside,
+        angle_orders: tracer_calib::engine::angle::HarmonicOrders::NONE,
+    };
+    let cov = tracer_calib::engine::calibrate::named_covariance_from_values(&state.params.covariance).unwrap();
     c.bench_function("size/uncertainty_400 (smooth fit, C, A, B, FED, U95, radii U95)", |b| {
         b.iter(|| size::uncertainty(black_box(&contour_pts), &radii, &gain, &correction, Some(&cov)).unwrap())
     });

@@ -177,6 +177,7 @@ fn main() {
                         scan_id: 0,
                         dry_run: sent % 4000 == 0,
                         ring_scan_id: 0,
+                        plate_scan_ids: Vec::new(),
                     });
                     if let futures::future::Either::Left((Ok(r), _)) =
                         futures::future::select(std::pin::pin!(call), smol::Timer::after(Duration::from_secs(5))).await

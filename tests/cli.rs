@@ -96,6 +96,7 @@ fn simulate_then_calibrate_json() {
             "iterations",
             "samples_used",
             "covariance",
+            "covariance_names",
         ];
         let at: Vec<usize> = keys.iter().map(|k| text.find(&format!("\"{k}\":")).expect(k)).collect();
         assert!(at.windows(2).all(|w| w[0] < w[1]), "{text}");
@@ -116,6 +117,60 @@ fn simulate_then_calibrate_json() {
             assert!((v[key].as_f64().unwrap() - truth).abs() < 5.0 * sd[i], "{model} {key}: {v}");
         }
     }
+}
+
+#[test]
+fn angle_harmonics_from_two_placements() {
+    let (a, b) = (temp("turn0.csv"), temp("turn22.csv"));
+    for (path, turn, seed) in [(&a, "0", "1"), (&b, "22.5", "2")] {
+        let o = tool(&[
+            "simulate",
+            "--angle-harmonic",
+            "1:0.05:0",
+            "--angle-harmonic",
+            "2:0:0.02",
+            "--plate-turn-deg",
+            turn,
+            "--noise",
+            "3e-6",
+            "--seed",
+            seed,
+            "--out",
+            path.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    // Without the harmonics the plate's residuals show them: refused, naming the remedy.
+    let o = tool(&["calibrate", "--input", a.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("calibration.angle_harmonics"), "{}", stderr(&o));
+    // One placement cannot tell order 4.
+    let o = tool(&["calibrate", "--input", a.to_str().unwrap(), "--angle-harmonics", "1,2,4", "--json"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(json(&o)["message"].as_str().unwrap().contains("22.5°"), "{}", json(&o));
+    let o = tool(&[
+        "calibrate",
+        "--input",
+        a.to_str().unwrap(),
+        "--input",
+        b.to_str().unwrap(),
+        "--angle-harmonics",
+        "1,2,4",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v = json(&o);
+    let names: Vec<&str> = v["covariance_names"].as_array().unwrap().iter().map(|x| x.as_str().unwrap()).collect();
+    assert_eq!(names[..5], ["alpha0", "offset", "delta_l", "scale", "tip_radius"]);
+    assert_eq!(names[5..], ["angle_c1", "angle_s1", "angle_c2", "angle_s2", "angle_c4", "angle_s4"]);
+    assert_eq!(v["covariance"].as_array().unwrap().len(), 121);
+    assert_eq!(v["angle_harmonics"], serde_json::json!([1, 2, 4]));
+    let c: Vec<f64> = v["angle_coefficients"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let sd = |i: usize| v["covariance"][i * 11 + i].as_f64().unwrap().sqrt();
+    for (i, want) in [0.05f64.to_radians(), 0.0, 0.0, 0.02f64.to_radians(), 0.0, 0.0].iter().enumerate() {
+        assert!((c[i] - want).abs() < 5.0 * sd(5 + i), "coefficient {i}: {} against {want} ± {}", c[i], sd(5 + i));
+    }
+    assert!((v["alpha0"].as_f64().unwrap() - 2f64.to_radians()).abs() < 5.0 * sd(0), "{v}");
 }
 
 #[test]
@@ -320,7 +375,7 @@ fn history_table_json_and_svg_with_a_torn_last_line() {
     let mut previous = None;
     for (i, offset) in [0.005, 0.005_001, 0.005_2].iter().enumerate() {
         let r = Record {
-            format: tracer_calib::records::HISTORY_FORMAT,
+            format: 2,
             time: format!("2026-11-{:02}T08:00:00.000Z", 20 + i),
             node: "/cell1/tracer".into(),
             scan_id: 10 + i as u32,
@@ -335,6 +390,10 @@ fn history_table_json_and_svg_with_a_torn_last_line() {
             iterations: 7,
             tip_radius: 0.0,
             covariance: Vec::new(),
+            covariance_names: Vec::new(),
+            angle_harmonics: Vec::new(),
+            angle_coefficients: Vec::new(),
+            plate_scan_ids: Vec::new(),
             previous,
             ros_time: None,
         };

@@ -180,7 +180,8 @@ fn contours_out_of_float_range_are_refused() {
         assert_eq!(st.stats.scans_rejected, 1);
         assert_eq!(st.stats.contours_published, 0);
         // The plate scan was kept: /calibrate finds it (and fails on its own terms).
-        let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true, ring_scan_id: 0 });
+        let out =
+            st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true, ring_scan_id: 0, plate_scan_ids: vec![] });
         assert!(!out.response.message.contains("no calibration-plate scan"), "{}", out.response.message);
     }
     // The largest scale that still fits is published, finite.

@@ -11,6 +11,7 @@ use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use size_coverage::{Coverage, run};
+use tracer_calib::engine::angle::HarmonicOrders;
 use tracer_calib::engine::correct::{correct, resample_radii};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::model::ModelKind;
@@ -83,7 +84,7 @@ fn the_calibration_responses_are_the_chains_own() {
             HARMONICS,
         )
         .unwrap();
-        let correction = Correction { mounting: m, tip_radius: tip, traced };
+        let correction = Correction { mounting: m, tip_radius: tip, traced, angle_orders: HarmonicOrders::NONE };
         let h = [1e-5, 1e-6, 1e-6, 1e-5, 1e-6];
         for (j, hj) in h.into_iter().enumerate() {
             let mut moved = m;

@@ -3,7 +3,7 @@
 //! that cannot be recorded, leaves the calibration in force as it was on disk.
 
 use super::{InForce, NodeState, Now};
-use crate::engine::calibrate::{Calibration, Ring, calibrate_with_ring, covariance_values};
+use crate::engine::calibrate::{Calibration, Ring, calibrate_placements, named_covariance_values};
 use crate::engine::geometry::Mounting;
 use crate::interfaces::{CalibrateRequest, CalibrateResponse};
 use crate::records::{self, Previous, Record};
@@ -36,19 +36,31 @@ impl NodeState {
                 applied: None,
             }
         };
-        let plate =
-            if req.scan_id == 0 { self.plates.back() } else { self.plates.iter().find(|p| p.scan_id == req.scan_id) };
-        let Some(plate) = plate else {
-            let have: Vec<String> = self.plates.iter().map(|p| p.scan_id.to_string()).collect();
-            let message = if have.is_empty() {
-                "no calibration-plate scan received yet (publish a RawScan with target TARGET_CALIBRATION_PLATE)"
-                    .to_string()
-            } else {
-                format!("no calibration-plate scan with scan_id {} (kept: {})", req.scan_id, have.join(", "))
+        // The plate scans: those of plate_scan_ids, each a placement; else scan_id's.
+        let wanted = if req.plate_scan_ids.is_empty() { vec![req.scan_id] } else { req.plate_scan_ids.clone() };
+        let mut plates = Vec::with_capacity(wanted.len());
+        for &id in &wanted {
+            let plate = if id == 0 { self.plates.back() } else { self.plates.iter().find(|p| p.scan_id == id) };
+            let Some(plate) = plate else {
+                let have: Vec<String> = self.plates.iter().map(|p| p.scan_id.to_string()).collect();
+                let message = if have.is_empty() {
+                    "no calibration-plate scan received yet (publish a RawScan with target TARGET_CALIBRATION_PLATE)"
+                        .to_string()
+                } else {
+                    format!("no calibration-plate scan with scan_id {id} (kept: {})", have.join(", "))
+                };
+                return fail(self, message);
             };
-            return fail(self, message);
-        };
-        let scan_id = plate.scan_id;
+            if plates.iter().any(|p: &&super::scans::KeptScan| p.scan_id == plate.scan_id) {
+                return fail(
+                    self,
+                    format!("plate_scan_ids names scan {} twice: each scan is one placement", plate.scan_id),
+                );
+            }
+            plates.push(plate);
+        }
+        let scan_id = plates[0].scan_id;
+        let more_ids: Vec<u32> = plates[1..].iter().map(|p| p.scan_id).collect();
         // The tip models fit the tip's radius from a ring-gauge scan too.
         let model = self.params.model;
         let ring = if model.fits_tip() {
@@ -77,15 +89,18 @@ impl NodeState {
         } else {
             None
         };
-        let fitted = calibrate_with_ring(
-            &plate.scan,
+        let scans: Vec<&crate::engine::scan::Scan> = plates.iter().map(|p| &p.scan).collect();
+        let fitted = calibrate_placements(
+            &scans,
             ring.as_ref().map(|(_, r)| *r),
             &self.params.plate,
             &self.params.calibration_options(),
         );
-        let scans = match &ring {
-            Some((ring_id, _)) => format!("scans {scan_id} and {ring_id} (ring gauge)"),
-            None => format!("scan {scan_id}"),
+        let plate_ids: Vec<String> = plates.iter().map(|p| p.scan_id.to_string()).collect();
+        let scans = match (&ring, plate_ids.len()) {
+            (Some((ring_id, _)), _) => format!("scans {} and {ring_id} (ring gauge)", plate_ids.join(", ")),
+            (None, 1) => format!("scan {scan_id}"),
+            (None, _) => format!("scans {}", plate_ids.join(", ")),
         };
         let cal = match fitted {
             Ok(cal) => cal,
@@ -117,7 +132,7 @@ impl NodeState {
             return CalibrateOutcome { response, applied: None };
         }
         let record = Record {
-            format: records::HISTORY_FORMAT,
+            format: records::format_for(&response.angle_coefficients),
             time: records::format_utc(now.wall),
             node: self.fqn.clone(),
             scan_id,
@@ -132,12 +147,23 @@ impl NodeState {
             iterations: cal.iterations as u32,
             tip_radius: cal.tip_radius,
             covariance: response.covariance.clone(),
+            covariance_names: if response.angle_coefficients.is_empty() {
+                Vec::new()
+            } else {
+                response.covariance_names.clone()
+            },
+            angle_harmonics: response.angle_harmonics.iter().map(|&h| i64::from(h)).collect(),
+            angle_coefficients: response.angle_coefficients.clone(),
+            plate_scan_ids: more_ids,
             previous: previous.map(Previous::from),
             ros_time: Some(records::RosTime::from_nanos(now.ros.to_nanos())),
         };
         self.params.calibration = cal.mounting;
         self.params.calibration_valid = true;
         self.params.covariance = response.covariance.clone();
+        self.params.covariance_names =
+            if response.angle_coefficients.is_empty() { Vec::new() } else { response.covariance_names.clone() };
+        self.params.angle_coefficients = response.angle_coefficients.clone();
         self.params.tip_radius = cal.tip_radius;
         // The time the record gives, to the millisecond: what a restart reads back.
         self.in_force = InForce {
@@ -167,7 +193,7 @@ impl NodeState {
 /// `scale` and `scale_stddev` are the fitted ones, or 1 and 0 for a model that does not
 /// fit the scale; `tip_radius` the one in force after the fit (fitted by the tip models,
 /// else the known one) with its uncertainty (0 unless fitted); `covariance` the whole
-/// covariance, in the contract's layout.
+/// covariance over `covariance_names` (the contract's five, then the angle coefficients).
 pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
     let (scale, scale_stddev) =
         if cal.model.fits_scale() { (cal.mounting.scale, cal.scale_stddev) } else { (1.0, 0.0) };
@@ -185,6 +211,9 @@ pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
         scale_stddev,
         tip_radius: cal.tip_radius,
         tip_radius_stddev: cal.tip_radius_stddev,
-        covariance: covariance_values(&cal.covariance),
+        covariance: named_covariance_values(&cal.named_covariance),
+        covariance_names: cal.covariance_names(),
+        angle_harmonics: cal.angle.orders().iter().map(|h| h as i32).collect(),
+        angle_coefficients: cal.angle.coefficients().to_vec(),
     }
 }

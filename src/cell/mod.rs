@@ -23,6 +23,8 @@ use std::collections::VecDeque;
 use std::path::Path;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
+use crate::engine::angle::HarmonicOrders;
+use crate::engine::calibrate::covariance_names;
 use crate::engine::correct::Corrector;
 use crate::interfaces::{Header, Time, tracer_calib_msgs as msgs};
 use crate::params::{Parameters, names, persist as params_persist};
@@ -177,6 +179,7 @@ impl NodeState {
     /// The `calibration` message: the calibration in force.
     pub fn calibration_msg(&self) -> msgs::Calibration {
         let p = &self.params;
+        let angle = p.angle_in_force();
         msgs::Calibration {
             header: Header { stamp: self.in_force.ros_time, frame_id: p.output_frame_id.clone() },
             valid: p.calibration_valid,
@@ -191,6 +194,21 @@ impl NodeState {
             samples_used: self.in_force.samples_used,
             tip_radius: p.tip_radius,
             covariance: if p.calibration_valid { p.covariance.clone() } else { Vec::new() },
+            covariance_names: match (p.calibration_valid && !p.covariance.is_empty(), p.covariance_names.is_empty()) {
+                (false, _) => Vec::new(),
+                (true, true) => covariance_names(HarmonicOrders::NONE),
+                (true, false) => p.covariance_names.clone(),
+            },
+            angle_harmonics: if angle.coefficients().is_empty() {
+                Vec::new()
+            } else {
+                angle.orders().to_vec().into_iter().map(|h| h as i32).collect()
+            },
+            angle_coefficients: if angle.coefficients().is_empty() {
+                Vec::new()
+            } else {
+                angle.coefficients().to_vec()
+            },
         }
     }
 

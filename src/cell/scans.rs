@@ -5,7 +5,6 @@ use super::NodeState;
 use super::intake::{self, ScanRejected};
 use nalgebra::Vector2;
 
-use crate::engine::calibrate::covariance_from_values;
 use crate::engine::correct::{Corrector, PolarContour, default_max_gap, resample_radii};
 use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
@@ -65,10 +64,11 @@ impl NodeState {
         }
         let calibration = self.params.calibration_in_force();
         let mounting = calibration.unwrap_or(Mounting::IDEAL);
+        let angle = self.params.angle_in_force();
         let steps_per_rev = msg.steps_per_revolution;
         let corrector = match &self.corrector {
-            Some(c) if *c.mounting() == mounting && c.steps_per_rev() == steps_per_rev => c,
-            _ => self.corrector.insert(Corrector::new(mounting, steps_per_rev)),
+            Some(c) if *c.mounting() == mounting && *c.angle() == angle && c.steps_per_rev() == steps_per_rev => c,
+            _ => self.corrector.insert(Corrector::with_angle(mounting, &angle, steps_per_rev)),
         };
         let n = msg.step.len();
         let mut points = Vec::with_capacity(n);
@@ -113,8 +113,8 @@ impl NodeState {
         let surface: Vec<Vector2<f64>> = points.iter().map(|p| Vector2::new(p.x, p.y)).collect();
         let resampled = if radii.is_empty() { resample_radii(&surface, SIZE_RADII, max_gap) } else { None };
         let sized = if radii.is_empty() { resampled.as_deref() } else { Some(radii.as_slice()) };
-        let covariance = calibration.and_then(|_| covariance_from_values(&self.params.covariance).ok());
-        let correction = Correction { mounting, tip_radius: tip, traced };
+        let covariance = self.params.covariance_in_force();
+        let correction = Correction { mounting, tip_radius: tip, traced, angle_orders: angle.orders() };
         let report = sized.and_then(|r| size::uncertainty(&surface, r, &radii_gain, &correction, covariance.as_ref()));
         let header = Header { stamp: msg.header.stamp, frame_id: self.params.output_frame_id.clone() };
         let polygon = with_polygon.then(|| PolygonStamped {

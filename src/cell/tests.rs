@@ -4,6 +4,7 @@ use super::intake::MAX_SAMPLES;
 use super::*;
 use crate::engine::geometry::Mounting;
 use crate::engine::model::PlateSpec;
+use crate::engine::shape::Shape;
 use crate::engine::simulate::{SimOptions, simulate};
 use crate::interfaces::{CalibrateRequest, DiagnosticArray, DiagnosticStatus, Header, RawScan, Time};
 use crate::params::Parameters;
@@ -42,7 +43,8 @@ fn scans_are_corrected_once_calibrated() {
     assert_eq!(before.contour.points.len(), 400);
     assert_eq!(before.contour.radii.len(), 400);
     assert_eq!(before.polygon.as_ref().unwrap().polygon.points.len(), 400);
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
+    let out =
+        st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(out.response.success, "{}", out.response.message);
     assert!((out.response.offset - 0.004).abs() < 1e-5);
     assert_eq!(out.response.stddev.len(), 3);
@@ -110,11 +112,13 @@ fn a_failed_calibration_keeps_the_old_one() {
     let in_force = st.params.calibration;
     // A wrong plate size: the fit is refused, the calibration stays.
     st.params.plate.side = 0.05;
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 5, dry_run: false, ring_scan_id: 0 });
+    let out =
+        st.on_calibrate(&CalibrateRequest { scan_id: 5, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(!out.response.success);
     assert!(out.response.message.contains("does not match the plate"), "{}", out.response.message);
     assert_eq!(st.params.calibration, in_force);
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 77, dry_run: false, ring_scan_id: 0 });
+    let out =
+        st.on_calibrate(&CalibrateRequest { scan_id: 77, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert_eq!(out.response.message, "no calibration-plate scan with scan_id 77 (kept: 5)");
     assert_eq!(st.stats.calibrations_failed, 3);
 }
@@ -124,11 +128,12 @@ fn dry_runs_change_nothing_and_persisting_failures_are_reported() {
     let m = Mounting::new(0.01, 0.003, 0.001);
     let mut st = NodeState::new("/t".into(), Parameters::default());
     st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true, ring_scan_id: 0 });
+    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: true, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(out.response.success && out.applied.is_none());
     assert!(!st.params.calibration_valid);
     st.params.params_file = "/nonexistent-dir/x/params.yaml".into();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
+    let out =
+        st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(!out.response.success);
     assert!(
         out.response.message.starts_with(
@@ -170,7 +175,8 @@ fn an_encoder_scale_error_is_refused_by_full_and_corrected_with_full_scale() {
     let m = Mounting::new(0.02, 0.004, 0.001).with_scale(1.0 / 1.0025);
     let mut st = NodeState::new("/t".into(), Parameters::default());
     st.on_raw_scan(&plate_msg(3, &m), true).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
+    let out =
+        st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(!out.response.success);
     assert!(out.response.message.contains("encoder scale looks off"), "{}", out.response.message);
     assert!(!st.params.calibration_valid, "the failed fit applied nothing");
@@ -179,7 +185,8 @@ fn an_encoder_scale_error_is_refused_by_full_and_corrected_with_full_scale() {
     assert!(diag.status[0].message.contains("encoder scale looks off"), "{}", diag.status[0].message);
 
     st.params.set("model", &crate::params::ParamValue::String("full_scale".into())).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 });
+    let out =
+        st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(out.response.success, "{}", out.response.message);
     let r = &out.response;
     assert!((r.scale - m.scale).abs() < 5.0 * r.scale_stddev && r.scale_stddev > 0.0, "{r:?}");
@@ -229,14 +236,16 @@ fn applied_calibrations_are_recorded_naming_the_one_they_replaced() {
     assert!(!st.calibration_msg().valid);
     let m = Mounting::new(0.02, 0.004, 0.001);
     st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
-    let dry = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: true, ring_scan_id: 0 });
+    let dry = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: true, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(dry.response.success);
     assert!(!history.exists(), "a dry run is not recorded");
-    let first = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 });
+    let first =
+        st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(first.response.success, "{}", first.response.message);
     assert!(!first.response.message.contains("moved"), "nothing to move from: {}", first.response.message);
     st.on_raw_scan(&plate_msg(2, &m), true).unwrap();
-    let second = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false, ring_scan_id: 0 });
+    let second =
+        st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(second.response.success);
     assert!(
         second.response.message.contains("moved since the previous calibration: alpha0"),
@@ -302,7 +311,8 @@ fn a_history_that_cannot_be_written_fails_the_call_and_persists_nothing() {
     };
     let mut st = NodeState::new("/t".into(), params);
     st.on_raw_scan(&plate_msg(1, &Mounting::new(0.01, 0.003, 0.001)), true).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 });
+    let out =
+        st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(!out.response.success);
     assert!(
         out.response.message.starts_with("calibration applied in memory but not persisted: cannot append to"),
@@ -325,7 +335,11 @@ fn overdue_and_drifted_calibrations_warn_on_diagnostics() {
     let m = Mounting::new(0.02, 0.004, 0.001);
     let mut st = NodeState::new("/t".into(), Parameters::default());
     st.on_raw_scan(&plate_msg(1, &m), true).unwrap();
-    assert!(st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 }).response.success);
+    assert!(
+        st.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] })
+            .response
+            .success
+    );
     let applied = st.in_force.applied_at;
     let at = |days: f64| Now::at(applied + Duration::from_secs_f64(days * 86_400.0));
     let d = st.diagnostics(at(40.0));
@@ -343,7 +357,8 @@ fn overdue_and_drifted_calibrations_warn_on_diagnostics() {
     // The tracer knocked: d moved by 0.1 mm, far beyond its few-µm uncertainty.
     let knocked = Mounting::new(0.02, 0.0041, 0.001);
     st.on_raw_scan(&plate_msg(2, &knocked), true).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false, ring_scan_id: 0 });
+    let out =
+        st.on_calibrate(&CalibrateRequest { scan_id: 2, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(out.response.success, "{}", out.response.message);
     assert!(out.response.message.contains("more than calibration.drift_warn_sigma = 10"), "{}", out.response.message);
     let d = st.diagnostics(at(0.0));
@@ -384,9 +399,12 @@ fn sim_time_stamps_and_records() {
     let wall = UNIX_EPOCH + Duration::from_secs(1_800_000_000);
     let sim = Time::from_nanos(5_003_250_000_000);
     assert!(
-        st.on_calibrate_at(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 }, Now { wall, ros: sim })
-            .response
-            .success
+        st.on_calibrate_at(
+            &CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] },
+            Now { wall, ros: sim }
+        )
+        .response
+        .success
     );
     assert_eq!(st.calibration_msg().header.stamp, sim);
     let r = &records::file::read(&history).unwrap().records[0];
@@ -422,7 +440,12 @@ fn a_managed_node_holds_scans_until_active_and_reads_its_history_when_configured
     let m = Mounting::new(0.02, 0.004, 0.001);
     let mut first = NodeState::new("/m".into(), params.clone());
     first.on_raw_scan(&plate_msg(1, &m), true).unwrap();
-    assert!(first.on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0 }).response.success);
+    assert!(
+        first
+            .on_calibrate(&CalibrateRequest { scan_id: 1, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] })
+            .response
+            .success
+    );
     assert!(first.is_active() && first.calibrate_refused().is_none());
     let params = first.params.clone();
 
@@ -523,7 +546,7 @@ fn the_tip_is_fitted_from_a_ring_gauge_and_contours_are_of_the_touched_surface()
     let mut st = NodeState::new("/cell1/tracer".into(), p.clone());
     let plate = PlateSpec::default().at(Vector2::new(0.0005, -0.0003));
     st.on_raw_scan(&traced_msg(1, RawScan::TARGET_CALIBRATION_PLATE, &plate, &m, tip).0, false).unwrap();
-    let req = CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 };
+    let req = CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] };
     // No ring.diameter, then no ring-gauge scan: refused, naming what is missing.
     let out = st.on_calibrate(&req);
     assert!(!out.response.success && out.response.message.contains("ring.diameter"), "{}", out.response.message);
@@ -535,7 +558,7 @@ fn the_tip_is_fitted_from_a_ring_gauge_and_contours_are_of_the_touched_surface()
     // A ring-gauge scan, and a second one of a wrong ring (a plate) named by ring_scan_id.
     st.on_raw_scan(&traced_msg(2, RawScan::TARGET_RING_GAUGE, &ring_gauge(), &m, tip).0, false).unwrap();
     st.on_raw_scan(&traced_msg(3, RawScan::TARGET_RING_GAUGE, &plate, &m, tip).0, false).unwrap();
-    let out = st.on_calibrate(&CalibrateRequest { ring_scan_id: 3, ..req });
+    let out = st.on_calibrate(&CalibrateRequest { ring_scan_id: 3, ..req.clone() });
     assert!(!out.response.success && out.response.message.contains("ring"), "{}", out.response.message);
     assert!(!st.params.calibration_valid, "a failed fit applies nothing");
     let out = st.on_calibrate(&CalibrateRequest { ring_scan_id: 2, ..req });
@@ -590,4 +613,94 @@ fn the_tip_is_fitted_from_a_ring_gauge_and_contours_are_of_the_touched_surface()
     half.counts.truncate(200);
     let c = st.on_raw_scan(&half, false).unwrap().contour;
     assert_eq!((c.circumference, c.size_u95, c.radii_u95.len()), (0.0, [0.0; 4], 0));
+}
+
+/// A plate scan of a turntable whose angle is off once and twice a turn, the plate turned
+/// by `turn` (counter-clockwise).
+fn turned_plate_msg(scan_id: u32, m: &Mounting, turn: f64) -> RawScan {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(u64::from(scan_id));
+    let deg = 1f64.to_radians();
+    let opt = SimOptions {
+        noise: 2e-6,
+        angle_harmonics: [(1, 0.05 * deg, 0.0), (2, 0.0, 0.02 * deg), (0, 0.0, 0.0)],
+        ..SimOptions::default()
+    };
+    let turned = Mounting { alpha0: m.alpha0 - turn, ..*m };
+    let sim = simulate(&PlateSpec::default().at(Vector2::new(0.0005, -0.0003)), &turned, &opt, &mut rng).unwrap();
+    RawScan {
+        header: Header::default(),
+        scan_id,
+        target: RawScan::TARGET_CALIBRATION_PLATE,
+        steps_per_revolution: 400,
+        step: sim.scan.samples().iter().map(|s| s.step).collect(),
+        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+    }
+}
+
+#[test]
+fn two_placements_fit_the_angle_harmonics_and_every_layer_carries_them() {
+    let dir = std::env::temp_dir().join(format!("tracer_calib_cell_angle_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let params = Parameters {
+        params_file: dir.join("p.yaml").display().to_string(),
+        history_file: dir.join("h.jsonl").display().to_string(),
+        angle_harmonics: crate::engine::angle::HarmonicOrders::new(&[1, 2, 4]).unwrap(),
+        ..Parameters::default()
+    };
+    let mut st = NodeState::new("/cell1/tracer".into(), params.clone());
+    let m = Mounting::new(0.02, 0.004, 0.001);
+    st.on_raw_scan(&turned_plate_msg(1, &m, 0.0), false).unwrap();
+    st.on_raw_scan(&turned_plate_msg(2, &m, 22.5f64.to_radians()), false).unwrap();
+    // One placement cannot tell order 4: refused, saying what to add; nothing applied.
+    let one = st.on_calibrate(&CalibrateRequest { scan_id: 1, ..CalibrateRequest::default() });
+    assert!(!one.response.success && one.response.message.contains("22.5°"), "{}", one.response.message);
+    assert!(!st.params.calibration_valid);
+    let twice = st.on_calibrate(&CalibrateRequest { plate_scan_ids: vec![1, 1], ..CalibrateRequest::default() });
+    assert!(twice.response.message.contains("twice"), "{}", twice.response.message);
+    let out = st.on_calibrate(&CalibrateRequest { plate_scan_ids: vec![1, 2], ..CalibrateRequest::default() });
+    let r = &out.response;
+    assert!(r.success, "{}", r.message);
+    assert!(r.message.contains("scans 1, 2") && r.message.contains("2 placements"), "{}", r.message);
+    assert_eq!(r.angle_harmonics, [1, 2, 4]);
+    assert_eq!(r.covariance_names.len(), 11);
+    assert_eq!(r.covariance_names[5..7], ["angle_c1".to_string(), "angle_s1".to_string()]);
+    assert_eq!(r.covariance.len(), 121);
+    let c1 = r.angle_coefficients[0];
+    let u1 = r.covariance[5 * 11 + 5].sqrt();
+    assert!((c1 - 0.05f64.to_radians()).abs() < 4.0 * u1, "{c1} ± {u1}");
+    // In force: the parameters, the calibration message, the history (format 3).
+    assert_eq!(st.params.angle_coefficients, r.angle_coefficients);
+    assert_eq!(st.params.covariance_names, r.covariance_names);
+    let msg = st.calibration_msg();
+    assert_eq!(
+        (msg.angle_harmonics.clone(), msg.angle_coefficients.clone()),
+        (vec![1, 2, 4], r.angle_coefficients.clone())
+    );
+    assert_eq!(msg.covariance_names, r.covariance_names);
+    let h = records::file::read(&dir.join("h.jsonl")).unwrap();
+    let rec = h.records.last().unwrap();
+    assert_eq!((rec.format, rec.plate_scan_ids.clone()), (3, vec![2]));
+    assert_eq!(rec.angle_coefficients, r.angle_coefficients);
+    // Persisted, and read back whole.
+    let file = params_file::read(Path::new(&params.params_file)).unwrap();
+    let mut reloaded = Parameters::default();
+    reloaded.apply_file(&file, "/cell1/tracer", "p.yaml").unwrap();
+    assert_eq!(reloaded.angle_in_force(), st.params.angle_in_force());
+    assert_eq!(reloaded.covariance, st.params.covariance);
+    // A plate scan corrected with the angle in force is the plate: its points within a
+    // few micrometres of the plate's outline.
+    let contour = st.on_raw_scan(&turned_plate_msg(3, &m, 0.0), false).unwrap().contour;
+    let plate = PlateSpec::default().at(Vector2::new(0.0005, -0.0003));
+    let worst = contour
+        .points
+        .iter()
+        .map(|p| {
+            let q = Vector2::new(p.x, p.y);
+            let centre = plate.center;
+            let hit = plate.exit(centre, (q - centre).normalize()).unwrap();
+            ((q - centre).norm() - hit.t).abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 15e-6, "worst point {worst}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use super::exit;
 use crate::cell::{intake, response_for};
-use crate::engine::calibrate::{Options, Ring, calibrate_with_ring};
+use crate::engine::calibrate::{Options, Ring, calibrate_placements};
 use crate::engine::model::ModelKind;
 use crate::engine::scan::Scan;
 use crate::interfaces::{CalibrateResponse, RawScan};
@@ -19,19 +19,31 @@ use crate::params::{Parameters, ParamsFile, file as params_file};
 ///   tracer_calib calibrate --input plate.csv --plate-side 0.045 --corner-radius 0.003 --json
 ///   tracer_calib calibrate --input plate.csv --model full_tip --ring ring.csv --ring-diameter 0.04
 ///   tracer_calib calibrate --input cell.mcap --model full_tip --ring-diameter 0.04
+///   tracer_calib calibrate --input a.csv --input b.csv --angle-harmonics 1,2,4 --json
+///   tracer_calib calibrate --input cell.mcap --plate-scans 1,5 --angle-harmonics 1,2,4
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
     /// The scan: a CSV file with the header 'step,counts' (one revolution), or a
-    /// rosbag2 bag (directory with metadata.yaml, .mcap or .db3).
-    #[arg(long, value_name = "PATH")]
-    pub input: PathBuf,
+    /// rosbag2 bag (directory with metadata.yaml, .mcap or .db3). Given again, each is
+    /// another placement of the plate (its own centre and turn), fitted together.
+    #[arg(long, value_name = "PATH", required = true)]
+    pub input: Vec<PathBuf>,
     /// Topic of the RawScan messages in a bag.
     #[arg(long, default_value = "/raw_scan")]
     pub topic: String,
-    /// Which plate scan of a bag; 0 = the latest.
+    /// Which plate scan of a bag; 0 = the latest (with --angle-harmonics: every one).
     #[arg(long, default_value_t = 0)]
     pub scan_id: u32,
+    /// The plate scans of a bag fitted together, each a placement with its own centre and
+    /// turn (scan ids, comma-separated).
+    #[arg(long, value_name = "ID,ID", value_delimiter = ',')]
+    pub plate_scans: Vec<u32>,
+    /// Orders of the turntable's angle error fitted with the model
+    /// (calibration.angle_harmonics; comma-separated, e.g. 1,2 or 1,2,4). Orders 4 and 8
+    /// need a second placement turned 22.5°.
+    #[arg(long, value_name = "H,H", value_delimiter = ',')]
+    pub angle_harmonics: Vec<i64>,
     /// A ROS 2 params file (plate, encoder scale, model), as the node persists it.
     #[arg(long, value_name = "FILE")]
     pub params: Option<PathBuf>,
@@ -129,6 +141,12 @@ pub fn settings(args: &Args) -> Result<Parameters, String> {
     if let Some(m) = args.model {
         p.model = m;
     }
+    if !args.angle_harmonics.is_empty() {
+        // What to fit; the coefficients a --params file holds are not used here.
+        p.angle_harmonics = crate::engine::angle::HarmonicOrders::new(&args.angle_harmonics)
+            .map_err(|e| format!("--angle-harmonics: {e}"))?;
+        p.angle_coefficients.clear();
+    }
     Ok(p)
 }
 
@@ -153,9 +171,44 @@ pub fn default_section(file: &ParamsFile) -> String {
     }
 }
 
-/// Read the plate scan named by the arguments.
-pub fn load_scan(args: &Args, p: &Parameters) -> Result<Scan, String> {
-    read_scan(&args.input, args, args.scan_id, RawScan::TARGET_CALIBRATION_PLATE, p)
+/// Read the plate scans named by the arguments, each a placement: every CSV input; of a
+/// bag, those of --plate-scans, else --scan-id's (0: the latest; with angle harmonics and
+/// no --scan-id, every plate scan of the bag).
+pub fn load_scans(args: &Args, p: &Parameters) -> Result<Vec<Scan>, String> {
+    let plate = RawScan::TARGET_CALIBRATION_PLATE;
+    let mut scans = Vec::new();
+    for path in &args.input {
+        if !is_bag(path) {
+            scans.push(read_scan(path, args, 0, plate, p)?);
+            continue;
+        }
+        let ids = if !args.plate_scans.is_empty() {
+            args.plate_scans.clone()
+        } else if args.scan_id == 0 && !p.angle_harmonics.is_empty() {
+            plate_scan_ids(path, &args.topic)?
+        } else {
+            vec![args.scan_id]
+        };
+        for id in ids {
+            scans.push(read_scan(path, args, id, plate, p)?);
+        }
+    }
+    Ok(scans)
+}
+
+/// The ids of every plate scan on `topic` of a bag, in the order recorded (each once).
+fn plate_scan_ids(path: &Path, topic: &str) -> Result<Vec<u32>, String> {
+    let bag = Bag::open(path).map_err(|e| e.to_string())?;
+    let mut ids: Vec<u32> = Vec::new();
+    for (_, m) in bag.read::<RawScan>(topic).map_err(|e| e.to_string())? {
+        if m.target == RawScan::TARGET_CALIBRATION_PLATE && !ids.contains(&m.scan_id) {
+            ids.push(m.scan_id);
+        }
+    }
+    if ids.is_empty() {
+        return Err(format!("{}: no calibration-plate scan on {topic}", path.display()));
+    }
+    Ok(ids)
 }
 
 /// Read the ring-gauge scan a tip model needs (`--ring`, else the `--input` bag), or
@@ -170,10 +223,12 @@ pub fn load_ring(args: &Args, p: &Parameters) -> Result<Option<Scan>, String> {
             p.model
         ));
     }
-    let path = match &args.ring {
-        Some(path) => path,
-        None if is_bag(&args.input) => &args.input,
-        None => return Err(format!("model {} needs a ring-gauge scan: --ring PATH (a CSV file or a bag)", p.model)),
+    let path = match (&args.ring, args.input.iter().find(|p| is_bag(p))) {
+        (Some(path), _) => path,
+        (None, Some(bag)) => bag,
+        (None, None) => {
+            return Err(format!("model {} needs a ring-gauge scan: --ring PATH (a CSV file or a bag)", p.model));
+        }
     };
     read_scan(path, args, args.ring_scan_id, RawScan::TARGET_RING_GAUGE, p).map(Some)
 }
@@ -247,17 +302,18 @@ pub fn scan_from_bag(path: &Path, topic: &str, scan_id: u32, target: u8) -> Resu
 pub fn run(args: &Args) -> i32 {
     let model = args.model.unwrap_or_default();
     let outcome = settings(args).and_then(|p| {
-        let scan = load_scan(args, &p)?;
+        let scans = load_scans(args, &p)?;
         let ring = load_ring(args, &p)?;
-        Ok((p, scan, ring))
+        Ok((p, scans, ring))
     });
-    let (p, scan, ring) = match outcome {
+    let (p, scans, ring) = match outcome {
         Ok(v) => v,
         Err(e) => return report(args, &failure(e), model, exit::BAD_INPUT),
     };
     let opts = p.calibration_options();
     let ring = ring.as_ref().zip(p.ring()).map(|(scan, spec)| Ring { scan, spec });
-    match calibrate_with_ring(&scan, ring, &p.plate, &opts) {
+    let plates: Vec<&Scan> = scans.iter().collect();
+    match calibrate_placements(&plates, ring, &p.plate, &opts) {
         Ok(cal) => report(args, &response_for(&cal, cal.summary()), p.model, exit::OK),
         Err(e) => report(args, &failure(format!("calibration failed: {e}")), p.model, exit::FIT_FAILED),
     }
@@ -265,11 +321,16 @@ pub fn run(args: &Args) -> i32 {
 
 /// The response as the `--json` object: the Calibrate response's fields in order,
 /// `scale` and `scale_stddev` only for a model that fits the scale, `tip_radius` and
-/// `tip_radius_stddev` only for one that fits the tip radius, `covariance` always
-/// (docs/CONTRACT.md).
+/// `tip_radius_stddev` only for one that fits the tip radius, `covariance` and
+/// `covariance_names` always, `angle_harmonics` and `angle_coefficients` only when
+/// harmonics were fitted (docs/CONTRACT.md).
 fn json_of(r: &Response, model: ModelKind) -> String {
     let mut v = serde_json::to_value(r).expect("a response serialises");
     if let Some(o) = v.as_object_mut() {
+        if r.angle_harmonics.is_empty() {
+            o.shift_remove("angle_harmonics");
+            o.shift_remove("angle_coefficients");
+        }
         if !model.fits_scale() {
             o.shift_remove("scale");
             o.shift_remove("scale_stddev");

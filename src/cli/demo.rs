@@ -293,7 +293,12 @@ fn demo(args: &Args) -> Result<(), String> {
         let response = within(
             10,
             "calibrate response",
-            client.async_call_service(CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0 }),
+            client.async_call_service(CalibrateRequest {
+                scan_id: 0,
+                dry_run: false,
+                ring_scan_id: 0,
+                plate_scan_ids: vec![],
+            }),
         )
         .await?
         .map_err(|e| format!("calibrate call failed: {e:?}"))?;

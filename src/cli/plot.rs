@@ -4,10 +4,10 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Vector2;
 
-use super::calibrate::{Args as CalibrateArgs, load_scan, settings};
+use super::calibrate::{Args as CalibrateArgs, load_scans, settings};
 use super::exit;
-use crate::engine::calibrate::{Calibration, calibrate};
-use crate::engine::correct::correct;
+use crate::engine::calibrate::{Calibration, calibrate_placements};
+use crate::engine::correct::{Corrector, correct};
 use crate::engine::geometry::{Mounting, step_angle};
 use crate::engine::model::PlateSpec;
 use crate::engine::scan::Scan;
@@ -33,22 +33,25 @@ pub struct Args {
 }
 
 pub fn run(args: &Args) -> i32 {
-    let loaded = settings(&args.input).and_then(|p| load_scan(&args.input, &p).map(|s| (p, s)));
-    let (p, scan) = match loaded {
+    let loaded = settings(&args.input).and_then(|p| load_scans(&args.input, &p).map(|s| (p, s)));
+    let (p, scans) = match loaded {
         Ok(v) => v,
         Err(e) => {
             eprintln!("tracer_calib plot: {e}");
             return exit::BAD_INPUT;
         }
     };
-    let cal = match calibrate(&scan, &p.plate, &p.calibration_options()) {
+    // The first placement is drawn; the others are fitted with it.
+    let scan = &scans[0];
+    let plates: Vec<&Scan> = scans.iter().collect();
+    let cal = match calibrate_placements(&plates, None, &p.plate, &p.calibration_options()) {
         Ok(c) => c,
         Err(e) => {
             eprintln!("tracer_calib plot: calibration failed: {e}");
             return exit::FIT_FAILED;
         }
     };
-    match write_calibration_plot(&args.out, &scan, &p.plate, &cal) {
+    match write_calibration_plot(&args.out, scan, &p.plate, &cal) {
         Ok(()) => {
             println!("{}", cal.summary());
             println!("wrote {}", args.out.display());
@@ -77,7 +80,7 @@ fn plate_outline(plate: &PlateSpec, center: Vector2<f64>) -> Vec<Vector2<f64>> {
 pub fn write_calibration_plot(path: &Path, scan: &Scan, plate: &PlateSpec, cal: &Calibration) -> Result<(), String> {
     let raw = correct(scan, &Mounting::IDEAL);
     // The surface the tip touched (engine::stylus), which is the plate's.
-    let mut corrected = correct(scan, &cal.mounting);
+    let mut corrected = Corrector::with_angle(cal.mounting, &cal.angle, scan.steps_per_rev()).correct(scan);
     crate::engine::stylus::touched_surface(&mut corrected, cal.tip_radius, crate::engine::Traced::Outside, true);
     let outline = plate_outline(plate, cal.plate_center);
     let residuals: Vec<ResidualSample> = scan

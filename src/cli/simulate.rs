@@ -107,6 +107,13 @@ pub struct Args {
     pub spikes: usize,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The turntable's angle error: order, cosine and sine amplitude in degrees, as
+    /// `H:C:S` (e.g. 1:0.05:0, a disc off centre); repeatable, three at most.
+    #[arg(long = "angle-harmonic", value_name = "H:C:S", value_parser = parse_harmonic, allow_hyphen_values = true)]
+    pub angle_harmonics: Vec<(u32, f64, f64)>,
+    /// The plate turned by this angle (degrees, counter-clockwise): a second placement.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub plate_turn_deg: f64,
     /// Output: a CSV file ('step,counts', one revolution), or a bag (a directory, or a
     /// file ending in .mcap).
     #[arg(long, value_name = "FILE")]
@@ -174,10 +181,31 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
     Ok(())
 }
 
+/// `H:C:S` of `--angle-harmonic`: the order and the amplitudes in degrees, as radians.
+fn parse_harmonic(s: &str) -> Result<(u32, f64, f64), String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let bad = || format!("expected H:C:S (order 1-63, cosine and sine amplitudes in degrees), got '{s}'");
+    let [h, c, sn] = parts.as_slice() else { return Err(bad()) };
+    let h: u32 = h.parse().map_err(|_| bad())?;
+    let (c, sn): (f64, f64) = (c.parse().map_err(|_| bad())?, sn.parse().map_err(|_| bad())?);
+    if !(1..=63).contains(&h) || !c.is_finite() || !sn.is_finite() {
+        return Err(bad());
+    }
+    Ok((h, c.to_radians(), sn.to_radians()))
+}
+
 fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, String> {
-    let m = Mounting::new(a.alpha0_deg.to_radians(), a.offset, a.delta_l).with_scale(a.scale);
+    // A plate turned by θ meets the rail θ earlier.
+    let turn = if matches!(kind, ShapeKind::Plate) { a.plate_turn_deg.to_radians() } else { 0.0 };
+    let m = Mounting::new(a.alpha0_deg.to_radians() - turn, a.offset, a.delta_l).with_scale(a.scale);
     let center = Vector2::new(a.center_x, a.center_y);
+    if a.angle_harmonics.len() > 3 {
+        return Err(format!("--angle-harmonic: at most 3, got {}", a.angle_harmonics.len()));
+    }
+    let mut angle_harmonics = [(0, 0.0, 0.0); 3];
+    angle_harmonics[..a.angle_harmonics.len()].copy_from_slice(&a.angle_harmonics);
     let opt = SimOptions {
+        angle_harmonics,
         steps_per_rev: a.steps_per_rev,
         noise: a.noise,
         quantum: a.meters_per_count,

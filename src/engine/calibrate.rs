@@ -177,27 +177,41 @@ pub fn covariance_values(cov: &Covariance) -> Vec<f64> {
     (0..5).flat_map(|i| (0..5).map(move |j| cov[(i, j)])).collect()
 }
 
-/// The 25 row-major values back as a [`Covariance`], if there are 25, every one finite,
-/// the matrix symmetric (to rounding) with no negative variance; else what they are not,
-/// in the words the parameter, the params file and the history report.
+/// The row-major values of a named covariance back as a [`Covariance`]: the block of its
+/// first five names ([`named_covariance_from_values`]).
 pub fn covariance_from_values(v: &[f64]) -> Result<Covariance, InvalidCovariance> {
-    let refused = || Err(InvalidCovariance { values: v.len() });
-    if v.len() != layout::VALUES || !v.iter().all(|x| x.is_finite()) {
-        return refused();
-    }
-    let c = Covariance::from_row_slice(v);
-    let symmetric = (0..5).all(|i| {
-        (0..i).all(|j| (c[(i, j)] - c[(j, i)]).abs() <= 1e-9 * (c[(i, i)] * c[(j, j)]).sqrt().max(f64::MIN_POSITIVE))
-    });
-    if symmetric && (0..5).all(|i| c[(i, i)] >= 0.0) { Ok(c) } else { refused() }
+    let c = named_covariance_from_values(v)?;
+    Ok(Covariance::from_fn(|i, j| c[(i, j)]))
 }
 
-/// Values that are no [`Covariance`] ([`covariance_from_values`]): not 25, not all
-/// finite, not symmetric, or with a negative variance.
+/// The row-major values of a named covariance ([`covariance_names`]: the five, then two a
+/// harmonic of the angle error, so `n²` values for an odd `n ≥ 5`) back as a matrix, if
+/// every one is finite, the matrix symmetric (to rounding) with no negative variance; else
+/// what they are not, in the words the parameter, the params file and the history report.
+pub fn named_covariance_from_values(v: &[f64]) -> Result<DMatrix<f64>, InvalidCovariance> {
+    let refused = || Err(InvalidCovariance { values: v.len() });
+    let n = (v.len() as f64).sqrt().round() as usize;
+    if n * n != v.len() || n < 5 || n.is_multiple_of(2) || !v.iter().all(|x| x.is_finite()) {
+        return refused();
+    }
+    let c = DMatrix::from_row_slice(n, n, v);
+    let symmetric = (0..n).all(|i| {
+        (0..i).all(|j| (c[(i, j)] - c[(j, i)]).abs() <= 1e-9 * (c[(i, i)] * c[(j, j)]).sqrt().max(f64::MIN_POSITIVE))
+    });
+    if symmetric && (0..n).all(|i| c[(i, i)] >= 0.0) { Ok(c) } else { refused() }
+}
+
+/// A named covariance row-major: the values of the Calibrate response, the `Calibration`
+/// message, the `calibration.covariance` parameter and the history's records.
+pub fn named_covariance_values(cov: &DMatrix<f64>) -> Vec<f64> {
+    (0..cov.nrows()).flat_map(|i| (0..cov.ncols()).map(move |j| cov[(i, j)])).collect()
+}
+
+/// Values that are no covariance ([`named_covariance_from_values`]): not `n²` for an odd
+/// `n ≥ 5`, not all finite, not symmetric, or with a negative variance.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "expected {} finite values of a symmetric matrix with no negative variance, got {values} values",
-    layout::VALUES
+    "expected n×n finite values of a symmetric matrix with no negative variance, n = 5 and 2 more an angle harmonic (25, 49, 81, ...), got {values} values"
 )]
 pub struct InvalidCovariance {
     /// How many values there were.
@@ -1487,7 +1501,11 @@ mod tests {
         assert_eq!(e, InvalidCovariance { values: 25 });
         assert_eq!(
             e.to_string(),
-            "expected 25 finite values of a symmetric matrix with no negative variance, got 25 values"
+            "expected n×n finite values of a symmetric matrix with no negative variance, n = 5 and 2 more an angle harmonic (25, 49, 81, ...), got 25 values"
         );
+        let seven = named_covariance_values(&DMatrix::identity(7, 7));
+        assert_eq!(named_covariance_from_values(&seven), Ok(DMatrix::identity(7, 7)));
+        assert_eq!(covariance_from_values(&seven), Ok(Covariance::identity()), "the five's block");
+        assert!(named_covariance_from_values(&[0.0; 36]).is_err(), "n even: not the five and pairs");
     }
 }

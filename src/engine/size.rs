@@ -32,8 +32,9 @@
 //! - *the calibration*: a tracer parameter `x_j` moves a surface point `P` by `∂P/∂x_j`
 //!   (the point was measured at rail angle `a`, length `t = k rho - dL`, so
 //!   `∂P/∂alpha0 = t v - d u`, `∂P/∂d = v`, `∂P/∂dL = -u`, `∂P/∂k = rho u`, and the tip
-//!   `∂P/∂ρ = -s N`, [`super::stylus`]); radially, `δr = δP·N/(N·e_r)`. With the response
-//!   `g_j` of a figure to each, its variance is `gᵀ Σ g` over the whole 5×5 covariance
+//!   `∂P/∂ρ = -s N`, [`super::stylus`]; an angle coefficient `∂P/∂c_h = cos hφ ∂P/∂alpha0`, `∂P/∂s_h = sin hφ ∂P/∂alpha0`,
+//!   [`super::angle`]); radially, `δr = δP·N/(N·e_r)`. With the response
+//!   `g_j` of a figure to each, its variance is `gᵀ Σ g` over the whole named covariance
 //!   (tracer and certificates, [`super::calibrate`](mod@super::calibrate));
 //! - *this scan's noise*: `σ_r²` from the raw radii's scatter about the fit (`N - 2K - 1`
 //!   degrees of freedom); a Fourier coefficient of `N` equal-angle samples has variance
@@ -50,7 +51,9 @@ use realfft::RealFftPlanner;
 use realfft::num_complex::Complex;
 use std::f64::consts::TAU;
 
-use super::calibrate::{Covariance, layout};
+use nalgebra::DMatrix;
+
+use super::angle::HarmonicOrders;
 use super::geometry::Mounting;
 use super::stylus::Traced;
 
@@ -580,6 +583,9 @@ pub struct Correction {
     pub mounting: Mounting,
     pub tip_radius: f64,
     pub traced: Traced,
+    /// The orders of the angle error the correction applied (their coefficients' rows
+    /// follow the five in the covariance, [`super::calibrate::covariance_names`]).
+    pub angle_orders: HarmonicOrders,
 }
 
 impl Correction {
@@ -598,7 +604,25 @@ impl Correction {
     /// angle whose cosine is `t/|c|` and sine `d/|c|`: `u = (c_x t + c_y d, c_y t - c_x d)/|c|²` (normalised, for a centre
     /// inside the offset circle),
     /// and `v = (-u_y, u_x)` (no trigonometry).
-    pub fn radial_sensitivities_at(&self, r: f64, rp: f64, (cos, sin): (f64, f64)) -> [f64; 5] {
+    pub fn radial_sensitivities_at(&self, r: f64, rp: f64, cs: (f64, f64)) -> [f64; 5] {
+        self.radial_sensitivities_and_rail(r, rp, cs).0
+    }
+
+    /// [`Self::radial_sensitivities_at`], then each angle coefficient's: a coefficient
+    /// moves the rail as `alpha0` does, times `cos hφ` or `sin hφ` at the rail's step
+    /// angle `φ = a - alpha0` ([`super::angle`]).
+    pub fn all_sensitivities_at(&self, r: f64, rp: f64, cs: (f64, f64), out: &mut Vec<f64>) {
+        let (five, u) = self.radial_sensitivities_and_rail(r, rp, cs);
+        out.clear();
+        out.extend_from_slice(&five);
+        if !self.angle_orders.is_empty() {
+            let phi = u.y.atan2(u.x) - self.mounting.alpha0;
+            out.extend(self.angle_orders.basis(phi).map(|b| b * five[0]));
+        }
+    }
+
+    /// The five sensitivities and the rail direction `u` that measured the point.
+    fn radial_sensitivities_and_rail(&self, r: f64, rp: f64, (cos, sin): (f64, f64)) -> ([f64; 5], Vector2<f64>) {
         let e_r = Vector2::new(cos, sin);
         let e_t = Vector2::new(-sin, cos);
         let normal = (e_r * r - e_t * rp).normalize();
@@ -615,7 +639,7 @@ impl Correction {
         let rho = (t + self.mounting.delta_l) / self.mounting.scale;
         let moves = [v * t - u * d, v, -u, u * rho, -normal * s];
         let n_er = normal.dot(&e_r);
-        moves.map(|dp| dp.dot(&normal) / n_er)
+        (moves.map(|dp| dp.dot(&normal) / n_er), u)
     }
 }
 
@@ -659,7 +683,7 @@ pub fn uncertainty(
     radii: &[f64],
     radii_gain: &[f64],
     correction: &Correction,
-    covariance: Option<&Covariance>,
+    covariance: Option<&DMatrix<f64>>,
 ) -> Option<SizeReport> {
     let m = radii.len();
     // The fewest harmonics that leave only noise: the raw points' radial scatter about
@@ -722,36 +746,50 @@ pub fn uncertainty(
     let mut var_cal = [0.0; 4];
     let mut radii_var_cal = vec![0.0; m];
     if let Some(cov) = covariance {
-        let params = [layout::ALPHA0, layout::OFFSET, layout::DELTA_L, layout::SCALE, layout::TIP_RADIUS];
-        let sigma: [[f64; 5]; 5] = params.map(|pa| params.map(|pb| cov[(pa, pb)]));
-        let quadratic = |s: &[f64; 5]| -> f64 {
+        // The covariance's rows: the five, then the angle's coefficients when it has them
+        // (a covariance without them: the five alone).
+        let mut correction = *correction;
+        let n = 5 + 2 * correction.angle_orders.len();
+        if cov.nrows() != n || cov.ncols() != n {
+            correction.angle_orders = HarmonicOrders::NONE;
+        }
+        let n = if cov.nrows() >= 5 && cov.ncols() >= 5 { n.min(cov.nrows()) } else { 0 };
+        let n = if correction.angle_orders.is_empty() { n.min(5) } else { n };
+        let sigma = cov.view((0, 0), (n, n));
+        let quadratic = |s: &[f64]| -> f64 {
             let mut v = 0.0;
-            for (row, sa) in sigma.iter().zip(s) {
-                v += sa * row.iter().zip(s).map(|(c, sb)| c * sb).sum::<f64>();
+            for (a, sa) in s.iter().enumerate() {
+                v += sa * s.iter().enumerate().map(|(b, sb)| sigma[(a, b)] * sb).sum::<f64>();
             }
             v
         };
         // Each parameter's radial change on the grid, in one pass; the figures' response.
-        let table: Vec<[f64; 5]> = sizes
+        let mut row = Vec::with_capacity(n);
+        let table: Vec<Vec<f64>> = sizes
             .grid
             .iter()
             .zip(grid_unit())
-            .map(|((r, rp), u)| correction.radial_sensitivities_at(*r, *rp, *u))
+            .map(|((r, rp), u)| {
+                correction.all_sensitivities_at(*r, *rp, *u, &mut row);
+                row.clone()
+            })
             .collect();
-        let mut g = [[0.0; 4]; 5];
-        for (j, p) in params.iter().enumerate() {
-            if cov[(*p, *p)] > 0.0 {
-                g[j] = sizes.response_on_grid(&table.iter().map(|s| s[j]).collect::<Vec<_>>());
+        let mut g = vec![[0.0; 4]; n];
+        for (j, gj) in g.iter_mut().enumerate() {
+            if sigma[(j, j)] > 0.0 {
+                *gj = sizes.response_on_grid(&table.iter().map(|s| s[j]).collect::<Vec<_>>());
             }
         }
         for (f, v) in var_cal.iter_mut().enumerate() {
-            *v = quadratic(&[g[0][f], g[1][f], g[2][f], g[3][f], g[4][f]]);
+            *v = quadratic(&g.iter().map(|gj| gj[f]).collect::<Vec<_>>());
         }
         // Each radius' own, read off the grid between its neighbours.
+        let mut between = vec![0.0; n];
         for (i, v) in radii_var_cal.iter_mut().enumerate() {
             let (j, f) = grid_place(i as f64 * GRID as f64 / m as f64);
             let (a, b) = (&table[j], &table[(j + 1) % GRID]);
-            *v = quadratic(&[0, 1, 2, 3, 4].map(|p| a[p] * (1.0 - f) + b[p] * f));
+            between.iter_mut().enumerate().for_each(|(p, x)| *x = a[p] * (1.0 - f) + b[p] * f);
+            *v = quadratic(&between);
         }
     }
     let u95 = [0, 1, 2, 3].map(|f| 2.0 * (var_cal[f] + var_noise[f]).max(0.0).sqrt());

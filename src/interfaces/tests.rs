@@ -121,7 +121,7 @@ impl Sample for DiagnosticArray {
 }
 impl Sample for CalibrateRequest {
     fn sample() -> Self {
-        CalibrateRequest { scan_id: 77, dry_run: true, ring_scan_id: 78 }
+        CalibrateRequest { scan_id: 77, dry_run: true, ring_scan_id: 78, plate_scan_ids: vec![77, 79] }
     }
 }
 impl Sample for CalibrateResponse {
@@ -140,7 +140,12 @@ impl Sample for CalibrateResponse {
             scale_stddev: 2.1e-4,
             tip_radius: 0.0,
             tip_radius_stddev: 0.0,
-            covariance: (0..25).map(|i| if i % 6 == 0 { 1e-10 } else { 1e-12 }).collect(),
+            covariance: (0..49).map(|i| if i % 8 == 0 { 1e-10 } else { 1e-12 }).collect(),
+            covariance_names: ["alpha0", "offset", "delta_l", "scale", "tip_radius", "angle_c1", "angle_s1"]
+                .map(String::from)
+                .to_vec(),
+            angle_harmonics: vec![1],
+            angle_coefficients: vec![8.7e-4, -1.2e-4],
         }
     }
 }
@@ -159,7 +164,12 @@ impl Sample for Calibration {
             rms_residual: 4.5e-6,
             samples_used: 398,
             tip_radius: 2.5e-4,
-            covariance: vec![1e-12; 25],
+            covariance: vec![1e-12; 49],
+            covariance_names: ["alpha0", "offset", "delta_l", "scale", "tip_radius", "angle_c2", "angle_s2"]
+                .map(String::from)
+                .to_vec(),
+            angle_harmonics: vec![2],
+            angle_coefficients: vec![3.5e-4, 1e-5],
         }
     }
 }
@@ -240,11 +250,11 @@ fn round_trip_of_defaults_and_empty_sequences() {
 
 #[test]
 fn big_endian_input_is_decoded() {
-    // CalibrateRequest { scan_id: 0x01020304, dry_run: true, ring_scan_id: 5 } in
+    // CalibrateRequest { scan_id: 0x01020304, dry_run: true, ring_scan_id: 5, plate_scan_ids: [9] } in
     // big-endian CDR.
-    let bytes = [0x00, 0x00, 0x00, 0x00, 0x01, 0x02, 0x03, 0x04, 0x01, 0, 0, 0, 0, 0, 0, 5];
+    let bytes = [0x00, 0x00, 0x00, 0x00, 0x01, 0x02, 0x03, 0x04, 0x01, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, 1, 0, 0, 0, 9];
     let req: CalibrateRequest = from_cdr(&bytes).unwrap();
-    assert_eq!(req, CalibrateRequest { scan_id: 0x0102_0304, dry_run: true, ring_scan_id: 5 });
+    assert_eq!(req, CalibrateRequest { scan_id: 0x0102_0304, dry_run: true, ring_scan_id: 5, plate_scan_ids: vec![9] });
 }
 
 #[test]
@@ -317,6 +327,9 @@ fn calibrate_response_bytes_align_f64_after_the_header() {
         tip_radius: 0.75,
         tip_radius_stddev: 0.0625,
         covariance: vec![2.0],
+        covariance_names: vec!["alpha0".into()],
+        angle_harmonics: vec![1],
+        angle_coefficients: vec![0.5],
     };
     let mut expected = CDR_LE_HEADER.to_vec();
     expected.extend([0x01]); // [0] success
@@ -340,6 +353,15 @@ fn calibrate_response_bytes_align_f64_after_the_header() {
     expected.extend(1u32.to_le_bytes()); // [104] covariance count
     expected.extend([0, 0, 0, 0]); // [108] pad to 8
     expected.extend(2.0f64.to_le_bytes()); // [112] covariance[0]
+    expected.extend(1u32.to_le_bytes()); // [120] covariance_names count
+    expected.extend(7u32.to_le_bytes()); // [124] "alpha0\0" length
+    expected.extend(b"alpha0\0"); // [128]
+    expected.extend([0]); // [135] pad to 4
+    expected.extend(1u32.to_le_bytes()); // [136] angle_harmonics count
+    expected.extend(1i32.to_le_bytes()); // [140] angle_harmonics[0]
+    expected.extend(1u32.to_le_bytes()); // [144] angle_coefficients count
+    expected.extend([0, 0, 0, 0]); // [148] pad to 8
+    expected.extend(0.5f64.to_le_bytes()); // [152] angle_coefficients[0]
     assert_eq!(to_cdr(&resp).unwrap(), expected);
     assert_eq!(from_cdr::<CalibrateResponse>(&expected).unwrap(), resp);
 }

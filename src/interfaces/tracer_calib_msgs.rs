@@ -25,6 +25,9 @@ impl Default for CalibrateResponse {
             tip_radius: 0.0,
             tip_radius_stddev: 0.0,
             covariance: Vec::new(),
+            covariance_names: Vec::new(),
+            angle_harmonics: Vec::new(),
+            angle_coefficients: Vec::new(),
         }
     }
 }

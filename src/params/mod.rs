@@ -14,7 +14,10 @@ pub mod value;
 pub use file::{ParamsFile, ParamsFileError};
 pub use value::ParamValue;
 
-use crate::engine::calibrate::{Options as CalibrationOptions, covariance_from_values};
+use nalgebra::DMatrix;
+
+use crate::engine::angle::{AngleError, HarmonicOrders};
+use crate::engine::calibrate::{Options as CalibrationOptions, covariance_names, named_covariance_from_values};
 use crate::engine::{ModelKind, Mounting, PlateSpec, RingSpec};
 
 /// The contract's parameter names.
@@ -46,8 +49,11 @@ pub mod names {
     pub const INTROSPECTION: &str = "calibrate.introspection";
     pub const BOND_HEARTBEAT_PERIOD: &str = "bond_heartbeat_period";
     pub const LACK_OF_FIT_ALPHA: &str = "calibration.lack_of_fit_alpha";
+    pub const ANGLE_HARMONICS: &str = "calibration.angle_harmonics";
+    pub const ANGLE_COEFFICIENTS: &str = "calibration.angle_coefficients";
+    pub const COVARIANCE_NAMES: &str = "calibration.covariance_names";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 27] = [
+    pub const ALL: [&str; 30] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -75,10 +81,14 @@ pub mod names {
         INTROSPECTION,
         BOND_HEARTBEAT_PERIOD,
         LACK_OF_FIT_ALPHA,
+        ANGLE_HARMONICS,
+        ANGLE_COEFFICIENTS,
+        COVARIANCE_NAMES,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
-    pub const CALIBRATION_IN_FORCE: [&str; 7] = [ALPHA0, OFFSET, DELTA_L, SCALE, VALID, COVARIANCE, TIP_RADIUS];
+    pub const CALIBRATION_IN_FORCE: [&str; 9] =
+        [ALPHA0, OFFSET, DELTA_L, SCALE, VALID, COVARIANCE, TIP_RADIUS, ANGLE_COEFFICIENTS, COVARIANCE_NAMES];
 }
 
 /// Largest `resample_points` accepted.
@@ -90,9 +100,19 @@ pub struct Parameters {
     /// The calibration in force (meaningful when `calibration_valid`).
     pub calibration: Mounting,
     pub calibration_valid: bool,
-    /// The covariance of the calibration in force: empty (unknown), or the 25 values of
-    /// [`crate::engine::calibrate::Covariance`], row-major.
+    /// The covariance of the calibration in force: empty (unknown), or the `n²` values of
+    /// the named covariance over `covariance_names` (the five of
+    /// [`crate::engine::calibrate::Covariance`], then the angle coefficients), row-major.
     pub covariance: Vec<f64>,
+    /// The names of the covariance's rows ([`crate::engine::calibrate::covariance_names`]);
+    /// empty: the five.
+    pub covariance_names: Vec<String>,
+    /// The orders of the turntable's angle error fitted by `/calibrate` and read by
+    /// `angle_coefficients`.
+    pub angle_harmonics: HarmonicOrders,
+    /// The angle error of the calibration in force, two an order of `angle_harmonics`
+    /// (`[c_h₁, s_h₁, ...]`, rad); empty: none.
+    pub angle_coefficients: Vec<f64>,
     /// The stylus tip's radius in force, metres (fitted by the tip models, else known).
     pub tip_radius: f64,
     pub plate: PlateSpec,
@@ -183,6 +203,9 @@ impl Default for Parameters {
             calibration: Mounting::IDEAL,
             calibration_valid: false,
             covariance: Vec::new(),
+            covariance_names: Vec::new(),
+            angle_harmonics: HarmonicOrders::NONE,
+            angle_coefficients: Vec::new(),
             tip_radius: 0.0,
             plate: PlateSpec::default(),
             plate_side_uncertainty: 0.0,
@@ -264,6 +287,9 @@ impl Parameters {
             names::SCAN_TIMEOUT => Double(self.scan_timeout),
             names::INTROSPECTION => String(self.introspection.as_str().into()),
             names::BOND_HEARTBEAT_PERIOD => Double(self.bond_heartbeat_period),
+            names::ANGLE_HARMONICS => IntegerArray(self.angle_harmonics.to_vec()),
+            names::ANGLE_COEFFICIENTS => DoubleArray(self.angle_coefficients.clone()),
+            names::COVARIANCE_NAMES => StringArray(self.covariance_names.clone()),
             _ => return None,
         })
     }
@@ -274,9 +300,80 @@ impl Parameters {
     }
 
     /// Set one parameter, checking its type and its declaration's bound
-    /// ([`spec::SPECS`]); the error says what is wrong. Unknown names are an error
-    /// here; the caller decides whether to ignore them.
+    /// ([`spec::SPECS`]) and that the calibration in force still reads
+    /// ([`Self::check_calibration`]); the error says what is wrong. Unknown names are an
+    /// error here; the caller decides whether to ignore them.
     pub fn set(&mut self, name: &str, value: &ParamValue) -> Result<(), ParamError> {
+        let mut next = self.clone();
+        next.set_unchecked(name, value)?;
+        next.check_calibration()?;
+        *self = next;
+        Ok(())
+    }
+
+    /// Set several parameters in turn, then check that the calibration in force reads: a
+    /// file or a command line may change the angle's orders and coefficients together.
+    pub fn set_all<'a>(
+        &mut self,
+        values: impl IntoIterator<Item = (&'a str, &'a ParamValue)>,
+    ) -> Result<(), ParamError> {
+        let mut next = self.clone();
+        for (name, value) in values {
+            next.set_unchecked(name, value).map_err(|e| match e {
+                ParamError::Unknown(_) => e,
+                e => ParamError::Invalid(format!("{name}: {e}")),
+            })?;
+        }
+        next.check_calibration()?;
+        *self = next;
+        Ok(())
+    }
+
+    /// That the parameters of the calibration in force read together: the angle's
+    /// coefficients two an order of `calibration.angle_harmonics` (or none), the
+    /// covariance's names those of the five and those coefficients (or none), and its
+    /// values `n²` over them.
+    pub fn check_calibration(&self) -> Result<(), ParamError> {
+        let orders = self.angle_harmonics;
+        if !self.angle_coefficients.is_empty() {
+            AngleError::new(orders, self.angle_coefficients.clone()).map_err(|e| {
+                ParamError::Invalid(format!(
+                    "{} and {} do not read together: {e} (set both at once, or set {} to [] first and calibrate again)",
+                    names::ANGLE_HARMONICS,
+                    names::ANGLE_COEFFICIENTS,
+                    names::ANGLE_COEFFICIENTS
+                ))
+            })?;
+        }
+        let n = if self.covariance_names.is_empty() { 5 } else { self.covariance_names.len() };
+        if !self.covariance_names.is_empty() {
+            let five = covariance_names(HarmonicOrders::NONE);
+            let angle = if self.angle_coefficients.is_empty() { HarmonicOrders::NONE } else { orders };
+            let want = covariance_names(angle);
+            if self.covariance_names[..n.min(5)] != five[..] || self.covariance_names != want {
+                return Err(ParamError::Invalid(format!(
+                    "{} must be [{}] (the five, then the angle coefficients in force), got [{}]",
+                    names::COVARIANCE_NAMES,
+                    want.join(", "),
+                    self.covariance_names.join(", ")
+                )));
+            }
+        }
+        if !self.covariance.is_empty() && self.covariance.len() != n * n {
+            return Err(ParamError::Invalid(format!(
+                "{} holds {} values where {} names ask for {}",
+                names::COVARIANCE,
+                self.covariance.len(),
+                n,
+                n * n
+            )));
+        }
+        Ok(())
+    }
+
+    /// Set one parameter without [`Self::check_calibration`]: one of several set together,
+    /// checked after the last ([`Self::set_all`]).
+    pub fn set_unchecked(&mut self, name: &str, value: &ParamValue) -> Result<(), ParamError> {
         let spec = spec::spec(name).ok_or_else(|| ParamError::Unknown(name.to_string()))?;
         let mut next = self.clone();
         let wrong = |expected: &str, v: &ParamValue| ParamError::WrongType {
@@ -311,7 +408,24 @@ impl Parameters {
                 ParamValue::DoubleArray(c) => c.clone(),
                 v => return Err(wrong("a double array", v)),
             };
-            covariance_from_values(&c).map(|_| c).map_err(|e| ParamError::Invalid(e.to_string()))
+            named_covariance_from_values(&c).map(|_| c).map_err(|e| ParamError::Invalid(e.to_string()))
+        };
+        let integers = |v: &ParamValue| match v {
+            v if v.is_empty_array() => Ok(Vec::new()),
+            ParamValue::IntegerArray(c) => Ok(c.clone()),
+            v => Err(wrong("an integer array", v)),
+        };
+        let doubles = |v: &ParamValue| match v {
+            v if v.is_empty_array() => Ok(Vec::new()),
+            ParamValue::IntegerArray(c) => Ok(c.iter().map(|&i| i as f64).collect()),
+            ParamValue::DoubleArray(c) if c.iter().all(|x| x.is_finite()) => Ok(c.clone()),
+            ParamValue::DoubleArray(_) => Err(ParamError::Invalid("every value must be a finite number".into())),
+            v => Err(wrong("a double array", v)),
+        };
+        let strings = |v: &ParamValue| match v {
+            v if v.is_empty_array() => Ok(Vec::new()),
+            ParamValue::StringArray(c) => Ok(c.clone()),
+            v => Err(wrong("a string array", v)),
         };
         match name {
             names::ALPHA0 => next.calibration.alpha0 = double(value)?,
@@ -347,6 +461,12 @@ impl Parameters {
                     one_of(value)?.parse::<Introspection>().map_err(|e| ParamError::Invalid(e.to_string()))?
             }
             names::BOND_HEARTBEAT_PERIOD => next.bond_heartbeat_period = double(value)?,
+            names::ANGLE_HARMONICS => {
+                next.angle_harmonics =
+                    HarmonicOrders::new(&integers(value)?).map_err(|e| ParamError::Invalid(e.to_string()))?
+            }
+            names::ANGLE_COEFFICIENTS => next.angle_coefficients = doubles(value)?,
+            names::COVARIANCE_NAMES => next.covariance_names = strings(value)?,
             _ => unreachable!("every declared name is handled"),
         }
         if matches!(name, names::PLATE_SIDE | names::CORNER_RADIUS) {
@@ -368,9 +488,10 @@ impl Parameters {
                 unknown.push(e.name.clone());
                 continue;
             }
-            next.set(&e.name, &e.value)
+            next.set_unchecked(&e.name, &e.value)
                 .map_err(|m| ParamsFileError::new(path, Some(e.line), Some(&e.name), m.to_string()))?;
         }
+        next.check_calibration().map_err(|m| ParamsFileError::new(path, None, None, m.to_string()))?;
         *self = next;
         Ok(unknown)
     }
@@ -378,6 +499,20 @@ impl Parameters {
     /// The calibration in force, if there is one.
     pub fn calibration_in_force(&self) -> Option<Mounting> {
         self.calibration_valid.then_some(self.calibration)
+    }
+
+    /// The turntable's angle error in force ([`crate::engine::angle`]): none without a
+    /// calibration in force or coefficients.
+    pub fn angle_in_force(&self) -> AngleError {
+        if !self.calibration_valid || self.angle_coefficients.is_empty() {
+            return AngleError::NONE;
+        }
+        AngleError::new(self.angle_harmonics, self.angle_coefficients.clone()).unwrap_or(AngleError::NONE)
+    }
+
+    /// The named covariance of the calibration in force, when it is known.
+    pub fn covariance_in_force(&self) -> Option<DMatrix<f64>> {
+        self.calibration_valid.then(|| named_covariance_from_values(&self.covariance).ok()).flatten()
     }
 
     /// How a calibration is fitted with these parameters: the model, and the encoder
@@ -390,6 +525,7 @@ impl Parameters {
             plate_side_uncertainty: self.plate_side_uncertainty,
             ring_diameter_uncertainty: self.ring_diameter_uncertainty,
             lack_of_fit_alpha: self.lack_of_fit_alpha,
+            angle_harmonics: self.angle_harmonics,
             ..CalibrationOptions::default()
         }
     }
@@ -405,10 +541,39 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_angle_orders_and_coefficients_are_set_together() {
+        use ParamValue::*;
+        let mut p = Parameters { calibration_valid: true, ..Parameters::default() };
+        p.set("calibration.angle_harmonics", &IntegerArray(vec![1, 2])).unwrap();
+        p.set("calibration.angle_coefficients", &DoubleArray(vec![1e-3, 0.0, 0.0, 2e-4])).unwrap();
+        assert_eq!(p.angle_in_force().coefficients(), [1e-3, 0.0, 0.0, 2e-4]);
+        // Orders alone would misread the coefficients in force: refused, saying how.
+        let e = p.clone().set("calibration.angle_harmonics", &IntegerArray(vec![1, 2, 4])).unwrap_err();
+        assert!(e.to_string().contains("set both at once"), "{e}");
+        let e = p.clone().set("calibration.angle_harmonics", &IntegerArray(vec![0])).unwrap_err();
+        assert!(e.to_string().contains("from 1 to 63"), "{e}");
+        // Together (a file, a command line), they read.
+        let (orders, coefficients) = (IntegerArray(vec![1, 2, 4]), DoubleArray(vec![0.0; 6]));
+        p.set_all([("calibration.angle_harmonics", &orders), ("calibration.angle_coefficients", &coefficients)])
+            .unwrap();
+        assert_eq!(p.angle_in_force().orders().to_vec(), [1, 2, 4]);
+        // The covariance's names follow the coefficients in force; its size, the names.
+        let names = covariance_names(p.angle_harmonics);
+        p.set("calibration.covariance_names", &StringArray(names.clone())).unwrap();
+        assert!(p.clone().set("calibration.covariance", &DoubleArray(vec![0.0; 25])).is_err());
+        p.set("calibration.covariance", &DoubleArray(vec![0.0; 121])).unwrap();
+        let e = p.clone().set("calibration.covariance_names", &StringArray(names[..5].to_vec())).unwrap_err();
+        assert!(e.to_string().contains("angle_c1"), "{e}");
+    }
+
+    #[test]
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 27);
+        assert_eq!(list.len(), 30);
+        assert_eq!(p.get("calibration.angle_harmonics"), Some(ParamValue::IntegerArray(Vec::new())));
+        assert_eq!(p.get("calibration.angle_coefficients"), Some(ParamValue::DoubleArray(Vec::new())));
+        assert_eq!(p.get("calibration.covariance_names"), Some(ParamValue::StringArray(Vec::new())));
         assert_eq!(p.get("calibration.lack_of_fit_alpha"), Some(ParamValue::Double(0.001)));
         assert_eq!(p.get("calibrate.introspection"), Some(ParamValue::String("off".into())));
         assert_eq!(p.get("bond_heartbeat_period"), Some(ParamValue::Double(0.1)));
@@ -488,7 +653,7 @@ mod tests {
         );
         assert!(p.set("history_file", &ParamValue::Integer(3)).unwrap_err().to_string().contains("expected a string"));
         let cov = |v: Vec<f64>| p.clone().set("calibration.covariance", &ParamValue::DoubleArray(v));
-        assert!(cov(vec![1e-12; 24]).unwrap_err().to_string().contains("expected 25 finite values"));
+        assert!(cov(vec![1e-12; 24]).unwrap_err().to_string().contains("expected n×n finite values"));
         let mut asymmetric = vec![0.0; 25];
         (asymmetric[0], asymmetric[1], asymmetric[6]) = (1e-8, 1e-9, 1e-8);
         assert!(cov(asymmetric).unwrap_err().to_string().contains("symmetric"));

@@ -117,7 +117,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 27] = [
+pub const SPECS: [Spec; 30] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -125,8 +125,8 @@ pub const SPECS: [Spec; 27] = [
     Spec::new(names::SCALE, "calibration in force: encoder scale k; true length = counts x encoder.meters_per_count x k")
         .bound(Bound::Float { from: 0.5, to: 2.0 }),
     Spec::new(names::VALID, "true once a calibration is in force (applied by /calibrate or set here); false: scans are corrected with an ideal mounting"),
-    Spec::new(names::COVARIANCE, "calibration in force: its covariance, 25 values row-major over [alpha0 (rad), offset (m), delta_l (m), scale, tip_radius (m)], zero rows for what the model did not fit; set by /calibrate; empty = unknown")
-        .constraints("empty, or 25 finite values of a symmetric matrix with no negative variance"),
+    Spec::new(names::COVARIANCE, "calibration in force: its covariance, n x n values row-major over calibration.covariance_names ([alpha0 (rad), offset (m), delta_l (m), scale, tip_radius (m)], then the angle coefficients (rad)), zero rows for what the model did not fit; set by /calibrate; empty = unknown")
+        .constraints("empty, or n x n finite values of a symmetric matrix with no negative variance, n the number of calibration.covariance_names (5 when empty)"),
     Spec::new(names::TIP_RADIUS, "radius of the probe's contact tip (m): contours are of the surface the tip touched; fitted by the models full_tip and full_scale_tip, else known")
         .bound(Bound::Float { from: 0.0, to: 0.005 }),
     Spec::new(names::PLATE_SIDE, "side of the square calibration plate (m)")
@@ -165,6 +165,12 @@ pub const SPECS: [Spec; 27] = [
         .read_only(),
     Spec::new(names::LACK_OF_FIT_ALPHA, "significance level of the harmonic lack-of-fit test: a calibration whose plate residuals show structure at this level (harmonics 1-12 a turn against the scan's own noise) is refused, naming the harmonics; 0 = no test")
         .bound(Bound::Float { from: 0.0, to: 0.5 }),
+    Spec::new(names::ANGLE_HARMONICS, "orders of the turntable's angle error fitted by /calibrate with the model (times a turn: 1 a disc or gear eccentricity, 2 an elliptic disc); orders 4, 8, 12 need a second plate scan turned 22.5 degrees (plate_scan_ids); empty = the angle encoder taken as exact")
+        .constraints("each from 1 to 63, once; calibration.angle_coefficients holds two an order, or none"),
+    Spec::new(names::ANGLE_COEFFICIENTS, "calibration in force: the turntable's angle error, [c_h1, s_h1, c_h2, s_h2, ...] (rad) over calibration.angle_harmonics, the rail at alpha0 + phi + sum(c_h cos h phi + s_h sin h phi); set by /calibrate; empty = none")
+        .constraints("empty, or two finite values of at most 0.1 rad an order of calibration.angle_harmonics"),
+    Spec::new(names::COVARIANCE_NAMES, "calibration in force: the names of calibration.covariance's rows: alpha0, offset, delta_l, scale, tip_radius, then angle_c1, angle_s1, ... for each angle harmonic in force; set by /calibrate; empty = the five")
+        .constraints("empty, or the five and the names of the angle coefficients in force, in that order"),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.

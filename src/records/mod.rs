@@ -25,7 +25,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
 
-use crate::engine::calibrate::{InvalidCovariance, covariance_from_values};
+use crate::engine::calibrate::{InvalidCovariance, named_covariance_from_values};
 use crate::engine::geometry::Mounting;
 
 /// One applied calibration, as a line of the history file.
@@ -61,11 +61,24 @@ pub struct Record {
     /// before it existed.
     #[serde(default)]
     pub tip_radius: f64,
-    /// The covariance of `[alpha0, offset, delta_l, scale, tip_radius]`, 25 values
-    /// row-major ([`crate::engine::calibrate::Covariance`]). Absent (empty) in records
-    /// written before it existed.
+    /// The covariance over `covariance_names` (`[alpha0, offset, delta_l, scale,
+    /// tip_radius]`, 25 values, without angle harmonics), row-major. Absent (empty) in
+    /// records written before it existed.
     #[serde(default)]
     pub covariance: Vec<f64>,
+    /// The names of the covariance's rows, when the calibration fitted angle harmonics
+    /// (format 3); else absent: the five.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub covariance_names: Vec<String>,
+    /// The orders of the turntable's angle error fitted (format 3); absent: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub angle_harmonics: Vec<i64>,
+    /// The angle error, `[c_h₁, s_h₁, ...]` radians (format 3); absent: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub angle_coefficients: Vec<f64>,
+    /// The plate scans after `scan_id`, when several placements were fitted; absent: one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub plate_scan_ids: Vec<u32>,
     /// The calibration this one replaced; `None` (`null`) if there was none.
     pub previous: Option<Previous>,
     /// The node's ROS time when it was applied (simulated time under `use_sim_time`;
@@ -74,8 +87,15 @@ pub struct Record {
     pub ros_time: Option<RosTime>,
 }
 
-/// The history record format this node writes: 1, records without `format`; 2, with it.
-pub const HISTORY_FORMAT: u32 = 2;
+/// The newest history record format this node writes: 1, records without `format`; 2,
+/// with it; 3, a calibration with an angle error (an older node skips it, as it could not
+/// apply the angle). A record without one is written as 2.
+pub const HISTORY_FORMAT: u32 = 3;
+
+/// The format of a record with (or without) an angle error.
+pub fn format_for(angle_coefficients: &[f64]) -> u32 {
+    if angle_coefficients.is_empty() { 2 } else { 3 }
+}
 
 fn format_1() -> u32 {
     1
@@ -151,7 +171,10 @@ impl Record {
             return Err(RecordError::StddevLength(self.stddev.len()));
         }
         if !self.covariance.is_empty() {
-            covariance_from_values(&self.covariance)?;
+            named_covariance_from_values(&self.covariance)?;
+        }
+        if !self.angle_coefficients.iter().all(|v| v.is_finite()) {
+            return Err(RecordError::NotFinite);
         }
         if self.applied_at().is_none() {
             return Err(RecordError::Time(self.time.clone()));
@@ -343,7 +366,7 @@ impl Record {
     /// A full-model calibration record, for tests to vary.
     pub(crate) fn example() -> Record {
         Record {
-            format: HISTORY_FORMAT,
+            format: 2,
             time: "2026-11-23T10:12:37.123Z".into(),
             node: "/tracer_calibrator".into(),
             scan_id: 10,
@@ -358,6 +381,10 @@ impl Record {
             iterations: 7,
             tip_radius: 0.0,
             covariance: Vec::new(),
+            covariance_names: Vec::new(),
+            angle_harmonics: Vec::new(),
+            angle_coefficients: Vec::new(),
+            plate_scan_ids: Vec::new(),
             previous: None,
             ros_time: None,
         }
@@ -408,7 +435,7 @@ mod tests {
         assert_eq!(line["format"], 2, "written with the format");
         line.as_object_mut().unwrap().remove("format");
         let old = line.to_string();
-        line["format"] = 3.into();
+        line["format"] = 4.into();
         let newer = line.to_string();
         let h = History::parse(&format!("{old}\n{newer}\n"), "h.jsonl");
         assert_eq!(h.records.len(), 1);
@@ -417,7 +444,7 @@ mod tests {
         assert!(
             h.skipped[0].starts_with("h.jsonl:2: ")
                 && h.skipped[0]
-                    .contains("record format 3, written by a newer tracer_calib: this one reads formats up to 2"),
+                    .contains("record format 4, written by a newer tracer_calib: this one reads formats up to 3"),
             "{}",
             h.skipped[0]
         );
@@ -474,7 +501,7 @@ mod tests {
         let h = History::parse(&format!("{old}\n{}\n", bad.to_line()), "h.jsonl");
         assert_eq!(h.records, [Record::example()]);
         assert_eq!(h.skipped.len(), 1);
-        assert!(h.skipped[0].contains("covariance: expected 25 finite values"), "{}", h.skipped[0]);
+        assert!(h.skipped[0].contains("covariance: expected n×n finite values"), "{}", h.skipped[0]);
     }
 
     #[test]

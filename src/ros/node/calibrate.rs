@@ -79,7 +79,8 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
             }
         };
         if let Some(m) = &outcome.applied {
-            parameters::mirror_calibration(e, m, &outcome.response.covariance, outcome.response.tip_radius);
+            let params = shared.state.lock().expect("state lock").params.clone();
+            parameters::mirror_calibration(e, m, &params);
             let _ = shared.calibration_changed.try_send(());
         }
         let r = &outcome.response;

@@ -110,9 +110,10 @@ impl Config {
                 warn!("-p {}:={}: ignored, not a parameter of this node", o.name, o.value);
                 continue;
             }
-            params.set(&o.name, &o.value).map_err(|e| format!("-p {}:={}: {e}", o.name, o.value))?;
+            params.set_unchecked(&o.name, &o.value).map_err(|e| format!("-p {}:={}: {e}", o.name, o.value))?;
             history_file_set |= o.name == names::HISTORY_FILE;
         }
+        params.check_calibration().map_err(|e| format!("-p: {e}"))?;
         if !history_file_set {
             params.history_file = records::file::default_path(&params.params_file);
         }

@@ -118,8 +118,8 @@ pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) 
 }
 
 /// Mirror a calibration `/calibrate` applied into the ROS parameters (already persisted:
-/// the set action sees equal values and writes nothing).
-pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, covariance: &[f64], tip_radius: f64) {
+/// the set action sees equal values and writes nothing): `m` and what `params` holds of it.
+pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, params: &Parameters) {
     // One change, one /parameter_events message: a calibration is one event.
     let params = [
         (names::ALPHA0, RosValue::Double(m.alpha0)),
@@ -127,8 +127,10 @@ pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, covariance:
         (names::DELTA_L, RosValue::Double(m.delta_l)),
         (names::SCALE, RosValue::Double(m.scale)),
         (names::VALID, RosValue::Boolean(true)),
-        (names::COVARIANCE, RosValue::DoubleArray(covariance.to_vec())),
-        (names::TIP_RADIUS, RosValue::Double(tip_radius)),
+        (names::COVARIANCE, RosValue::DoubleArray(params.covariance.clone())),
+        (names::TIP_RADIUS, RosValue::Double(params.tip_radius)),
+        (names::ANGLE_COEFFICIENTS, RosValue::DoubleArray(params.angle_coefficients.clone())),
+        (names::COVARIANCE_NAMES, RosValue::StringArray(params.covariance_names.clone())),
     ]
     .map(|(name, value)| ros2_client::Parameter { name: name.to_string(), value });
     if let Err(err) = e.set_parameters(params.to_vec()) {
