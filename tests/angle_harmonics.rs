@@ -171,3 +171,120 @@ fn the_tip_models_fit_harmonics_with_a_ring_gauge_too() {
         assert!((cal.mounting.delta_l - TRUTH.delta_l).abs() < 1e-9);
     }
 }
+
+/// A 52×32 mm frame with 8 mm corners, traced from inside.
+fn frame() -> tracer_calib::engine::shape::RoundedRect {
+    tracer_calib::engine::shape::RoundedRect {
+        center: Vector2::new(0.001, -0.0005),
+        half_w: 0.026,
+        half_h: 0.016,
+        radius: 0.008,
+    }
+}
+
+/// The frame's `[C, A, B, FED]` and their U95 as a tracer with `cal` measures them, from
+/// one trace with noise `sigma`.
+fn frame_sizes(cal: &Calibration, sigma: f64, rng: &mut StdRng) -> ([f64; 4], [f64; 4]) {
+    use tracer_calib::engine::correct::resample_radii_with_gain;
+    use tracer_calib::engine::size::{Correction, uncertainty};
+    use tracer_calib::engine::stylus::Traced;
+    let sim = SimOptions { inside: true, ..tracer(sigma) };
+    let scan = simulate(&frame(), &TRUTH, &sim, rng).unwrap().scan;
+    let points = Corrector::with_angle(cal.mounting, &cal.angle, 400).correct(&scan);
+    let (radii, gain) = resample_radii_with_gain(&points, 400, 0.2).unwrap();
+    let correction = Correction {
+        mounting: cal.mounting,
+        tip_radius: 0.0,
+        traced: Traced::Inside,
+        angle_orders: cal.angle.orders(),
+    };
+    let report = uncertainty(&points, &radii, &gain, &correction, Some(&cal.named_covariance)).unwrap();
+    (report.sizes.figures(), report.u95)
+}
+
+/// Noise-free: the frame's C, A, B and FED through the chain, with the angle modelled
+/// (h = 1, 2, 4, two placements) and without (the lack-of-fit test off), against the same
+/// chain with the true calibration (the chain's own error, the same for both, apart).
+#[test]
+fn a_frame_measures_true_with_the_angle_modelled() {
+    let mut rng = StdRng::seed_from_u64(5);
+    let sim = tracer(0.0);
+    let a = placement(0.0, Vector2::new(0.0008, -0.0005), &sim, &mut rng);
+    let b = placement(deg(22.5), Vector2::new(-0.0003, 0.0006), &sim, &mut rng);
+    let exact = frame().exact_sizes();
+    let modelled = calibrate_placements(&[&a, &b], None, &PLATE, &options(&[1, 2, 4])).unwrap();
+    let ignored = Options { lack_of_fit_alpha: 0.0, ..Options::default() };
+    let ignored = calibrate_placements(&[&a], None, &PLATE, &ignored).unwrap();
+    // The true calibration: the simulator's mounting and angle error.
+    let mut truth = modelled.clone();
+    truth.mounting = TRUTH;
+    let coefficients = [deg(0.05), deg(-0.01), 0.0, deg(0.02), 0.0, 0.0].to_vec();
+    truth.angle = tracer_calib::engine::angle::AngleError::new(modelled.angle.orders(), coefficients).unwrap();
+    let (chain, _) = frame_sizes(&truth, 0.0, &mut rng);
+    let (with, _) = frame_sizes(&modelled, 0.0, &mut rng);
+    let (without, u_without) = frame_sizes(&ignored, 0.0, &mut rng);
+    let err = |got: [f64; 4]| [0, 1, 2, 3].map(|f| (got[f] - chain[f]) * 1e6);
+    println!(
+        "52×32 frame, angle 0.05° once and 0.02° twice a turn, noise-free: C, A, B, FED against the true \
+         calibration's (µm): modelled (h = 1, 2, 4, two placements) {:.3?}; not modelled {:.1?} (its U95 {:.1?}); \
+         the chain's own error against the exact figures {:.1?}",
+        err(with),
+        err(without),
+        u_without.map(|u| u * 1e6),
+        [0, 1, 2, 3].map(|f| (chain[f] - exact[f]) * 1e6)
+    );
+    assert!(err(with).iter().all(|e| e.abs() < 0.5), "{:?}", err(with));
+    assert!(err(without).iter().any(|e| e.abs() > 5.0), "the angle error shows when not modelled: {:?}", err(without));
+}
+
+/// σ = 5 µm: how often the frame's U95 covers its true C, A, B and FED, and the mean error,
+/// with the angle modelled (h = 1, 2 from one placement; h = 1, 2, 4 from two).
+#[test]
+fn the_frames_uncertainty_covers_with_the_angle_modelled() {
+    let trials = 200;
+    let truth = frame().exact_sizes();
+    for (what, orders, turns) in [
+        ("h = 1, 2, one placement", &[1, 2][..], &[0.0][..]),
+        ("h = 1, 2, 4, two placements", &[1, 2, 4], &[0.0, 22.5]),
+    ] {
+        let mut rng = StdRng::seed_from_u64(700);
+        let (mut covered, mut bias, mut u95, mut n, mut refused) = ([0usize; 4], [0.0; 4], [0.0; 4], 0usize, 0);
+        for _ in 0..trials {
+            let scans: Vec<Scan> = turns
+                .iter()
+                .map(|t| placement(deg(*t), Vector2::new(0.0008, -0.0005), &tracer(5e-6), &mut rng))
+                .collect();
+            let refs: Vec<&Scan> = scans.iter().collect();
+            let cal = match calibrate_placements(&refs, None, &PLATE, &options(orders)) {
+                Ok(cal) => cal,
+                Err(e) => {
+                    refused += 1;
+                    println!("  refused: {e}");
+                    // The frame's trace is drawn all the same: the next trials' noise stays.
+                    let _ = simulate(&frame(), &TRUTH, &SimOptions { inside: true, ..tracer(5e-6) }, &mut rng);
+                    continue;
+                }
+            };
+            let (got, u) = frame_sizes(&cal, 5e-6, &mut rng);
+            for f in 0..4 {
+                let e = got[f] - truth[f];
+                bias[f] += e;
+                u95[f] += u[f];
+                covered[f] += usize::from(e.abs() <= u[f]);
+            }
+            n += 1;
+        }
+        let pct = covered.map(|c| 100.0 * c as f64 / n as f64);
+        println!(
+            "{what}, σ 5 µm, {trials} trials ({refused} refused): U95 covers C, A, B, FED in {pct:.1?} %; \
+             mean error {:.2?} µm; mean U95 {:.1?} µm",
+            bias.map(|b| b / n as f64 * 1e6),
+            u95.map(|u| u / n as f64 * 1e6)
+        );
+        assert!(refused * 100 <= 2 * trials, "{what}: {refused} refused");
+        assert!(pct.iter().all(|p| (90.0..=99.5).contains(p)), "{what}: coverage {pct:?}");
+        // C, A, B; the FED's estimator has a bias of its own on this frame (3 µm, within
+        // its U95 of 13 µm), angle error or not.
+        assert!(bias[..3].iter().all(|b| (b / n as f64).abs() < 2e-6), "{what}: bias {bias:?}");
+    }
+}
