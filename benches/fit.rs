@@ -99,6 +99,21 @@ fn bench(c: &mut Criterion) {
             b.iter(|| calibrate(black_box(&scan), &plate, &opts).unwrap())
         });
     }
+    // The turntable's angle error fitted too (nine parameters, a run-time size): the same
+    // scan, and two placements of it (the second as if turned: its own start and centre).
+    let harmonics = Options {
+        angle_harmonics: tracer_calib::engine::angle::HarmonicOrders::new(&[1, 2]).unwrap(),
+        ..Options::default()
+    };
+    c.bench_function("calibrate/full_400 with angle harmonics 1, 2", |b| {
+        b.iter(|| calibrate(black_box(&scan), &plate, &harmonics).unwrap())
+    });
+    c.bench_function("calibrate/full_400 x 2 placements, angle harmonics 1, 2", |b| {
+        b.iter(|| {
+            tracer_calib::engine::calibrate::calibrate_placements(&[black_box(&scan), &scan], None, &plate, &harmonics)
+                .unwrap()
+        })
+    });
 
     let m = Mounting::new(2f64.to_radians(), 0.005, 0.002);
     let lens = Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 };
