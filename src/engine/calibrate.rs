@@ -11,7 +11,9 @@
 //!    cannot make the set oscillate, and the loop ends;
 //! 4. `alpha0` is reported in `(-π/4, π/4]`: a square plate gives the same lengths for
 //!    `(alpha0 + π/2, d, dL, R₉₀ c)` ([`super::geometry::wrap_quarter_turn`]);
-//! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`; the
+//! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`, or,
+//!    when the residuals are correlated along the trace, the sandwich
+//!    `(JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹` of AR(1) noise ([`correlated`]); the
 //!    tracer's part of it (the plate centre left out: the marginal covariance of a
 //!    Gaussian estimate is the sub-matrix) reported whole, in the fixed [`Covariance`]
 //!    layout, since the parameters correlate strongly (`dL` and the scale at 0.95): a
@@ -46,7 +48,7 @@ use std::fmt;
 use super::angle::{AngleError, HarmonicOrders, coefficient_names};
 use super::correct::correct;
 use super::geometry::{Mounting, rotate_quarter_turns, wrap_quarter_turn};
-use super::lack_of_fit::{Structure, harmonic_test};
+use super::lack_of_fit::{Structure, harmonic_test, noise_lag1};
 use super::lm::{self, Problem, Termination};
 use super::model::full::{self, FullModel};
 use super::model::full_scale::{self, FullScaleModel};
@@ -916,6 +918,9 @@ where
     let ss = (2.0 * ne.cost - ne.jtr.dot(&(&inv * &ne.jtr))).max(0.0);
     let sigma2 = ss / (n - p) as f64;
     let side = certificate_of(model, x, b, side_u, &[Some(k)]).ok()?[(0, 0)];
+    // Under white noise: a misfit's localised residuals (a wrong ring gauge's, in the
+    // corners) look like correlated noise to [`correlated`], and would widen the very test
+    // meant to catch them.
     let var = inv[(k, k)] * sigma2 + side;
     let est = ScaleEstimate { scale: 1.0 + step[k], stddev: var.max(0.0).sqrt() };
     (est.scale.is_finite() && est.stddev.is_finite() && est.stddev > 0.0).then_some(est)
@@ -1023,6 +1028,53 @@ where
     termination: Termination,
 }
 
+/// The covariance of a least-squares fit under noise correlated along the trace (module
+/// docs, step 5), or `None` when the residuals show no correlation (`|φ̂| ≤ 2/√n`, the
+/// white-noise covariance `white` stands).
+///
+/// With AR(1) noise of lag-1 correlation `φ` between consecutive samples (stick-slip, an
+/// encoder's interpolation error), `Cov(r_i, r_j) = σ² φ^|i-j|` and the estimate's covariance
+/// is the sandwich `(JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹`, not `σ²(JᵀJ)⁻¹`: at `φ = 0.8` the latter is 1.6 to
+/// 3 times too small for the parameters that move every sample the same way (`dL`, the
+/// scale). `φ̂` from the residuals' spectrum above harmonic 12 ([`noise_lag1`]), where a
+/// misfit's smooth structure is not (a wrong ring gauge's residuals are correlated too, and
+/// must still look wrong); `JᵀΣJ` in one pass by the
+/// recursion `F_i = J_i + φ F_(i-1)`: `Σ_(j≤i) φ^(i-j) J_i J_jᵀ = Σ_i J_i F_iᵀ`, so
+/// `JᵀΣJ/σ² = Σ_i (J_i F_iᵀ + F_i J_iᵀ - J_i J_iᵀ)`. `white` is `σ̂²(JᵀJ)⁻¹`, which gives
+/// both `σ̂²` and `(JᵀJ)⁻¹`.
+fn correlated<D: Dim>(
+    model: &impl Problem<D>,
+    x: &OVector<f64, D>,
+    white: &OMatrix<f64, D, D>,
+) -> Option<OMatrix<f64, D, D>>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let mut residuals = Vec::with_capacity(model.residual_count());
+    model.for_each_row(x, |r, _| residuals.push(r));
+    let (n, ss) = (residuals.len(), residuals.iter().map(|r| r * r).sum::<f64>());
+    let phi = noise_lag1(&residuals)?;
+    if phi.abs() <= 2.0 / (n as f64).sqrt() {
+        return None;
+    }
+    let phi = phi.clamp(-0.95, 0.95);
+    let (dim, _) = x.shape_generic();
+    let mut forward = OVector::<f64, D>::zeros_generic(dim, nalgebra::Const::<1>);
+    let mut m = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
+    let mut a = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
+    model.for_each_row(x, |_, j| {
+        forward *= phi;
+        forward += j;
+        m.ger(1.0, j, &forward, 1.0);
+        a.ger(1.0, j, j, 1.0);
+    });
+    let m = &m + m.transpose() - &a;
+    // white = σ̂² A⁻¹: the sandwich σ̂² A⁻¹ M A⁻¹ = white M white / σ̂².
+    let sigma2 = ss / (n.saturating_sub(x.len()).max(1)) as f64;
+    let sandwich = white * m * white / sigma2;
+    sandwich.iter().all(|v| v.is_finite()).then_some(sandwich)
+}
+
 /// Fit, reject outliers, refit from where the fit stands, until the set of samples
 /// stops changing (module docs, step 3).
 fn fit_rounds<D: Dim, M: Problem<D> + Subset>(
@@ -1054,7 +1106,12 @@ where
         }
         if keep == active || round + 1 == MAX_ROUNDS {
             let ne = rep.normal.as_ref().ok_or(CalibrationError::Singular)?;
-            let covariance = lm::covariance(ne).ok_or(CalibrationError::Singular)?;
+            let white = lm::covariance(ne).ok_or(CalibrationError::Singular)?;
+            // Noise correlated along the trace: the sandwich (module docs, step 5).
+            let covariance = match correlated(&model, &x, &white) {
+                Some(sandwich) => sandwich,
+                None => white,
+            };
             return Ok(Rounds { x, covariance, active, residuals, iterations, termination: rep.termination });
         }
         active = keep;

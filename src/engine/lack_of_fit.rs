@@ -147,33 +147,17 @@ pub fn harmonic_test(steps: &[u32], steps_per_rev: u32, residuals: &[f64], used:
         }
     }
     // The periodogram.
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
-    let mut spectrum = fft.make_output_vec();
-    fft.process(&mut r, &mut spectrum).ok()?;
-    let periodogram: Vec<f64> = spectrum.iter().map(|c| c.norm_sqr() / n as f64).collect();
-    let omega = |h: usize| std::f64::consts::TAU * h as f64 / n as f64;
+    let (spectrum, periodogram) = periodogram(&mut r)?;
     // 1. Whittle's AR(1) fit above the tested harmonics.
-    let high: Vec<usize> = (HARMONICS + 1..n.div_ceil(2)).collect();
-    // cos ω_h once for every harmonic: the grid below evaluates the shape 70 000 times.
-    let cos_omega: Vec<f64> = (0..n.div_ceil(2)).map(|h| omega(h).cos()).collect();
-    let shape = |phi: f64, h: usize| 1.0 + phi * phi - 2.0 * phi * cos_omega[h]; // |1 - φe^{-iω}|²
-    let whittle = |phi: f64| {
-        let sigma2 = high.iter().map(|&h| periodogram[h] * shape(phi, h)).sum::<f64>() / high.len() as f64;
-        // Σ ln(σ²/shape) = n ln σ² - ln Π shape, the product taken in blocks (no overflow:
-        // each shape is within [(1-|φ|)², (1+|φ|)²]).
-        let ln_shapes: f64 = high.chunks(16).map(|b| b.iter().map(|&h| shape(phi, h)).product::<f64>().ln()).sum();
-        (high.len() as f64 * sigma2.ln() - ln_shapes + high.len() as f64, sigma2)
-    };
-    let grid: Vec<(f64, (f64, f64))> =
-        (0..=370).map(|i| -0.9 + 0.005 * i as f64).map(|phi| (phi, whittle(phi))).collect();
-    let &(phi, (best, sigma2)) = grid.iter().min_by(|a, b| a.1.0.total_cmp(&b.1.0))?;
+    let Whittle { grid, phi, best, sigma2, shape } = whittle(&periodogram, n)?;
+    let high_len = n.div_ceil(2) - (HARMONICS + 1);
     // The noise the low harmonics are held against: the AR(1) at the upper end of φ's
     // one-sided 95 % likelihood interval (the negative log-likelihood within 1.35 of its
     // least), the most low-harmonic power the high harmonics allow. An estimate of φ a
     // little low would otherwise make correlated noise look like structure.
     let &(phi_up, (_, sigma2_up)) =
         grid.iter().rev().find(|(p, (l, _))| *p >= phi && *l <= best + 1.35).unwrap_or(&(phi, (best, sigma2)));
-    let dof = (2 * HARMONICS, 2 * high.len());
+    let dof = (2 * HARMONICS, 2 * high_len);
     let amplitudes: Vec<f64> = (1..=HARMONICS).map(|h| 2.0 * spectrum[h].norm() / n as f64).collect();
     if sigma2.is_nan() || sigma2 <= 0.0 {
         // Noise-free: nothing to test against, and nothing an edger would see.
@@ -189,7 +173,7 @@ pub fn harmonic_test(steps: &[u32], steps_per_rev: u32, residuals: &[f64], used:
         });
     }
     // 2. The low harmonics against the noise's spectrum there.
-    let s_at = |h: usize| sigma2_up / shape(phi_up, h);
+    let s_at = |h: usize| sigma2_up / shape.at(phi_up, h);
     let t: f64 = (1..=HARMONICS).map(|h| 2.0 * periodogram[h] / s_at(h)).sum();
     let f = t / dof.0 as f64;
     let noise_amplitudes = (1..=HARMONICS).map(|h| (4.0 * s_at(h) / n as f64).sqrt()).collect();
@@ -204,6 +188,66 @@ pub fn harmonic_test(steps: &[u32], steps_per_rev: u32, residuals: &[f64], used:
         lag1: phi,
         noise: (sigma2 / (1.0 - phi * phi)).sqrt(),
     })
+}
+
+/// The spectrum of a series of `n` values and its periodogram `|X_h|²/n`.
+fn periodogram(series: &mut [f64]) -> Option<(Vec<realfft::num_complex::Complex<f64>>, Vec<f64>)> {
+    let n = series.len();
+    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let mut spectrum = fft.make_output_vec();
+    fft.process(series, &mut spectrum).ok()?;
+    let periodogram = spectrum.iter().map(|c| c.norm_sqr() / n as f64).collect();
+    Some((spectrum, periodogram))
+}
+
+/// `|1 - φe^{-iω_h}|²`, the AR(1) spectrum's shape, from a table of `cos ω_h`.
+struct Shape(Vec<f64>);
+
+impl Shape {
+    fn at(&self, phi: f64, h: usize) -> f64 {
+        1.0 + phi * phi - 2.0 * phi * self.0[h]
+    }
+}
+
+/// Whittle's AR(1) fit to the periodogram's harmonics above [`HARMONICS`]: its grid of
+/// `(φ, (negative log-likelihood, innovation variance))`, the best `φ` with its values.
+struct Whittle {
+    grid: Vec<(f64, (f64, f64))>,
+    phi: f64,
+    best: f64,
+    sigma2: f64,
+    shape: Shape,
+}
+
+fn whittle(periodogram: &[f64], n: usize) -> Option<Whittle> {
+    let high: Vec<usize> = (HARMONICS + 1..n.div_ceil(2)).collect();
+    // cos ω_h once for every harmonic: the grid evaluates the shape 70 000 times.
+    let shape = Shape((0..n.div_ceil(2)).map(|h| (std::f64::consts::TAU * h as f64 / n as f64).cos()).collect());
+    let likelihood = |phi: f64| {
+        let sigma2 = high.iter().map(|&h| periodogram[h] * shape.at(phi, h)).sum::<f64>() / high.len() as f64;
+        // Σ ln(σ²/shape) = n ln σ² - ln Π shape, the product taken in blocks (no overflow:
+        // each shape is within [(1-|φ|)², (1+|φ|)²]).
+        let ln_shapes: f64 = high.chunks(16).map(|b| b.iter().map(|&h| shape.at(phi, h)).product::<f64>().ln()).sum();
+        (high.len() as f64 * sigma2.ln() - ln_shapes + high.len() as f64, sigma2)
+    };
+    let grid: Vec<(f64, (f64, f64))> =
+        (0..=370).map(|i| -0.9 + 0.005 * i as f64).map(|phi| (phi, likelihood(phi))).collect();
+    let &(phi, (best, sigma2)) = grid.iter().min_by(|a, b| a.1.0.total_cmp(&b.1.0))?;
+    Some(Whittle { grid, phi, best, sigma2, shape })
+}
+
+/// The lag-1 correlation of the noise in a series of residuals taken one after another
+/// (a trace), by Whittle's AR(1) fit to its periodogram above [`HARMONICS`] a series: blind
+/// to the smooth structure a misfit leaves, which a lag-1 correlation of the residuals
+/// themselves would take for correlated noise. `None` for a series too short to tell.
+pub fn noise_lag1(series: &[f64]) -> Option<f64> {
+    if series.len() < 8 * HARMONICS || !series.iter().all(|r| r.is_finite()) {
+        return None;
+    }
+    let mut r = series.to_vec();
+    let (_, periodogram) = periodogram(&mut r)?;
+    let w = whittle(&periodogram, series.len())?;
+    (w.sigma2.is_finite() && w.sigma2 > 0.0).then_some(w.phi)
 }
 
 /// `P(F > f)` for an F distribution with `d1`, `d2` degrees of freedom:
