@@ -13,7 +13,7 @@
 //!    `(alpha0 + π/2, d, dL, R₉₀ c)` ([`super::geometry::wrap_quarter_turn`]);
 //! 5. the standard uncertainty of each parameter from the covariance `σ̂² (JᵀJ)⁻¹`, or,
 //!    when the residuals are correlated along the trace, the sandwich
-//!    `(JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹` of AR(1) noise ([`correlated`]); the
+//!    `(JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹` of AR(1) noise (`correlated`); the
 //!    tracer's part of it (the plate centre left out: the marginal covariance of a
 //!    Gaussian estimate is the sub-matrix) reported whole, in the fixed [`Covariance`]
 //!    layout, since the parameters correlate strongly (`dL` and the scale at 0.95): a
