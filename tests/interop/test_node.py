@@ -857,13 +857,18 @@ def test_parameter_events(peer):
     events = []
     handler = ParameterEventHandler(peer.node)
     handle = handler.add_parameter_event_callback(events.append)
-    writers = peer.node.count_publishers("/parameter_events")  # the peer's own
     node = NodeProcess("param_events", ["-r", "__ns:=/cell6", "-r", "__node:=tracer", "-r", "raw_scan:=/pe_scan"])
     try:
         pc = peer.param_client("/cell6/tracer")
         mine = lambda: [e for e in events if e.node == "/cell6/tracer"]  # noqa: E731
         # Discovery of the event writer by the handler's reader: an event after it is matched.
-        peer.spin_until(lambda: peer.node.count_publishers("/parameter_events") > writers, 10, "the node's event writer")
+        # The writer is found by its node (a count would race with an earlier test's node
+        # leaving the graph as this one joins it).
+        ours = lambda: any(  # noqa: E731
+            i.node_name == "tracer" and i.node_namespace == "/cell6"
+            for i in peer.node.get_publishers_info_by_topic("/parameter_events")
+        )
+        peer.spin_until(ours, 10, "the node's event writer")
 
         def settle(seconds=0.5):
             deadline = time.monotonic() + seconds
