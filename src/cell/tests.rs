@@ -15,14 +15,13 @@ use rand::SeedableRng;
 use std::time::{Duration, UNIX_EPOCH};
 
 fn plate_msg(scan_id: u32, m: &Mounting) -> RawScan {
+    plate_msg_with(scan_id, m, &SimOptions { noise: 2e-6, ..SimOptions::default() })
+}
+
+/// A plate scan of a tracer with mounting `m` and the errors of `opt`, 1 µm counts.
+fn plate_msg_with(scan_id: u32, m: &Mounting, opt: &SimOptions) -> RawScan {
     let mut rng = rand::rngs::StdRng::seed_from_u64(u64::from(scan_id));
-    let sim = simulate(
-        &PlateSpec::default().at(Vector2::new(0.0005, -0.0003)),
-        m,
-        &SimOptions { noise: 2e-6, ..SimOptions::default() },
-        &mut rng,
-    )
-    .unwrap();
+    let sim = simulate(&PlateSpec::default().at(Vector2::new(0.0005, -0.0003)), m, opt, &mut rng).unwrap();
     RawScan {
         header: Header::default(),
         scan_id,
@@ -618,23 +617,13 @@ fn the_tip_is_fitted_from_a_ring_gauge_and_contours_are_of_the_touched_surface()
 /// A plate scan of a turntable whose angle is off once and twice a turn, the plate turned
 /// by `turn` (counter-clockwise).
 fn turned_plate_msg(scan_id: u32, m: &Mounting, turn: f64) -> RawScan {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(u64::from(scan_id));
     let deg = 1f64.to_radians();
     let opt = SimOptions {
         noise: 2e-6,
         angle_harmonics: [(1, 0.05 * deg, 0.0), (2, 0.0, 0.02 * deg), (0, 0.0, 0.0)],
         ..SimOptions::default()
     };
-    let turned = Mounting { alpha0: m.alpha0 - turn, ..*m };
-    let sim = simulate(&PlateSpec::default().at(Vector2::new(0.0005, -0.0003)), &turned, &opt, &mut rng).unwrap();
-    RawScan {
-        header: Header::default(),
-        scan_id,
-        target: RawScan::TARGET_CALIBRATION_PLATE,
-        steps_per_revolution: 400,
-        step: sim.scan.samples().iter().map(|s| s.step).collect(),
-        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
-    }
+    plate_msg_with(scan_id, &Mounting { alpha0: m.alpha0 - turn, ..*m }, &opt)
 }
 
 #[test]
