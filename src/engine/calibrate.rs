@@ -1403,6 +1403,13 @@ fn fit_turntable(
     }
     let ring_part = l.ring().map(|g| (Vector2::new(r.x[g], r.x[g + 1]), residuals.clone(), active.clone()));
     let scale = l.scale().map_or(1.0, |i| r.x[i]);
+    // A coefficient beyond what a turntable can have (5.7°) is no angle error to correct.
+    let coefficients = r.x.rows(l.harmonics(), 2 * l.orders.len()).iter().copied().collect();
+    let angle = AngleError::new(l.orders, coefficients).map_err(|e| {
+        CalibrationError::Model(format!(
+            "the fitted angle error is not one a turntable has ({e}): check the plate scans"
+        ))
+    })?;
     let fit = Fit {
         model: opt.model,
         x: model.placement_params(&r.x, 0),
@@ -1415,7 +1422,7 @@ fn fit_turntable(
         termination: r.termination,
         tip_radius: l.tip().map_or(tip0, |i| r.x[i]),
         ring: ring_part,
-        angle: model.angle_error(&r.x),
+        angle,
         named: Some(named),
         placements,
     };

@@ -37,7 +37,7 @@ use nalgebra::{DMatrix, DVector, Vector2};
 use super::PlateSpec;
 use super::full::{self, FullModel, TableSample};
 use super::tip::{self, RingSpec, TipModel};
-use crate::engine::angle::{AngleError, HarmonicOrders};
+use crate::engine::angle::HarmonicOrders;
 use crate::engine::geometry::rotate;
 use crate::engine::lm::Problem;
 use crate::engine::scan::Scan;
@@ -243,13 +243,6 @@ impl TurntableModel {
         }
         let ring = self.ring.as_ref().map(|(spec, r)| (*spec, r.retain(width, |i| keep(start + i))));
         TurntableModel { plates, ring, ..self.clone() }
-    }
-
-    /// The angle error `x` holds.
-    pub fn angle_error(&self, x: &DVector<f64>) -> AngleError {
-        let h = self.layout.harmonics();
-        let c = x.rows(h, 2 * self.layout.orders.len()).iter().copied().collect();
-        AngleError::new(self.layout.orders, c).unwrap_or_else(|_| AngleError::zero(self.layout.orders))
     }
 
     /// Placement `p`'s full-model parameters `[alpha0 - θ_p, d, dL, cx_p, cy_p]`.
