@@ -347,10 +347,16 @@ impl Parameters {
         }
         let n = if self.covariance_names.is_empty() { 5 } else { self.covariance_names.len() };
         if !self.covariance_names.is_empty() {
+            // With no coefficients in force the angle's names may stay (the rows are then
+            // not read), so that clearing the coefficients alone is a set that reads.
             let five = covariance_names(HarmonicOrders::NONE);
-            let angle = if self.angle_coefficients.is_empty() { HarmonicOrders::NONE } else { orders };
-            let want = covariance_names(angle);
-            if self.covariance_names[..n.min(5)] != five[..] || self.covariance_names != want {
+            let want = covariance_names(orders);
+            let names_ok = if self.angle_coefficients.is_empty() {
+                self.covariance_names.len() >= 5 && self.covariance_names[..5] == five[..]
+            } else {
+                self.covariance_names == want
+            };
+            if !names_ok {
                 return Err(ParamError::Invalid(format!(
                     "{} must be [{}] (the five, then the angle coefficients in force), got [{}]",
                     names::COVARIANCE_NAMES,
@@ -564,6 +570,12 @@ mod tests {
         p.set("calibration.covariance", &DoubleArray(vec![0.0; 121])).unwrap();
         let e = p.clone().set("calibration.covariance_names", &StringArray(names[..5].to_vec())).unwrap_err();
         assert!(e.to_string().contains("angle_c1"), "{e}");
+        // Dropping the angle error one set at a time reads at every step: the coefficients,
+        // then the orders (the covariance's rows of the angle are then not read).
+        p.set("calibration.angle_coefficients", &DoubleArray(Vec::new())).unwrap();
+        assert!(p.angle_in_force().coefficients().is_empty());
+        p.set("calibration.angle_harmonics", &IntegerArray(Vec::new())).unwrap();
+        assert!(p.covariance_in_force().is_some_and(|c| c.nrows() == 11));
     }
 
     #[test]

@@ -170,7 +170,7 @@ pub const SPECS: [Spec; 30] = [
     Spec::new(names::ANGLE_COEFFICIENTS, "calibration in force: the turntable's angle error, [c_h1, s_h1, c_h2, s_h2, ...] (rad) over calibration.angle_harmonics, the rail at alpha0 + phi + sum(c_h cos h phi + s_h sin h phi); set by /calibrate; empty = none")
         .constraints("empty, or two finite values of at most 0.1 rad an order of calibration.angle_harmonics"),
     Spec::new(names::COVARIANCE_NAMES, "calibration in force: the names of calibration.covariance's rows: alpha0, offset, delta_l, scale, tip_radius, then angle_c1, angle_s1, ... for each angle harmonic in force; set by /calibrate; empty = the five")
-        .constraints("empty, or the five and the names of the angle coefficients in force, in that order"),
+        .constraints("empty, or the five and the names of the angle coefficients in force, in that order (with no coefficients in force, the five and any)"),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.
