@@ -37,6 +37,12 @@ fn placement(turn: f64, c: Vector2<f64>, sim: &SimOptions, rng: &mut StdRng) -> 
     simulate(&PLATE.at(c), &m, sim, rng).unwrap().scan
 }
 
+/// Two plate scans: the plate as placed, then turned 22.5° and moved.
+fn two_placements(sim: &SimOptions, rng: &mut StdRng) -> (Scan, Scan) {
+    let a = placement(0.0, Vector2::new(0.0008, -0.0005), sim, rng);
+    (a, placement(deg(22.5), Vector2::new(-0.0003, 0.0006), sim, rng))
+}
+
 fn options(orders: &[i64]) -> Options {
     Options { angle_harmonics: HarmonicOrders::new(orders).unwrap(), ..Options::default() }
 }
@@ -51,8 +57,7 @@ fn coefficient(cal: &Calibration, name: &str) -> (f64, f64) {
 fn two_placements_find_orders_one_two_and_four_noise_free() {
     let mut rng = StdRng::seed_from_u64(1);
     let sim = tracer(0.0);
-    let a = placement(0.0, Vector2::new(0.0008, -0.0005), &sim, &mut rng);
-    let b = placement(deg(22.5), Vector2::new(-0.0003, 0.0006), &sim, &mut rng);
+    let (a, b) = two_placements(&sim, &mut rng);
     let cal = calibrate_placements(&[&a, &b], None, &PLATE, &options(&[1, 2, 4])).unwrap();
     println!("{}", cal.summary());
     assert!((cal.mounting.alpha0 - TRUTH.alpha0).abs() < 1e-9, "{}", cal.mounting.alpha0);
@@ -149,8 +154,7 @@ fn the_tip_models_fit_harmonics_with_a_ring_gauge_too() {
     use tracer_calib::engine::shape::Ellipse;
     let mut rng = StdRng::seed_from_u64(3);
     let sim = SimOptions { tip_radius: 0.0005, ..tracer(0.0) };
-    let a = placement(0.0, Vector2::new(0.0008, -0.0005), &sim, &mut rng);
-    let b = placement(deg(22.5), Vector2::new(-0.0003, 0.0006), &sim, &mut rng);
+    let (a, b) = two_placements(&sim, &mut rng);
     let ring_sim = SimOptions { inside: true, ..sim };
     let ring = simulate(
         &Ellipse { center: Vector2::new(-0.0006, 0.0004), a: 0.02, b: 0.02, angle: 0.0 },
@@ -208,9 +212,7 @@ fn frame_sizes(cal: &Calibration, sigma: f64, rng: &mut StdRng) -> ([f64; 4], [f
 #[test]
 fn a_frame_measures_true_with_the_angle_modelled() {
     let mut rng = StdRng::seed_from_u64(5);
-    let sim = tracer(0.0);
-    let a = placement(0.0, Vector2::new(0.0008, -0.0005), &sim, &mut rng);
-    let b = placement(deg(22.5), Vector2::new(-0.0003, 0.0006), &sim, &mut rng);
+    let (a, b) = two_placements(&tracer(0.0), &mut rng);
     let exact = frame().exact_sizes();
     let modelled = calibrate_placements(&[&a, &b], None, &PLATE, &options(&[1, 2, 4])).unwrap();
     let ignored = Options { lack_of_fit_alpha: 0.0, ..Options::default() };

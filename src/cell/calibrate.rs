@@ -131,6 +131,9 @@ impl NodeState {
             self.stats.last_fit_message = response.message.clone();
             return CalibrateOutcome { response, applied: None };
         }
+        // The covariance's names where they say more than the five: with an angle error.
+        let names_in_force =
+            if response.angle_coefficients.is_empty() { Vec::new() } else { response.covariance_names.clone() };
         let record = Record {
             format: records::format_for(&response.angle_coefficients),
             time: records::format_utc(now.wall),
@@ -147,11 +150,7 @@ impl NodeState {
             iterations: cal.iterations as u32,
             tip_radius: cal.tip_radius,
             covariance: response.covariance.clone(),
-            covariance_names: if response.angle_coefficients.is_empty() {
-                Vec::new()
-            } else {
-                response.covariance_names.clone()
-            },
+            covariance_names: names_in_force.clone(),
             angle_harmonics: response.angle_harmonics.iter().map(|&h| i64::from(h)).collect(),
             angle_coefficients: response.angle_coefficients.clone(),
             plate_scan_ids: more_ids,
@@ -161,8 +160,7 @@ impl NodeState {
         self.params.calibration = cal.mounting;
         self.params.calibration_valid = true;
         self.params.covariance = response.covariance.clone();
-        self.params.covariance_names =
-            if response.angle_coefficients.is_empty() { Vec::new() } else { response.covariance_names.clone() };
+        self.params.covariance_names = names_in_force;
         self.params.angle_coefficients = response.angle_coefficients.clone();
         self.params.tip_radius = cal.tip_radius;
         // The time the record gives, to the millisecond: what a restart reads back.

@@ -202,7 +202,7 @@ impl NodeState {
             angle_harmonics: if angle.coefficients().is_empty() {
                 Vec::new()
             } else {
-                angle.orders().to_vec().into_iter().map(|h| h as i32).collect()
+                angle.orders().iter().map(|h| h as i32).collect()
             },
             angle_coefficients: if angle.coefficients().is_empty() {
                 Vec::new()

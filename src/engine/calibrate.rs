@@ -1040,37 +1040,35 @@ where
 /// misfit's smooth structure is not (a wrong ring gauge's residuals are correlated too, and
 /// must still look wrong); `JᵀΣJ` in one pass by the
 /// recursion `F_i = J_i + φ F_(i-1)`: `Σ_(j≤i) φ^(i-j) J_i J_jᵀ = Σ_i J_i F_iᵀ`, so
-/// `JᵀΣJ/σ² = Σ_i (J_i F_iᵀ + F_i J_iᵀ - J_i J_iᵀ)`. `white` is `σ̂²(JᵀJ)⁻¹`, which gives
-/// both `σ̂²` and `(JᵀJ)⁻¹`.
+/// `JᵀΣJ/σ² = Σ_i (J_i F_iᵀ + F_i J_iᵀ - J_i J_iᵀ)`. `residuals`: the fit's, row by row;
+/// `ne` its normal equations (`JᵀJ`, `σ̂²`) and `white` its covariance `σ̂²(JᵀJ)⁻¹`.
 fn correlated<D: Dim>(
     model: &impl Problem<D>,
     x: &OVector<f64, D>,
+    residuals: &[f64],
+    ne: &lm::NormalEquations<D>,
     white: &OMatrix<f64, D, D>,
 ) -> Option<OMatrix<f64, D, D>>
 where
     DefaultAllocator: Allocator<D> + Allocator<D, D>,
 {
-    let mut residuals = Vec::with_capacity(model.residual_count());
-    model.for_each_row(x, |r, _| residuals.push(r));
-    let (n, ss) = (residuals.len(), residuals.iter().map(|r| r * r).sum::<f64>());
-    let phi = noise_lag1(&residuals)?;
-    if phi.abs() <= 2.0 / (n as f64).sqrt() {
+    let phi = noise_lag1(residuals)?;
+    if phi.abs() <= 2.0 / (residuals.len() as f64).sqrt() {
         return None;
     }
     let phi = phi.clamp(-0.95, 0.95);
     let (dim, _) = x.shape_generic();
     let mut forward = OVector::<f64, D>::zeros_generic(dim, nalgebra::Const::<1>);
     let mut m = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
-    let mut a = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
     model.for_each_row(x, |_, j| {
         forward *= phi;
         forward += j;
         m.ger(1.0, j, &forward, 1.0);
-        a.ger(1.0, j, j, 1.0);
     });
-    let m = &m + m.transpose() - &a;
-    // white = σ̂² A⁻¹: the sandwich σ̂² A⁻¹ M A⁻¹ = white M white / σ̂².
-    let sigma2 = ss / (n.saturating_sub(x.len()).max(1)) as f64;
+    let m = &m + m.transpose() - &ne.jtj;
+    // white = σ̂² A⁻¹ (σ̂² = ‖r‖²/(n - P), as lm::covariance): the sandwich σ̂² A⁻¹ M A⁻¹
+    // = white M white / σ̂².
+    let sigma2 = 2.0 * ne.cost / ne.count.saturating_sub(x.len()).max(1) as f64;
     let sandwich = white * m * white / sigma2;
     sandwich.iter().all(|v| v.is_finite()).then_some(sandwich)
 }
@@ -1108,7 +1106,8 @@ where
             let ne = rep.normal.as_ref().ok_or(CalibrationError::Singular)?;
             let white = lm::covariance(ne).ok_or(CalibrationError::Singular)?;
             // Noise correlated along the trace: the sandwich (module docs, step 5).
-            let covariance = match correlated(&model, &x, &white) {
+            let used: Vec<f64> = residuals.iter().zip(&active).filter(|(_, a)| **a).map(|(r, _)| *r).collect();
+            let covariance = match correlated(&model, &x, &used, ne, &white) {
                 Some(sandwich) => sandwich,
                 None => white,
             };
@@ -1382,26 +1381,29 @@ fn fit_turntable(
     if ring.is_some() {
         named += certificate_of(&used, &r.x, &b_diameter, opt.ring_diameter_uncertainty, &rows)?;
     }
-    // Residuals scan by scan.
-    let mut residuals = r.residuals.as_slice().to_vec();
-    let mut active = r.active.clone();
-    let mut split = |n: usize| -> (Vec<f64>, Vec<bool>) {
-        let rest = (residuals.split_off(n), active.split_off(n));
-        (std::mem::replace(&mut residuals, rest.0), std::mem::replace(&mut active, rest.1))
+    // Residuals scan by scan: the plates' in turn, then the ring's.
+    let mut start = 0;
+    let mut take = |len: usize| {
+        let part = (r.residuals.as_slice()[start..start + len].to_vec(), r.active[start..start + len].to_vec());
+        start += len;
+        part
     };
-    let (first_residuals, first_used) = split(model.plate_len(0));
+    let (first_residuals, first_used) = take(model.plate_len(0));
     let mut placements = Vec::with_capacity(plates.len() - 1);
     for p in 1..plates.len() {
         let (turn, c) = l.placement(p);
-        let (res, u) = split(model.plate_len(p));
+        let (residuals, used) = take(model.plate_len(p));
         placements.push(PlacementPart {
             turn: turn.map_or(0.0, |i| r.x[i]),
             center: Vector2::new(r.x[c], r.x[c + 1]),
-            residuals: res,
-            used: u,
+            residuals,
+            used,
         });
     }
-    let ring_part = l.ring().map(|g| (Vector2::new(r.x[g], r.x[g + 1]), residuals.clone(), active.clone()));
+    let ring_part = l.ring().map(|g| {
+        let (residuals, used) = take(model.ring_len());
+        (Vector2::new(r.x[g], r.x[g + 1]), residuals, used)
+    });
     let scale = l.scale().map_or(1.0, |i| r.x[i]);
     // A coefficient beyond what a turntable can have (5.7°) is no angle error to correct.
     let coefficients = r.x.rows(l.harmonics(), 2 * l.orders.len()).iter().copied().collect();

@@ -149,15 +149,14 @@ pub fn harmonic_test(steps: &[u32], steps_per_rev: u32, residuals: &[f64], used:
     // The periodogram.
     let (spectrum, periodogram) = periodogram(&mut r)?;
     // 1. Whittle's AR(1) fit above the tested harmonics.
-    let Whittle { grid, phi, best, sigma2, shape } = whittle(&periodogram, n)?;
-    let high_len = n.div_ceil(2) - (HARMONICS + 1);
+    let Whittle { grid, phi, best, sigma2, shape, fitted } = whittle(&periodogram, n)?;
     // The noise the low harmonics are held against: the AR(1) at the upper end of φ's
     // one-sided 95 % likelihood interval (the negative log-likelihood within 1.35 of its
     // least), the most low-harmonic power the high harmonics allow. An estimate of φ a
     // little low would otherwise make correlated noise look like structure.
     let &(phi_up, (_, sigma2_up)) =
         grid.iter().rev().find(|(p, (l, _))| *p >= phi && *l <= best + 1.35).unwrap_or(&(phi, (best, sigma2)));
-    let dof = (2 * HARMONICS, 2 * high_len);
+    let dof = (2 * HARMONICS, 2 * fitted);
     let amplitudes: Vec<f64> = (1..=HARMONICS).map(|h| 2.0 * spectrum[h].norm() / n as f64).collect();
     if sigma2.is_nan() || sigma2 <= 0.0 {
         // Noise-free: nothing to test against, and nothing an edger would see.
@@ -217,6 +216,8 @@ struct Whittle {
     best: f64,
     sigma2: f64,
     shape: Shape,
+    /// How many harmonics it fitted.
+    fitted: usize,
 }
 
 fn whittle(periodogram: &[f64], n: usize) -> Option<Whittle> {
@@ -233,7 +234,7 @@ fn whittle(periodogram: &[f64], n: usize) -> Option<Whittle> {
     let grid: Vec<(f64, (f64, f64))> =
         (0..=370).map(|i| -0.9 + 0.005 * i as f64).map(|phi| (phi, likelihood(phi))).collect();
     let &(phi, (best, sigma2)) = grid.iter().min_by(|a, b| a.1.0.total_cmp(&b.1.0))?;
-    Some(Whittle { grid, phi, best, sigma2, shape })
+    Some(Whittle { grid, phi, best, sigma2, shape, fitted: high.len() })
 }
 
 /// The lag-1 correlation of the noise in a series of residuals taken one after another

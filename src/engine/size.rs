@@ -749,12 +749,13 @@ pub fn uncertainty(
         // The covariance's rows: the five, then the angle's coefficients when it has them
         // (a covariance without them: the five alone).
         let mut correction = *correction;
-        let n = 5 + 2 * correction.angle_orders.len();
-        if cov.nrows() != n || cov.ncols() != n {
+        let with_angle = 5 + 2 * correction.angle_orders.len();
+        let n = if cov.shape() == (with_angle, with_angle) {
+            with_angle
+        } else {
             correction.angle_orders = HarmonicOrders::NONE;
-        }
-        let n = if cov.nrows() >= 5 && cov.ncols() >= 5 { n.min(cov.nrows()) } else { 0 };
-        let n = if correction.angle_orders.is_empty() { n.min(5) } else { n };
+            if cov.nrows() >= 5 && cov.ncols() >= 5 { 5 } else { 0 }
+        };
         let sigma = cov.view((0, 0), (n, n));
         let quadratic = |s: &[f64]| -> f64 {
             let mut v = 0.0;
@@ -763,21 +764,19 @@ pub fn uncertainty(
             }
             v
         };
-        // Each parameter's radial change on the grid, in one pass; the figures' response.
-        let mut row = Vec::with_capacity(n);
-        let table: Vec<Vec<f64>> = sizes
-            .grid
-            .iter()
-            .zip(grid_unit())
-            .map(|((r, rp), u)| {
-                correction.all_sensitivities_at(*r, *rp, *u, &mut row);
-                row.clone()
-            })
-            .collect();
+        // Each parameter's radial change on the grid, in one pass (a grid point's n values
+        // at `n k`); the figures' response.
+        let mut row = Vec::with_capacity(with_angle);
+        let mut table = vec![0.0; GRID * n];
+        for (k, ((r, rp), u)) in sizes.grid.iter().zip(grid_unit()).enumerate() {
+            correction.all_sensitivities_at(*r, *rp, *u, &mut row);
+            table[k * n..(k + 1) * n].copy_from_slice(&row[..n]);
+        }
+        let at = |k: usize| &table[k * n..(k + 1) * n];
         let mut g = vec![[0.0; 4]; n];
         for (j, gj) in g.iter_mut().enumerate() {
             if sigma[(j, j)] > 0.0 {
-                *gj = sizes.response_on_grid(&table.iter().map(|s| s[j]).collect::<Vec<_>>());
+                *gj = sizes.response_on_grid(&table.iter().skip(j).step_by(n).copied().collect::<Vec<_>>());
             }
         }
         for (f, v) in var_cal.iter_mut().enumerate() {
@@ -787,7 +786,7 @@ pub fn uncertainty(
         let mut between = vec![0.0; n];
         for (i, v) in radii_var_cal.iter_mut().enumerate() {
             let (j, f) = grid_place(i as f64 * GRID as f64 / m as f64);
-            let (a, b) = (&table[j], &table[(j + 1) % GRID]);
+            let (a, b) = (at(j), at((j + 1) % GRID));
             between.iter_mut().enumerate().for_each(|(p, x)| *x = a[p] * (1.0 - f) + b[p] * f);
             *v = quadratic(&between);
         }
