@@ -136,3 +136,102 @@ fn a_monte_carlo_of_the_artefacts_is_covered() {
         }
     }
 }
+
+/// The inputs a fit takes as known besides the artefacts' sizes (the plate's corner
+/// radius; the tip radius and the encoder scale in force where the model does not fit
+/// them): the type B term each adds is the estimator's own derivative (refits with the
+/// input moved), and the tip radius and the scale carried keep their own rows, `u²`.
+#[test]
+fn the_inputs_sensitivities_are_the_estimators_own() {
+    let (plate, ring) = scans(&PLATE, &RING, 0.0, 1);
+    let u = 5e-6;
+    let h = 1e-8;
+    // (name, applies to the model, the options moved by d, the options with u)
+    type Move = fn(&mut Options, f64);
+    type Applies = fn(ModelKind) -> bool;
+    let inputs: [(&str, Applies, Move, Move); 3] = [
+        ("corner radius", |m| m != ModelKind::Paper, |_, _| {}, |o, u| o.corner_radius_uncertainty = u),
+        (
+            "tip radius",
+            |m| !m.fits_tip() && m != ModelKind::Paper,
+            |o, d| o.tip_radius += d,
+            |o, u| o.tip_radius_uncertainty = u,
+        ),
+        ("scale", |m| !m.fits_scale() && m != ModelKind::Paper, |o, d| o.scale += d, |o, u| o.scale_uncertainty = u),
+    ];
+    for model in ModelKind::ALL {
+        let base_opt = Options {
+            model,
+            tip_radius: if model.fits_tip() { 0.0 } else { TIP },
+            lack_of_fit_alpha: 0.0,
+            ..Options::default()
+        };
+        let run = |opt: &Options, corner: f64| {
+            let spec = PlateSpec { corner_radius: PLATE.corner_radius + corner, ..PLATE };
+            calibrate_with_ring(&plate, Some(Ring { scan: &ring, spec: RING }), &spec, opt).unwrap()
+        };
+        for (name, applies, moved, with_u) in inputs {
+            if !applies(model) {
+                continue;
+            }
+            let refit = |d: f64| {
+                let mut opt = base_opt;
+                moved(&mut opt, d);
+                tracer(&run(&opt, if name == "corner radius" { d } else { 0.0 }))
+            };
+            let (up, down) = (refit(h), refit(-h));
+            let numeric: Vec<f64> = (0..5).map(|i| (up[i] - down[i]) / (2.0 * h)).collect();
+            let base = run(&base_opt, 0.0).covariance;
+            let mut opt = base_opt;
+            with_u(&mut opt, u);
+            let term = run(&opt, 0.0).covariance - base;
+            for i in [layout::ALPHA0, layout::OFFSET, layout::DELTA_L] {
+                let want = (numeric[i] * u).abs();
+                let got = term[(i, i)].sqrt();
+                let floor = if i == layout::ALPHA0 { 1e-7 } else { 1e-9 };
+                assert!(
+                    (got - want).abs() <= 0.02 * want + floor,
+                    "{model}, {name}, parameter {i}: reported {got:e}, the estimator's {want:e}"
+                );
+            }
+            let own = match name {
+                "tip radius" => Some(layout::TIP_RADIUS),
+                "scale" => Some(layout::SCALE),
+                _ => None,
+            };
+            if let Some(row) = own {
+                assert!((term[(row, row)].sqrt() - u).abs() < 1e-3 * u, "{model}, {name}: its own row");
+                // Its covariance with dL: the fitted dL moves with it by the derivative.
+                let want = numeric[layout::DELTA_L] * u * u;
+                let got = term[(row, layout::DELTA_L)];
+                assert!((got - want).abs() <= 0.02 * want.abs() + 1e-15, "{model}, {name}: with dL {got:e}, {want:e}");
+            }
+        }
+    }
+}
+
+/// The plate's seating against the frame holder's datum reads as the rail's start angle:
+/// its variance adds to `alpha0`'s, in the covariance and the named one, nothing else.
+#[test]
+fn the_plates_seating_adds_to_alpha0() {
+    let (plate, ring) = scans(&PLATE, &RING, 2e-6, 3);
+    let u = 0.02f64.to_radians();
+    for model in [ModelKind::Full, ModelKind::FullTip] {
+        let opt = Options {
+            model,
+            tip_radius: if model.fits_tip() { 0.0 } else { TIP },
+            lack_of_fit_alpha: 0.0,
+            ..Options::default()
+        };
+        let run =
+            |opt: &Options| calibrate_with_ring(&plate, Some(Ring { scan: &ring, spec: RING }), &PLATE, opt).unwrap();
+        let (base, with) = (run(&opt), run(&Options { seating_uncertainty: u, ..opt }));
+        let term = with.covariance - base.covariance;
+        let named = with.named_covariance.clone() - base.named_covariance.clone();
+        for (i, j) in (0..5).flat_map(|i| (0..5).map(move |j| (i, j))) {
+            let want = if (i, j) == (layout::ALPHA0, layout::ALPHA0) { u * u } else { 0.0 };
+            assert!((term[(i, j)] - want).abs() < 1e-6 * u * u, "{model} ({i}, {j}): {:e}", term[(i, j)]);
+            assert!((named[(i, j)] - want).abs() < 1e-6 * u * u, "{model} named ({i}, {j})");
+        }
+    }
+}

@@ -55,7 +55,7 @@ use super::model::full_scale::{self, FullScaleModel};
 use super::model::paper::{self, PaperModel};
 use super::model::tip::{self, RingSpec, TipModel, TipScaleModel};
 use super::model::turntable::{self, TurntableModel};
-use super::model::{ModelKind, PlateError, PlateSpec};
+use super::model::{InputDerivatives, ModelKind, PlateError, PlateSpec};
 use super::scan::Scan;
 use super::start::initial_guess;
 
@@ -106,6 +106,20 @@ pub struct Options {
     /// A tip model's fitted radius is refused above this (metres): no stylus of a
     /// tracer is that large, and a ring gauge of the wrong diameter can make it so.
     pub max_tip_radius: f64,
+    /// Standard uncertainty of the plate's corner radius from its certificate, metres
+    /// (`plate.corner_radius_uncertainty`): a type B part of the covariance.
+    pub corner_radius_uncertainty: f64,
+    /// Standard uncertainty of the tip radius in force, metres
+    /// (`stylus.tip_radius_uncertainty`), for the models that do not fit it: a type B
+    /// part of the covariance, with its own row.
+    pub tip_radius_uncertainty: f64,
+    /// Standard uncertainty of the encoder scale in force (an earlier fit's), for the
+    /// models that do not fit it: carried into the covariance with its own row.
+    pub scale_uncertainty: f64,
+    /// Standard uncertainty of the plate's seating angle against the frame holder's
+    /// datum, radians (`plate.seating_uncertainty`): added to `alpha0`'s variance (a plate
+    /// seated turned by `ε` reads as a tracer whose rail starts `ε` off).
+    pub seating_uncertainty: f64,
     /// Orders of the turntable's angle error fitted with the model
     /// (`calibration.angle_harmonics`, [`super::angle`]); none: the angle encoder taken
     /// as exact.
@@ -130,6 +144,10 @@ impl Default for Options {
             tip_radius: 0.0,
             plate_side_uncertainty: 0.0,
             ring_diameter_uncertainty: 0.0,
+            corner_radius_uncertainty: 0.0,
+            tip_radius_uncertainty: 0.0,
+            scale_uncertainty: 0.0,
+            seating_uncertainty: 0.0,
             max_tip_radius: 2e-3,
             angle_harmonics: HarmonicOrders::NONE,
         }
@@ -264,6 +282,11 @@ pub struct Calibration {
     pub named_covariance: DMatrix<f64>,
     /// The plate scans after the first, when several placements were fitted.
     pub placements: Vec<PlacementFit>,
+    /// The lag-1 correlation of the noise along the plate's trace, as its residuals show
+    /// it ([`noise_lag1`]; 0 where they show none, `|φ̂| ≤ 2/√n`): kept with the calibration,
+    /// it tells every trace's size uncertainty how its noise is correlated
+    /// ([`super::size::TraceNoise`]).
+    pub noise_lag1: f64,
 }
 
 /// A plate scan after the first of a calibration of several placements.
@@ -745,6 +768,13 @@ fn finish(
     opt: &Options,
     score: impl FnOnce(&[bool]) -> Option<ScaleEstimate>,
 ) -> Result<Calibration, CalibrationError> {
+    let mut fit = fit;
+    // The plate's seating against the frame holder's datum: alpha0 as the plate lies.
+    let seating = opt.seating_uncertainty * opt.seating_uncertainty;
+    fit.covariance[(layout::ALPHA0, layout::ALPHA0)] += seating;
+    if let Some(named) = fit.named.as_mut() {
+        named[(layout::ALPHA0, layout::ALPHA0)] += seating;
+    }
     let used = fit.used.iter().filter(|&&a| a).count();
     if used < opt.min_samples {
         return Err(CalibrationError::TooFewSamples { got: used, need: opt.min_samples });
@@ -858,6 +888,10 @@ fn finish(
             }
         })
         .collect();
+    let plate_used: Vec<f64> = fit.residuals.iter().zip(&fit.used).filter(|(_, u)| **u).map(|(r, _)| *r).collect();
+    let lag1 = noise_lag1(&plate_used)
+        .filter(|phi| phi.abs() > 2.0 / (plate_used.len() as f64).sqrt())
+        .map_or(0.0, |phi| phi.clamp(-0.95, 0.95));
     let more_used: usize = placements.iter().map(|p| p.residuals.iter().filter(|r| r.1).count()).sum();
     let more_rejected: usize = placements.iter().map(|p| p.residuals.iter().filter(|r| !r.1).count()).sum();
     Ok(Calibration {
@@ -880,6 +914,7 @@ fn finish(
         angle: fit.angle,
         named_covariance,
         placements,
+        noise_lag1: lag1,
     })
 }
 
@@ -1191,38 +1226,92 @@ fn certificate_of<D: Dim>(
 where
     DefaultAllocator: Allocator<D> + Allocator<D, D>,
 {
+    inputs_of(model, x, &[Input { dr: Cow::Borrowed(dr_da), u, own: None }], rows)
+}
+
+/// An input a fit takes as known: how each residual the fit used moves with it, its
+/// standard uncertainty, and its own row in the covariance when the calibration reports it
+/// (the tip radius, the scale), else `None`.
+struct Input<'a> {
+    dr: Cow<'a, [f64]>,
+    u: f64,
+    own: Option<usize>,
+}
+
+/// The type B part of the covariance the inputs bring ([`certificate`] for each, in one
+/// pass over the samples): with `s = dx̂/dA`, `v = (s; 1)` (the input's own row 1, its
+/// estimate being itself) and `v vᵀ u²` each, summed (the inputs independent).
+fn inputs_of<D: Dim>(
+    model: &impl Problem<D>,
+    x: &OVector<f64, D>,
+    inputs: &[Input],
+    rows: &[Option<usize>],
+) -> Result<DMatrix<f64>, CalibrationError>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     let mut term = DMatrix::zeros(rows.len(), rows.len());
-    if u == 0.0 {
+    let inputs: Vec<&Input> = inputs.iter().filter(|i| i.u != 0.0).collect();
+    if inputs.is_empty() {
         return Ok(term);
     }
     let (dim, _) = x.shape_generic();
     let mut jtj = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
-    let mut jtb = OVector::<f64, D>::zeros_generic(dim, nalgebra::Const::<1>);
-    let mut b_rows = dr_da.iter();
+    let mut jtb = vec![OVector::<f64, D>::zeros_generic(dim, nalgebra::Const::<1>); inputs.len()];
+    let mut row = 0;
     let ok = model.for_each_row(x, |_, j| {
-        let b = b_rows.next().copied().unwrap_or(f64::NAN);
         jtj.ger(1.0, j, j, 1.0);
-        jtb.axpy(b, j, 1.0);
-    });
-    let s = -(ok.then_some(jtj).and_then(|m| m.cholesky()).ok_or(CalibrationError::Singular)?.solve(&jtb));
-    for (i, mi) in rows.iter().enumerate() {
-        for (j, mj) in rows.iter().enumerate() {
-            if let (Some(mi), Some(mj)) = (mi, mj) {
-                term[(i, j)] = s[*mi] * s[*mj] * u * u;
-            }
+        for (input, jtb) in inputs.iter().zip(jtb.iter_mut()) {
+            jtb.axpy(input.dr.get(row).copied().unwrap_or(f64::NAN), j, 1.0);
         }
+        row += 1;
+    });
+    let chol = ok.then_some(jtj).and_then(|m| m.cholesky()).ok_or(CalibrationError::Singular)?;
+    for (input, jtb) in inputs.iter().zip(jtb) {
+        let s = -chol.solve(&jtb);
+        let v = DVector::from_fn(rows.len(), |i, _| match rows[i] {
+            Some(m) => s[m],
+            None if input.own == Some(i) => 1.0,
+            None => 0.0,
+        });
+        term.ger(input.u * input.u, &v, &v, 1.0);
     }
     if term.iter().all(|v| v.is_finite()) { Ok(term) } else { Err(CalibrationError::Singular) }
+}
+
+/// The inputs a fit of `opt.model` takes as known, from each sample's derivatives
+/// (`inputs`, of `q`; a residual `q/k - rho` moves by them over `k`): the plate's side and
+/// corner radius, the ring's diameter when there is a ring, the tip radius and the scale
+/// in force when the model does not fit them (`∂r/∂k₀ = -rho/k₀`: the lengths fitted are
+/// `k₀` times those read).
+fn known_inputs<'a>(opt: &Options, inputs: &[InputDerivatives], k: f64, ring: bool) -> [Input<'a>; 5] {
+    let of = |f: &dyn Fn(&InputDerivatives) -> f64| -> Cow<'a, [f64]> { inputs.iter().map(f).collect() };
+    let k0 = opt.scale;
+    [
+        Input { dr: of(&|d| d.side / k), u: opt.plate_side_uncertainty, own: None },
+        Input { dr: of(&|d| d.corner / k), u: opt.corner_radius_uncertainty, own: None },
+        Input { dr: of(&|d| d.diameter / k), u: if ring { opt.ring_diameter_uncertainty } else { 0.0 }, own: None },
+        Input {
+            dr: of(&|d| d.tip / k),
+            u: if opt.model.fits_tip() { 0.0 } else { opt.tip_radius_uncertainty },
+            own: Some(layout::TIP_RADIUS),
+        },
+        Input {
+            dr: of(&|d| -d.rho / k0),
+            u: if opt.model.fits_scale() { 0.0 } else { opt.scale_uncertainty },
+            own: Some(layout::SCALE),
+        },
+    ]
 }
 
 fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, CalibrationError> {
     let r = fit_rounds(all, x0, opt)?;
     let tracer = [Some(full::ALPHA0), Some(full::OFFSET), Some(full::DELTA_L), None, None];
     let used = all.retain(|i| r.active[i]);
-    let b = used.side_sensitivity(&r.x, 0.0).ok_or(CalibrationError::Singular)?;
-    let side = certificate(&used, &r.x, &b, opt.plate_side_uncertainty, tracer)?;
+    let inputs = used.input_derivatives(&r.x, 0.0).ok_or(CalibrationError::Singular)?;
+    let types_b = inputs_of(&used, &r.x, &known_inputs(opt, &inputs, 1.0, false), &tracer)?;
     let mut fit = Fit::from_rounds(ModelKind::Full, r.x, 1.0, tracer, r);
-    fit.covariance += side;
+    fit.covariance += Covariance::from_fn(|i, j| types_b[(i, j)]);
     Ok(fit)
 }
 
@@ -1235,11 +1324,10 @@ fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fi
         [Some(full_scale::ALPHA0), Some(full_scale::OFFSET), Some(full_scale::DELTA_L), Some(full_scale::SCALE), None];
     // r = q/k - rho: ∂r/∂S = (∂q/∂S)/k.
     let used = all.retain(|i| r.active[i]);
-    let b: Vec<f64> =
-        used.side_sensitivity(&x, 0.0).ok_or(CalibrationError::Singular)?.iter().map(|b| b / scale).collect();
-    let side = certificate(&FullScaleModel::new(used), &r.x, &b, opt.plate_side_uncertainty, tracer)?;
+    let inputs = used.input_derivatives(&x, 0.0).ok_or(CalibrationError::Singular)?;
+    let types_b = inputs_of(&FullScaleModel::new(used), &r.x, &known_inputs(opt, &inputs, scale, false), &tracer)?;
     let mut fit = Fit::from_rounds(ModelKind::FullScale, x, scale, tracer, r);
-    fit.covariance += side;
+    fit.covariance += Covariance::from_fn(|i, j| types_b[(i, j)]);
     Ok(fit)
 }
 
@@ -1281,13 +1369,8 @@ fn fit_tip(
     let (x0, first_iterations) = tip_start(scan, ring_scan, ring, plate, opt)?;
     let model = TipModel::from_scans(FullModel::from_scan(plate, scan), ring, ring_scan);
     let n = scan.len();
-    // Both certificates, through the samples each fit used (∂r/∂A = (∂q/∂A)/k).
-    let certificates = |used: &TipModel, x: &tip::Params, k: f64| {
-        let (side, diameter) = used.size_sensitivities(x).ok_or(CalibrationError::Singular)?;
-        let per_k = |v: Vec<f64>| -> Vec<f64> { v.into_iter().map(|b| b / k).collect() };
-        Ok::<_, CalibrationError>((per_k(side), per_k(diameter)))
-    };
-    let (u_side, u_diameter) = (opt.plate_side_uncertainty, opt.ring_diameter_uncertainty);
+    // The inputs taken as known, through the samples each fit used (∂r/∂A = (∂q/∂A)/k).
+    let inputs = |used: &TipModel, x: &tip::Params| used.input_derivatives(x).ok_or(CalibrationError::Singular);
     let (x, scale, mut fit) = if opt.model.fits_scale() {
         let r = fit_rounds(&TipScaleModel::new(model.clone()), tip::with_scale(&x0, 1.0), opt)?;
         let (x, k) = tip::without_scale(&r.x);
@@ -1300,23 +1383,19 @@ fn fit_tip(
             Some(at(tip::TIP_RADIUS)),
         ];
         let used = TipScaleModel::new(model.retain(|i| r.active[i]));
-        let (b_side, b_diameter) = certificates(used.tip(), &x, k)?;
-        let types_b = certificate(&used, &r.x, &b_side, u_side, tracer)?
-            + certificate(&used, &r.x, &b_diameter, u_diameter, tracer)?;
+        let types_b = inputs_of(&used, &r.x, &known_inputs(opt, &inputs(used.tip(), &x)?, k, true), &tracer)?;
         let (x5, _, _) = tip::to_full(&x);
         let mut fit = Fit::from_rounds(ModelKind::FullScaleTip, x5, k, tracer, r);
-        fit.covariance += types_b;
+        fit.covariance += Covariance::from_fn(|i, j| types_b[(i, j)]);
         (x, k, fit)
     } else {
         let r = fit_rounds(&model, x0, opt)?;
         let tracer = [Some(tip::ALPHA0), Some(tip::OFFSET), Some(tip::DELTA_L), None, Some(tip::TIP_RADIUS)];
         let used = model.retain(|i| r.active[i]);
-        let (b_side, b_diameter) = certificates(&used, &r.x, 1.0)?;
-        let types_b = certificate(&used, &r.x, &b_side, u_side, tracer)?
-            + certificate(&used, &r.x, &b_diameter, u_diameter, tracer)?;
+        let types_b = inputs_of(&used, &r.x, &known_inputs(opt, &inputs(&used, &r.x)?, 1.0, true), &tracer)?;
         let (x, (x5, _, _)) = (r.x, tip::to_full(&r.x));
         let mut fit = Fit::from_rounds(ModelKind::FullTip, x5, 1.0, tracer, r);
-        fit.covariance += types_b;
+        fit.covariance += Covariance::from_fn(|i, j| types_b[(i, j)]);
         (x, 1.0, fit)
     };
     let (_, tip_radius, ring_center) = tip::to_full(&x);
@@ -1376,11 +1455,9 @@ fn fit_turntable(
         _ => 0.0,
     });
     let used = model.retain(|i| r.active[i]);
-    let (b_side, b_diameter) = used.size_sensitivities(&r.x).ok_or(CalibrationError::Singular)?;
-    named += certificate_of(&used, &r.x, &b_side, opt.plate_side_uncertainty, &rows)?;
-    if ring.is_some() {
-        named += certificate_of(&used, &r.x, &b_diameter, opt.ring_diameter_uncertainty, &rows)?;
-    }
+    let inputs = used.input_derivatives(&r.x).ok_or(CalibrationError::Singular)?;
+    let k = l.scale().map_or(1.0, |i| r.x[i]);
+    named += inputs_of(&used, &r.x, &known_inputs(opt, &inputs, k, ring.is_some()), &rows)?;
     // Residuals scan by scan: the plates' in turn, then the ring's.
     let mut start = 0;
     let mut take = |len: usize| {
@@ -1432,7 +1509,7 @@ fn fit_turntable(
     let score = |_: &[bool]| {
         let with = used.with_scale(true);
         let x = used.insert_scale(&r.x, 1.0);
-        let (b, _) = with.size_sensitivities(&x)?;
+        let b: Vec<f64> = with.input_derivatives(&x)?.iter().map(|d| d.side).collect();
         score_test(&with, &x, 3, &b, opt.plate_side_uncertainty)
     };
     finish(&plates[0], &plates[1..], fit, ring, opt, score)

@@ -29,7 +29,7 @@
 
 use nalgebra::{SVector, Vector2};
 
-use super::PlateSpec;
+use super::{InputDerivatives, PlateSpec};
 use crate::engine::geometry::{Mounting, rotate, step_angle};
 use crate::engine::lm::Problem;
 use crate::engine::scan::Scan;
@@ -169,6 +169,13 @@ impl FullModel {
         self.for_each_grown_prediction(x, g, |_, _, _, d| out.push(d.side)).then_some(out)
     }
 
+    /// Every sample's [`InputDerivatives`] at `x` with the plate grown by `g` (a ring's
+    /// diameter: none).
+    pub fn input_derivatives(&self, x: &Params, g: f64) -> Option<Vec<InputDerivatives>> {
+        let mut out = Vec::with_capacity(self.samples.len());
+        self.for_each_grown_prediction(x, g, |s, _, _, d| out.push(d.inputs(s.rho))).then_some(out)
+    }
+
     /// [`Self::for_each_prediction`] of the plate grown by `g` all round (side `S + 2g`,
     /// corners `r + g`: the contour the centre of a tip of radius `g` follows when it
     /// traces the plate from outside, [`super::tip`]); `f` also gets the sample's
@@ -242,6 +249,13 @@ pub struct SizeDerivatives {
     /// `∂q/∂S`, the side alone (corner radius kept): a flat moves by `dS/2`, a corner's
     /// centre by `(±dS/2, ±dS/2)`, so `(|N_x| + |N_y|)/(2 N·u)`.
     pub side: f64,
+}
+
+impl SizeDerivatives {
+    /// The plate's inputs for a sample that read `rho` ([`InputDerivatives`]).
+    pub fn inputs(&self, rho: f64) -> InputDerivatives {
+        InputDerivatives { side: self.side, corner: self.grow - 2.0 * self.side, diameter: 0.0, tip: self.grow, rho }
+    }
 }
 
 impl Problem<nalgebra::Const<5>> for FullModel {

@@ -81,6 +81,27 @@ pub enum PlateError {
     },
 }
 
+/// How one sample's length `q` moves with each input a fit takes as known: the
+/// artefacts' certified sizes, and the tip radius and encoder scale in force when the
+/// model does not fit them. Each brings a type B part to the covariance
+/// ([`crate::engine::calibrate`](mod@crate::engine::calibrate), GUM 5.1).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct InputDerivatives {
+    /// `∂q/∂S`, the plate's side (corner radius kept): `(|N_x| + |N_y|)/(2 N·u)`.
+    pub side: f64,
+    /// `∂q/∂r`, the plate's corner radius (side kept): a corner's arc grows by `dr`
+    /// while its centre moves in by `(dr, dr)`, so the contour moves along its normal by
+    /// `(1 - (|N_x| + |N_y|)) dr`; `∂q/∂r = ∂q/∂g - 2 ∂q/∂S` (0 on a flat).
+    pub corner: f64,
+    /// `∂q/∂D`, the ring gauge's diameter: `1/(2 N·u)` on the ring.
+    pub diameter: f64,
+    /// `∂q/∂ρ` of a tip radius taken as known: the plate traced from outside is seen
+    /// grown by `ρ` all round, `1/(N·u)`.
+    pub tip: f64,
+    /// The length the encoder read (`∂r/∂k₀ = -rho/k₀` for a scale `k₀` taken as known).
+    pub rho: f64,
+}
+
 /// Which model fits the calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]

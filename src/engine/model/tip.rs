@@ -28,6 +28,7 @@
 
 use nalgebra::{SVector, Vector2};
 
+use super::InputDerivatives;
 use super::full::{self, FullModel, TableSample};
 use crate::engine::geometry::rotate;
 use crate::engine::lm::Problem;
@@ -150,24 +151,21 @@ impl TipModel {
         self.for_each_prediction_and_size(x, |s, q, j, _| f(s, q, j))
     }
 
-    /// How every sample's length moves with the artefacts' certified sizes at `x`:
-    /// `(∂q/∂S, ∂q/∂D)`, plate's samples then ring's (a plate sample does not move with
-    /// `D`, a ring sample not with `S`; on the ring `∂q/∂D = 1/(2 N·u)`).
-    pub fn size_sensitivities(&self, x: &Params) -> Option<(Vec<f64>, Vec<f64>)> {
-        let (mut side, mut diameter) = (Vec::new(), Vec::new());
-        self.for_each_prediction_and_size(x, |_, _, _, (s, d)| {
-            side.push(s);
-            diameter.push(d);
-        })
-        .then_some((side, diameter))
+    /// How every sample's length moves with the inputs taken as known at `x`
+    /// ([`InputDerivatives`]), plate's samples then ring's (a plate sample does not move
+    /// with `D`, a ring sample not with `S` or `r`; on the ring `∂q/∂D = 1/(2 N·u)`; the
+    /// tip is fitted, its derivative left 0).
+    pub fn input_derivatives(&self, x: &Params) -> Option<Vec<InputDerivatives>> {
+        let mut out = Vec::with_capacity(self.residual_count());
+        self.for_each_prediction_and_size(x, |_, _, _, d| out.push(d)).then_some(out)
     }
 
-    /// [`Self::for_each_prediction`], `f` also getting `(∂q/∂S, ∂q/∂D)`.
+    /// [`Self::for_each_prediction`], `f` also getting the sample's [`InputDerivatives`].
     #[inline]
     fn for_each_prediction_and_size(
         &self,
         x: &Params,
-        mut f: impl FnMut(&TableSample, f64, &Params, (f64, f64)),
+        mut f: impl FnMut(&TableSample, f64, &Params, InputDerivatives),
     ) -> bool {
         let (x5, tip, g) = to_full(x);
         let plate = self.plate.for_each_grown_prediction(&x5, tip, |s, q, j, size| {
@@ -181,7 +179,7 @@ impl TipModel {
                 0.0,
                 0.0,
             ]);
-            f(s, q, &row, (size.side, 0.0))
+            f(s, q, &row, InputDerivatives { tip: 0.0, ..size.inputs(s.rho) })
         });
         if !plate {
             return false;
@@ -212,7 +210,12 @@ impl TipModel {
                 n.x * inv,
                 n.y * inv,
             ]);
-            f(s, t + x[DELTA_L], &row, (0.0, 0.5 * inv));
+            f(
+                s,
+                t + x[DELTA_L],
+                &row,
+                InputDerivatives { diameter: 0.5 * inv, rho: s.rho, ..InputDerivatives::default() },
+            );
         }
         true
     }

@@ -34,9 +34,9 @@
 
 use nalgebra::{DMatrix, DVector, Vector2};
 
-use super::PlateSpec;
 use super::full::{self, FullModel, TableSample};
 use super::tip::{self, RingSpec, TipModel};
+use super::{InputDerivatives, PlateSpec};
 use crate::engine::angle::HarmonicOrders;
 use crate::engine::geometry::rotate;
 use crate::engine::lm::Problem;
@@ -252,12 +252,12 @@ impl TurntableModel {
         full::Params::from([x[ALPHA0] - theta, x[OFFSET], x[DELTA_L], x[c], x[c + 1]])
     }
 
-    /// Calls `f(source, q, ∂q/∂x, (∂q/∂S, ∂q/∂D))` for every sample at `x` (module docs);
+    /// Calls `f(source, q, ∂q/∂x, inputs)` for every sample at `x` (module docs);
     /// `false` (and an early stop) where a rail ray misses or grazes a contour.
     pub fn for_each_prediction(
         &self,
         x: &DVector<f64>,
-        mut f: impl FnMut(Source, &TableSample, f64, &DVector<f64>, (f64, f64)),
+        mut f: impl FnMut(Source, &TableSample, f64, &DVector<f64>, InputDerivatives),
     ) -> bool {
         let l = &self.layout;
         let (h0, width) = (l.harmonics(), 2 * l.orders.len());
@@ -287,7 +287,7 @@ impl TurntableModel {
                 }
                 row[c] = j[full::CX];
                 row[c + 1] = j[full::CY];
-                f(Source::Plate(p), s, q, &row, (size.side, 0.0));
+                f(Source::Plate(p), s, q, &row, size.inputs(s.rho));
             });
             if !ok {
                 return false;
@@ -298,7 +298,7 @@ impl TurntableModel {
         let model = TipModel::new(FullModel::new(&self.plate, vec![]), spec, ring.turned(&coefficients));
         let x8 = tip::Params::from([x[ALPHA0], x[OFFSET], x[DELTA_L], x[rho], 0.0, 0.0, x[g], x[g + 1]]);
         let mut basis = ring.basis.chunks_exact(width.max(1));
-        let mut diameter = model.size_sensitivities(&x8).map(|(_, d)| d.into_iter()).into_iter().flatten();
+        let mut inputs = model.input_derivatives(&x8).into_iter().flatten();
         model.for_each_prediction(&x8, |s, q, j| {
             row.fill(0.0);
             let da = j[tip::ALPHA0];
@@ -313,20 +313,17 @@ impl TurntableModel {
             }
             row[g] = j[tip::GX];
             row[g + 1] = j[tip::GY];
-            f(Source::Ring, s, q, &row, (0.0, diameter.next().unwrap_or(f64::NAN)));
+            let nan = InputDerivatives { diameter: f64::NAN, ..InputDerivatives::default() };
+            f(Source::Ring, s, q, &row, inputs.next().unwrap_or(nan));
         })
     }
 
-    /// How every residual moves with the artefacts' certified sizes at `x`:
-    /// `(∂r/∂S, ∂r/∂D)` (divided by `k` when the scale is fitted).
-    pub fn size_sensitivities(&self, x: &DVector<f64>) -> Option<(Vec<f64>, Vec<f64>)> {
-        let k = self.layout.scale().map_or(1.0, |i| x[i]);
-        let (mut side, mut diameter) = (Vec::new(), Vec::new());
-        self.for_each_prediction(x, |_, _, _, _, (s, d)| {
-            side.push(s / k);
-            diameter.push(d / k);
-        })
-        .then_some((side, diameter))
+    /// How every sample's length moves with the inputs taken as known at `x`
+    /// ([`InputDerivatives`], of `q`: a residual `q/k - rho` moves by them over `k`),
+    /// plates' samples then ring's.
+    pub fn input_derivatives(&self, x: &DVector<f64>) -> Option<Vec<InputDerivatives>> {
+        let mut out = Vec::with_capacity(self.residual_count());
+        self.for_each_prediction(x, |_, _, _, _, d| out.push(d)).then_some(out)
     }
 }
 
