@@ -160,6 +160,7 @@ fn bench(c: &mut Criterion) {
         tip_radius: 0.0,
         traced: tracer_calib::engine::Traced::Outside,
         angle_orders: tracer_calib::engine::angle::HarmonicOrders::NONE,
+        noise: Default::default(),
     };
     let cov = tracer_calib::engine::calibrate::named_covariance_from_values(&state.params.covariance).unwrap();
     c.bench_function("size/uncertainty_400 (smooth fit, C, A, B, FED, U95, radii U95)", |b| {

@@ -201,6 +201,7 @@ fn frame_sizes(cal: &Calibration, sigma: f64, rng: &mut StdRng) -> ([f64; 4], [f
         tip_radius: 0.0,
         traced: Traced::Inside,
         angle_orders: cal.angle.orders(),
+        noise: Default::default(),
     };
     let report = uncertainty(&points, &radii, &gain, &correction, Some(&cal.named_covariance)).unwrap();
     (report.sizes.figures(), report.u95)

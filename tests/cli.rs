@@ -394,6 +394,7 @@ fn history_table_json_and_svg_with_a_torn_last_line() {
             angle_harmonics: Vec::new(),
             angle_coefficients: Vec::new(),
             plate_scan_ids: Vec::new(),
+            noise_lag1: 0.0,
             previous,
             ros_time: None,
         };

@@ -32,6 +32,12 @@ fn namespaced_example_applies_to_its_node_only() {
     assert_eq!(c.identity.fully_qualified_name(), "/cell1/tracer");
     assert_eq!(c.params.meters_per_count, 0.5e-6);
     assert_eq!(c.params.output_frame_id, "cell1_tracer_axis");
+    // Its certificates, each u = U/k.
+    assert_eq!(
+        [c.params.plate_side_uncertainty, c.params.corner_radius_uncertainty, c.params.tip_radius_uncertainty],
+        [1.0e-6, 5.0e-6, 1.0e-6]
+    );
+    assert_eq!(c.params.seating_uncertainty, 3.5e-4);
     // Another cell's node does not pick it up.
     let c = load(&["n", "--ros-args", "-r", "__ns:=/cell2", "-r", "__node:=tracer", "--params-file", &path]).unwrap();
     assert_eq!(c.params.meters_per_count, 1e-6);

@@ -84,7 +84,13 @@ fn the_calibration_responses_are_the_chains_own() {
             HARMONICS,
         )
         .unwrap();
-        let correction = Correction { mounting: m, tip_radius: tip, traced, angle_orders: HarmonicOrders::NONE };
+        let correction = Correction {
+            mounting: m,
+            tip_radius: tip,
+            traced,
+            angle_orders: HarmonicOrders::NONE,
+            noise: Default::default(),
+        };
         let h = [1e-5, 1e-6, 1e-6, 1e-5, 1e-6];
         for (j, hj) in h.into_iter().enumerate() {
             let mut moved = m;

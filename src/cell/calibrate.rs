@@ -154,6 +154,7 @@ impl NodeState {
             angle_harmonics: response.angle_harmonics.iter().map(|&h| i64::from(h)).collect(),
             angle_coefficients: response.angle_coefficients.clone(),
             plate_scan_ids: more_ids,
+            noise_lag1: cal.noise_lag1,
             previous: previous.map(Previous::from),
             ros_time: Some(records::RosTime::from_nanos(now.ros.to_nanos())),
         };
@@ -163,6 +164,7 @@ impl NodeState {
         self.params.covariance_names = names_in_force;
         self.params.angle_coefficients = response.angle_coefficients.clone();
         self.params.tip_radius = cal.tip_radius;
+        self.params.noise_lag1 = cal.noise_lag1;
         // The time the record gives, to the millisecond: what a restart reads back.
         self.in_force = InForce {
             applied_at: record.applied_at().unwrap_or(now.wall),

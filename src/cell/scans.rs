@@ -114,7 +114,13 @@ impl NodeState {
         let resampled = if radii.is_empty() { resample_radii(&surface, SIZE_RADII, max_gap) } else { None };
         let sized = if radii.is_empty() { resampled.as_deref() } else { Some(radii.as_slice()) };
         let covariance = self.params.covariance_in_force();
-        let correction = Correction { mounting, tip_radius: tip, traced, angle_orders: angle.orders() };
+        let correction = Correction {
+            mounting,
+            tip_radius: tip,
+            traced,
+            angle_orders: angle.orders(),
+            noise: self.params.trace_noise(),
+        };
         let report = sized.and_then(|r| size::uncertainty(&surface, r, &radii_gain, &correction, covariance.as_ref()));
         let header = Header { stamp: msg.header.stamp, frame_id: self.params.output_frame_id.clone() };
         let polygon = with_polygon.then(|| PolygonStamped {

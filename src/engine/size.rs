@@ -586,6 +586,57 @@ pub struct Correction {
     /// The orders of the angle error the correction applied (their coefficients' rows
     /// follow the five in the covariance, [`super::calibrate::covariance_names`]).
     pub angle_orders: HarmonicOrders,
+    /// The tracer's noise as the calibration measured it, and what one trace cannot show.
+    pub noise: TraceNoise,
+}
+
+/// The tracer's noise beyond what one trace shows (module docs, *this scan's noise*).
+/// The default is white noise, no quantum, no reproducibility term.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TraceNoise {
+    /// Lag-1 correlation `φ` of the encoder noise along the trace, AR(1), as the
+    /// calibration measured it on the plate (`calibration.noise_lag1`): one trace cannot
+    /// tell noise below the smooth's cut-off from shape.
+    pub lag1: f64,
+    /// The length of one encoder count, metres: no reading is surer than `q/√12`
+    /// (GUM F.2.2.1), however constant the radius.
+    pub quantum: f64,
+    /// Standard uncertainty of a radius between repeated traces of one shape beyond their
+    /// noise (re-seating, clamping; `size.reproducibility`, metres): a uniform radial
+    /// change, in every figure by its response to one.
+    pub reproducibility: f64,
+}
+
+impl TraceNoise {
+    fn phi(&self) -> f64 {
+        if self.lag1.is_finite() { self.lag1.clamp(-0.95, 0.95) } else { 0.0 }
+    }
+
+    /// The noise's spectral density at `ω` (rad a sample) over its variance:
+    /// `S(ω) = (1 - φ²)/(1 - 2φ cos ω + φ²)`, mean 1 over `[0, π]`; 1 for white noise.
+    pub fn density(&self, omega: f64) -> f64 {
+        let p = self.phi();
+        (1.0 - p * p) / (1.0 - 2.0 * p * omega.cos() + p * p)
+    }
+
+    /// What the fourth differences of [`sample_noise`] see of the noise's variance:
+    /// `Σ_ij c_i c_j φ^|i-j| / 70 = (70 - 112φ + 56φ² - 16φ³ + 2φ⁴)/70`
+    /// (`c = 1, -4, 6, -4, 1`); 0.37 at `φ = 0.5`, 0.08 at 0.8.
+    pub fn fourth_difference_share(&self) -> f64 {
+        let p = self.phi();
+        (70.0 - 112.0 * p + 56.0 * p * p - 16.0 * p.powi(3) + 2.0 * p.powi(4)) / 70.0
+    }
+
+    /// The mean density over the harmonics `k` of `n` samples above `harmonics`, `ω = 2πk/n`:
+    /// what a smooth's residual scatter sees of the noise's variance.
+    fn above_share(&self, harmonics: usize, n: usize) -> f64 {
+        let top = n / 2;
+        if harmonics >= top || self.phi() == 0.0 {
+            return 1.0;
+        }
+        let sum: f64 = (harmonics + 1..=top).map(|k| self.density(TAU * k as f64 / n as f64)).sum();
+        sum / (top - harmonics) as f64
+    }
 }
 
 impl Correction {
@@ -686,14 +737,21 @@ pub fn uncertainty(
     covariance: Option<&DMatrix<f64>>,
 ) -> Option<SizeReport> {
     let m = radii.len();
+    let tn = correction.noise;
+    let big_n = points.len().max(1);
+    // The noise's variance, σ², from what the fourth differences see of it (the
+    // calibration's correlation), never below the quantum's.
+    let quantum = tn.quantum / 12f64.sqrt();
+    let floor = (sample_noise(points) / tn.fourth_difference_share().sqrt()).max(quantum);
     // The fewest harmonics that leave only noise: the raw points' radial scatter about
     // the fit, each at its own angle (the resampled radii are interpolated, smoother than
-    // the samples), against the noise their fourth differences show ([`sample_noise`]).
+    // the samples), against the noise their fourth differences show ([`sample_noise`]),
+    // both as the noise's σ (the scatter sees the noise above the fit's harmonics only).
     // Sharp corners (a frame's 3 mm) need more than [`HARMONICS`]; more cost noise.
-    let floor = sample_noise(points);
     let scatter = |smooth: &Smooth| {
         let k = smooth.harmonics();
-        (smooth.squared_residuals(points) / points.len().saturating_sub(2 * k + 1).max(1) as f64).sqrt()
+        let s2 = smooth.squared_residuals(points) / points.len().saturating_sub(2 * k + 1).max(1) as f64;
+        (s2 / tn.above_share(k, big_n)).sqrt().max(quantum)
     };
     let mut smooth = Smooth::fit(radii, HARMONICS)?;
     let mut noise = scatter(&smooth);
@@ -712,15 +770,19 @@ pub fn uncertainty(
     let responses = sizes.harmonic_responses(k);
     let mut var_noise = [0.0; 4];
     for (i, g) in responses.iter().enumerate() {
-        let weight = if i == 0 { 1.0 } else { 2.0 };
+        // A coefficient of harmonic i has the noise's density there (sample-to-sample
+        // correlation: `ω = 2πi/N`).
+        let weight = if i == 0 { 1.0 } else { 2.0 } * tn.density(TAU * i as f64 / big_n as f64);
         for f in 0..4 {
             var_noise[f] += weight * g[f] * g[f];
         }
     }
     var_noise = var_noise.map(|v| v * noise * noise / n as f64);
-    // A side taken from the raw points has their noise alone (Σ w² σ²), independent of the
-    // other side's; a side from the smooth its harmonics'.
+    // A side taken from the raw points has their noise alone (`Σ_ij a_i a_j φ^|i-j| σ²`,
+    // the points in trace order), independent of the other side's; a side from the
+    // smooth its harmonics'.
     let harmonics = sizes.side_harmonics(k);
+    let phi = tn.phi();
     let side_var = |k_side: usize| -> f64 {
         let side = &sizes.sides[k_side];
         if side.raw {
@@ -728,12 +790,23 @@ pub fn uncertainty(
             // (the radial offset at a fixed angle is the normal one over it), and at a
             // side the normal is the side's axis: `|cos θ|` for x, `|sin θ|` for y.
             let along = |t: f64| if k_side < 2 { t.cos() } else { t.sin() };
-            side.weights.iter().map(|(t, w)| (w * along(*t)).powi(2)).sum::<f64>() * noise * noise
+            // `Σ_i a_i (a_i + 2 F_i)`, `F_i = φ (F_(i-1) + a_(i-1))`.
+            let (mut sum, mut forward, mut last) = (0.0, 0.0, 0.0);
+            for (t, w) in &side.weights {
+                let a = w * along(*t);
+                forward = phi * (forward + last);
+                sum += a * (a + 2.0 * forward);
+                last = a;
+            }
+            sum.max(0.0) * noise * noise
         } else {
             let v: f64 = harmonics[k_side]
                 .iter()
                 .enumerate()
-                .map(|(kk, (c, s))| if kk == 0 { c * c } else { 2.0 * (c * c + s * s) })
+                .map(|(kk, (c, s))| {
+                    let density = tn.density(TAU * kk as f64 / big_n as f64);
+                    if kk == 0 { c * c * density } else { 2.0 * (c * c + s * s) * density }
+                })
                 .sum();
             v * noise * noise / n as f64
         }
@@ -742,6 +815,12 @@ pub fn uncertainty(
         if pair.iter().any(|&i| sizes.sides[i].raw) {
             var_noise[figure] = side_var(pair[0]) + side_var(pair[1]);
         }
+    }
+    // Repeated traces' radial spread, a uniform change of the radius.
+    let uniform = sizes.response(|_| 1.0);
+    let u_r = tn.reproducibility;
+    for (v, g) in var_noise.iter_mut().zip(uniform) {
+        *v += g * g * u_r * u_r;
     }
     let mut var_cal = [0.0; 4];
     let mut radii_var_cal = vec![0.0; m];
@@ -795,7 +874,13 @@ pub fn uncertainty(
     let radii_u95 = radii_var_cal
         .iter()
         .enumerate()
-        .map(|(i, v)| 2.0 * (v + radii_gain.get(i).unwrap_or(&1.0) * floor * floor).max(0.0).sqrt())
+        .map(|(i, v)| {
+            // Interpolating between two neighbours whose noise correlates by φ:
+            // `(1-f)² + f² + 2f(1-f)φ` = gain + (1 - gain) φ.
+            let gain = radii_gain.get(i).copied().unwrap_or(1.0);
+            let gain = gain + (1.0 - gain) * phi;
+            2.0 * (v + gain * floor * floor + u_r * u_r).max(0.0).sqrt()
+        })
         .collect();
     let report = SizeReport { sizes, u95, radii_u95, noise };
     report.sizes.figures().iter().chain(&report.u95).all(|v| v.is_finite()).then_some(report)

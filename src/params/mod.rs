@@ -52,8 +52,13 @@ pub mod names {
     pub const ANGLE_HARMONICS: &str = "calibration.angle_harmonics";
     pub const ANGLE_COEFFICIENTS: &str = "calibration.angle_coefficients";
     pub const COVARIANCE_NAMES: &str = "calibration.covariance_names";
+    pub const TIP_RADIUS_UNCERTAINTY: &str = "stylus.tip_radius_uncertainty";
+    pub const CORNER_RADIUS_UNCERTAINTY: &str = "plate.corner_radius_uncertainty";
+    pub const SEATING_UNCERTAINTY: &str = "plate.seating_uncertainty";
+    pub const NOISE_LAG1: &str = "calibration.noise_lag1";
+    pub const REPRODUCIBILITY: &str = "size.reproducibility";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 30] = [
+    pub const ALL: [&str; 35] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -84,11 +89,26 @@ pub mod names {
         ANGLE_HARMONICS,
         ANGLE_COEFFICIENTS,
         COVARIANCE_NAMES,
+        TIP_RADIUS_UNCERTAINTY,
+        CORNER_RADIUS_UNCERTAINTY,
+        SEATING_UNCERTAINTY,
+        NOISE_LAG1,
+        REPRODUCIBILITY,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
-    pub const CALIBRATION_IN_FORCE: [&str; 9] =
-        [ALPHA0, OFFSET, DELTA_L, SCALE, VALID, COVARIANCE, TIP_RADIUS, ANGLE_COEFFICIENTS, COVARIANCE_NAMES];
+    pub const CALIBRATION_IN_FORCE: [&str; 10] = [
+        ALPHA0,
+        OFFSET,
+        DELTA_L,
+        SCALE,
+        VALID,
+        COVARIANCE,
+        TIP_RADIUS,
+        ANGLE_COEFFICIENTS,
+        COVARIANCE_NAMES,
+        NOISE_LAG1,
+    ];
 }
 
 /// Largest `resample_points` accepted.
@@ -115,6 +135,17 @@ pub struct Parameters {
     pub angle_coefficients: Vec<f64>,
     /// The stylus tip's radius in force, metres (fitted by the tip models, else known).
     pub tip_radius: f64,
+    /// Standard uncertainty of a tip radius entered rather than fitted, metres.
+    pub tip_radius_uncertainty: f64,
+    /// Standard uncertainty of `plate.corner_radius` from its certificate, metres.
+    pub corner_radius_uncertainty: f64,
+    /// Standard uncertainty of the plate's seating angle against the frame holder's datum, rad.
+    pub seating_uncertainty: f64,
+    /// The calibration in force: the lag-1 correlation of the noise along the trace it
+    /// measured on the plate (every trace's size uncertainty takes it).
+    pub noise_lag1: f64,
+    /// Standard uncertainty of a radius between repeated traces beyond their noise, metres.
+    pub reproducibility: f64,
     pub plate: PlateSpec,
     /// Standard uncertainty of `plate.side` from its certificate, metres.
     pub plate_side_uncertainty: f64,
@@ -207,6 +238,11 @@ impl Default for Parameters {
             angle_harmonics: HarmonicOrders::NONE,
             angle_coefficients: Vec::new(),
             tip_radius: 0.0,
+            tip_radius_uncertainty: 0.0,
+            corner_radius_uncertainty: 0.0,
+            seating_uncertainty: 0.0,
+            noise_lag1: 0.0,
+            reproducibility: 0.0,
             plate: PlateSpec::default(),
             plate_side_uncertainty: 0.0,
             ring_diameter: 0.0,
@@ -290,6 +326,11 @@ impl Parameters {
             names::ANGLE_HARMONICS => IntegerArray(self.angle_harmonics.to_vec()),
             names::ANGLE_COEFFICIENTS => DoubleArray(self.angle_coefficients.clone()),
             names::COVARIANCE_NAMES => StringArray(self.covariance_names.clone()),
+            names::TIP_RADIUS_UNCERTAINTY => Double(self.tip_radius_uncertainty),
+            names::CORNER_RADIUS_UNCERTAINTY => Double(self.corner_radius_uncertainty),
+            names::SEATING_UNCERTAINTY => Double(self.seating_uncertainty),
+            names::NOISE_LAG1 => Double(self.noise_lag1),
+            names::REPRODUCIBILITY => Double(self.reproducibility),
             _ => return None,
         })
     }
@@ -467,6 +508,11 @@ impl Parameters {
                     one_of(value)?.parse::<Introspection>().map_err(|e| ParamError::Invalid(e.to_string()))?
             }
             names::BOND_HEARTBEAT_PERIOD => next.bond_heartbeat_period = double(value)?,
+            names::TIP_RADIUS_UNCERTAINTY => next.tip_radius_uncertainty = double(value)?,
+            names::CORNER_RADIUS_UNCERTAINTY => next.corner_radius_uncertainty = double(value)?,
+            names::SEATING_UNCERTAINTY => next.seating_uncertainty = double(value)?,
+            names::NOISE_LAG1 => next.noise_lag1 = double(value)?,
+            names::REPRODUCIBILITY => next.reproducibility = double(value)?,
             names::ANGLE_HARMONICS => {
                 next.angle_harmonics =
                     HarmonicOrders::new(&integers(value)?).map_err(|e| ParamError::Invalid(e.to_string()))?
@@ -530,9 +576,34 @@ impl Parameters {
             tip_radius: self.tip_radius,
             plate_side_uncertainty: self.plate_side_uncertainty,
             ring_diameter_uncertainty: self.ring_diameter_uncertainty,
+            corner_radius_uncertainty: self.corner_radius_uncertainty,
+            tip_radius_uncertainty: self.carried(self.tip_radius_uncertainty, 4),
+            scale_uncertainty: self.carried(0.0, 3),
+            seating_uncertainty: self.seating_uncertainty,
             lack_of_fit_alpha: self.lack_of_fit_alpha,
             angle_harmonics: self.angle_harmonics,
             ..CalibrationOptions::default()
+        }
+    }
+
+    /// The standard uncertainty of an input a model may take as known (the tip radius,
+    /// row 4 of the covariance; the scale, row 3): `given` when it is set, else what the
+    /// calibration in force states of it (an earlier fit of it, carried), else 0.
+    fn carried(&self, given: f64, row: usize) -> f64 {
+        if given > 0.0 {
+            return given;
+        }
+        self.covariance_in_force().filter(|c| c.nrows() > row).map_or(0.0, |c| c[(row, row)].max(0.0).sqrt())
+    }
+
+    /// How the noise of every trace is taken (`engine::size::TraceNoise`): the
+    /// calibration's correlation, the encoder count's length, `size.reproducibility`.
+    pub fn trace_noise(&self) -> crate::engine::size::TraceNoise {
+        let scale = if self.calibration_valid { self.calibration.scale } else { 1.0 };
+        crate::engine::size::TraceNoise {
+            lag1: if self.calibration_valid { self.noise_lag1 } else { 0.0 },
+            quantum: self.meters_per_count * scale,
+            reproducibility: self.reproducibility,
         }
     }
 
@@ -582,7 +653,7 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 30);
+        assert_eq!(list.len(), 35);
         assert_eq!(p.get("calibration.angle_harmonics"), Some(ParamValue::IntegerArray(Vec::new())));
         assert_eq!(p.get("calibration.angle_coefficients"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("calibration.covariance_names"), Some(ParamValue::StringArray(Vec::new())));

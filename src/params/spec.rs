@@ -117,7 +117,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 30] = [
+pub const SPECS: [Spec; 35] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -171,6 +171,16 @@ pub const SPECS: [Spec; 30] = [
         .constraints("empty, or two finite values of at most 0.1 rad an order of calibration.angle_harmonics"),
     Spec::new(names::COVARIANCE_NAMES, "calibration in force: the names of calibration.covariance's rows: alpha0, offset, delta_l, scale, tip_radius, then angle_c1, angle_s1, ... for each angle harmonic in force; set by /calibrate; empty = the five")
         .constraints("empty, or the five and the names of the angle coefficients in force, in that order (with no coefficients in force, the five and any)"),
+    Spec::new(names::TIP_RADIUS_UNCERTAINTY, "standard uncertainty of stylus.tip_radius where it is entered rather than fitted (m, u = U/k from the stylus' certificate): a type B part of the covariance of full, full_scale and their angle fits, with its own row; 0 = what the calibration in force states of it")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::CORNER_RADIUS_UNCERTAINTY, "standard uncertainty of plate.corner_radius from the plate's calibration certificate (m, u = U/k): a type B part of the calibration's covariance")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::SEATING_UNCERTAINTY, "standard uncertainty of the plate's seating angle against the frame holder's datum (rad): added to alpha0's variance, so into every frame's A and B")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::NOISE_LAG1, "calibration in force: the lag-1 correlation of the encoder noise along the trace, as the plate's residuals showed it (0 = white); every trace's size uncertainty takes it; set by /calibrate")
+        .bound(Bound::Float { from: -0.95, to: 0.95 }),
+    Spec::new(names::REPRODUCIBILITY, "standard uncertainty of a radius between repeated traces of one shape beyond their noise (m, from repeated traces: re-seating, clamping), added to every contour's size and radius uncertainty; 0 = none")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.

@@ -79,6 +79,10 @@ pub struct Record {
     /// The plate scans after `scan_id`, when several placements were fitted; absent: one.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub plate_scan_ids: Vec<u32>,
+    /// The lag-1 correlation of the noise along the plate's trace the calibration
+    /// measured (`calibration.noise_lag1`); absent: 0, white.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub noise_lag1: f64,
     /// The calibration this one replaced; `None` (`null`) if there was none.
     pub previous: Option<Previous>,
     /// The node's ROS time when it was applied (simulated time under `use_sim_time`;
@@ -95,6 +99,10 @@ pub const HISTORY_FORMAT: u32 = 3;
 /// The format of a record with (or without) an angle error.
 pub fn format_for(angle_coefficients: &[f64]) -> u32 {
     if angle_coefficients.is_empty() { 2 } else { 3 }
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 fn format_1() -> u32 {
@@ -385,6 +393,7 @@ impl Record {
             angle_harmonics: Vec::new(),
             angle_coefficients: Vec::new(),
             plate_scan_ids: Vec::new(),
+            noise_lag1: 0.0,
             previous: None,
             ros_time: None,
         }

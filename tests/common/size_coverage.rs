@@ -93,8 +93,13 @@ pub fn run(
         let mut points = correct(&scan, &cal.mounting);
         touched_surface(&mut points, cal.tip_radius, traced, true);
         let (radii, gain) = resample_radii_with_gain(&points, 400, 0.2).unwrap();
-        let correction =
-            Correction { mounting: cal.mounting, tip_radius: cal.tip_radius, traced, angle_orders: cal.angle.orders() };
+        let correction = Correction {
+            mounting: cal.mounting,
+            tip_radius: cal.tip_radius,
+            traced,
+            angle_orders: cal.angle.orders(),
+            noise: Default::default(),
+        };
         let report = uncertainty(&points, &radii, &gain, &correction, Some(&cal.named_covariance)).unwrap();
         let got = report.sizes.figures();
         for f in 0..4 {
