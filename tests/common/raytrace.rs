@@ -1,0 +1,130 @@
+//! A tracer simulated from its physics, written apart from the engine: no function of
+//! `tracer_calib::engine` computes a length here (the engine's own simulator,
+//! `engine::simulate`, shares the engine's geometry and shapes; this one shares nothing
+//! but the convention of docs/model.md and the `Scan` it hands over).
+//!
+//! A turntable turns the rail to `a_k = alpha0 + φ_k + ε(φ_k)`, `φ_k = 2πk/N`, the angle
+//! encoder's error `ε(φ) = Σ c_h cos hφ + s_h sin hφ`; the rail is the line `d v + t u`
+//! (`u = (cos a, sin a)`, `v = (-sin a, cos a)`); a ball of radius `ρ` on it is pushed onto
+//! the shape, inward from outside (a plate, a lens) or outward from inside (a ring gauge, a
+//! frame's bore), and stops where its centre is `ρ` from the surface: the far root of
+//! `sdf(d v + t u) = ±ρ` along the rail, found by bisection on the shape's signed distance
+//! function. The encoder reads `(t + dL)/k` plus noise that is AR(1) along the trace
+//! (marginal `σ`, lag-1 `φ`), rounded to whole counts when a count's length is given.
+
+use nalgebra::Vector2;
+use rand::Rng;
+use rand_distr::{Distribution, StandardNormal};
+use tracer_calib::engine::scan::Scan;
+
+/// A closed convex shape by its signed distance (negative inside).
+pub trait Sdf {
+    fn sdf(&self, p: Vector2<f64>) -> f64;
+}
+
+/// A rectangle `2 hw × 2 hh` with corners rounded to `r`, centred at `c`, turned by `turn`.
+#[derive(Debug, Clone, Copy)]
+pub struct RoundedBox {
+    pub c: Vector2<f64>,
+    pub hw: f64,
+    pub hh: f64,
+    pub r: f64,
+    pub turn: f64,
+}
+
+impl Sdf for RoundedBox {
+    fn sdf(&self, p: Vector2<f64>) -> f64 {
+        let (s, c) = (-self.turn).sin_cos();
+        let d = p - self.c;
+        let local = Vector2::new(c * d.x - s * d.y, s * d.x + c * d.y);
+        let q = Vector2::new(local.x.abs() - (self.hw - self.r), local.y.abs() - (self.hh - self.r));
+        let outside = Vector2::new(q.x.max(0.0), q.y.max(0.0)).norm();
+        outside + q.x.max(q.y).min(0.0) - self.r
+    }
+}
+
+impl RoundedBox {
+    /// Circumference, box width, box height and FED (twice the farthest point from the
+    /// box centre) of the unturned shape.
+    pub fn figures(&self) -> [f64; 4] {
+        let (a, b, r) = (self.hw - self.r, self.hh - self.r, self.r);
+        [4.0 * (a + b) + std::f64::consts::TAU * r, 2.0 * self.hw, 2.0 * self.hh, 2.0 * ((a * a + b * b).sqrt() + r)]
+    }
+}
+
+/// A circle of radius `r` about `c`.
+#[derive(Debug, Clone, Copy)]
+pub struct Circle {
+    pub c: Vector2<f64>,
+    pub r: f64,
+}
+
+impl Sdf for Circle {
+    fn sdf(&self, p: Vector2<f64>) -> f64 {
+        (p - self.c).norm() - self.r
+    }
+}
+
+/// The tracer: its mounting, its angle encoder's error, its stylus and its noise.
+#[derive(Debug, Clone)]
+pub struct Tracer {
+    pub alpha0: f64,
+    pub d: f64,
+    pub dl: f64,
+    pub k: f64,
+    /// `(h, c_h, s_h)`, radians.
+    pub angle: Vec<(u32, f64, f64)>,
+    /// The ball's radius.
+    pub ball: f64,
+    pub sigma: f64,
+    pub lag1: f64,
+    /// A count's length; 0: not rounded.
+    pub count: f64,
+    pub steps: u32,
+}
+
+impl Tracer {
+    fn rail(&self, k: u32) -> (Vector2<f64>, Vector2<f64>) {
+        let phi = std::f64::consts::TAU * f64::from(k) / f64::from(self.steps);
+        let eps: f64 =
+            self.angle.iter().map(|&(h, c, s)| c * (f64::from(h) * phi).cos() + s * (f64::from(h) * phi).sin()).sum();
+        let a = self.alpha0 + phi + eps;
+        let u = Vector2::new(a.cos(), a.sin());
+        (u, Vector2::new(-u.y, u.x))
+    }
+
+    /// Where the ball's centre stops on rail `k`: the far root of `sdf = side ρ`.
+    fn stop(&self, shape: &impl Sdf, k: u32, side: f64) -> f64 {
+        let (u, v) = self.rail(k);
+        let f = |t: f64| shape.sdf(v * self.d + u * t) - side * self.ball;
+        // The rail passes near the axis, inside every shape here: `t = 0` is inside the
+        // contour the ball's centre follows, `t = 1 m` far outside.
+        let (mut lo, mut hi) = (0.0, 1.0);
+        assert!(f(lo) < 0.0 && f(hi) > 0.0, "rail {k} does not cross the shape");
+        for _ in 0..80 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) < 0.0 { lo = mid } else { hi = mid }
+        }
+        0.5 * (lo + hi)
+    }
+
+    /// One revolution over `shape`, traced from outside (`inside = false`) or inside.
+    pub fn trace(&self, shape: &impl Sdf, inside: bool, rng: &mut impl Rng) -> Scan {
+        let side = if inside { -1.0 } else { 1.0 };
+        let innovation = (1.0 - self.lag1 * self.lag1).sqrt();
+        let mut e: f64 = StandardNormal.sample(rng);
+        let steps: Vec<u32> = (0..self.steps).collect();
+        let rho: Vec<f64> = steps
+            .iter()
+            .map(|&k| {
+                if k > 0 {
+                    let z: f64 = StandardNormal.sample(rng);
+                    e = self.lag1 * e + innovation * z;
+                }
+                let read = (self.stop(shape, k, side) + self.dl) / self.k + self.sigma * e;
+                if self.count > 0.0 { (read / self.count).round() * self.count } else { read }
+            })
+            .collect();
+        Scan::new(self.steps, &steps, &rho).expect("a whole revolution")
+    }
+}
