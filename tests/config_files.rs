@@ -35,7 +35,7 @@ fn namespaced_example_applies_to_its_node_only() {
     // Its certificates, each u = U/k.
     assert_eq!(
         [c.params.plate_side_uncertainty, c.params.corner_radius_uncertainty, c.params.tip_radius_uncertainty],
-        [1.0e-6, 5.0e-6, 1.0e-6]
+        [1.0e-6, 5.0e-6, 0.0]
     );
     assert_eq!(c.params.seating_uncertainty, 3.5e-4);
     // Another cell's node does not pick it up.
