@@ -550,6 +550,26 @@ fn the_tip_models_take_a_ring_gauge() {
     assert!(o.status.success(), "{}", stderr(&o));
     let wide = json(&o)["tip_radius_stddev"].as_f64().unwrap();
     assert!(wide > 3.0 * sd, "tip radius ± {wide} with the certificates, ± {sd} without");
+    // The other inputs: the corner's certificate widens the tip's; the plate's seating
+    // adds to alpha0's variance alone; a known tip's uncertainty gets its own row under
+    // `full`; a negative one is refused, naming its flag.
+    let base = json(&fit(&["--input", b, "--model", "full_tip", "--ring-diameter", "0.04"]));
+    let o =
+        fit(&["--input", b, "--model", "full_tip", "--ring-diameter", "0.04", "--corner-radius-uncertainty", "5e-6"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(json(&o)["tip_radius_stddev"].as_f64().unwrap() > sd, "{}", json(&o));
+    let seat = 3.5e-4;
+    let o = fit(&["--input", b, "--model", "full_tip", "--ring-diameter", "0.04", "--seating-uncertainty", "3.5e-4"]);
+    let v = json(&o);
+    let var = |v: &serde_json::Value, i: usize| v["covariance"][i * 6].as_f64().unwrap();
+    assert!((var(&v, 0) - var(&base, 0) - seat * seat).abs() < 1e-3 * seat * seat, "{v}");
+    assert!((var(&v, 2) - var(&base, 2)).abs() < 1e-9 * var(&base, 2), "{v}");
+    let o = fit(&["--input", b, "--tip-radius", "0.0005", "--tip-radius-uncertainty", "1e-6"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!((var(&json(&o), 4).sqrt() - 1e-6).abs() < 1e-9, "{}", json(&o));
+    let o = fit(&["--input", b, "--tip-radius-uncertainty", "-1e-6"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(json(&o)["message"].as_str().unwrap().contains("--tip-radius-uncertainty"), "{}", json(&o));
     // CSV scans: the plate as --input, the ring as --ring.
     let (plate_csv, ring_csv) = (temp("tip_plate.csv"), temp("tip_ring.csv"));
     sim("plate", &plate_csv);

@@ -78,6 +78,18 @@ pub struct Args {
     /// not fit it.
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub tip_radius: Option<f64>,
+    /// Standard uncertainty of the plate's corner radius from its certificate, metres
+    /// (plate.corner_radius_uncertainty).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub corner_radius_uncertainty: Option<f64>,
+    /// Standard uncertainty of the known tip radius, metres (stylus.tip_radius_uncertainty;
+    /// for the models that do not fit it).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub tip_radius_uncertainty: Option<f64>,
+    /// Standard uncertainty of the plate's seating angle against the frame holder's datum,
+    /// radians (plate.seating_uncertainty).
+    #[arg(long, value_name = "RAD", allow_hyphen_values = true)]
+    pub seating_uncertainty: Option<f64>,
     /// Significance level of the harmonic lack-of-fit test of the plate's residuals
     /// (calibration.lack_of_fit_alpha, default 0.001): a fit whose residuals show structure
     /// at this level fails, naming the harmonics; 0 = no test.
@@ -137,6 +149,9 @@ pub fn settings(args: &Args) -> Result<Parameters, String> {
     set("stylus.tip_radius", args.tip_radius)?;
     set("plate.side_uncertainty", args.plate_side_uncertainty)?;
     set("ring.diameter_uncertainty", args.ring_diameter_uncertainty)?;
+    set("plate.corner_radius_uncertainty", args.corner_radius_uncertainty)?;
+    set("stylus.tip_radius_uncertainty", args.tip_radius_uncertainty)?;
+    set("plate.seating_uncertainty", args.seating_uncertainty)?;
     set("calibration.lack_of_fit_alpha", args.lack_of_fit_alpha)?;
     if let Some(m) = args.model {
         p.model = m;
@@ -159,6 +174,9 @@ fn flag(name: &str) -> &'static str {
         "plate.side_uncertainty" => "plate-side-uncertainty",
         "calibration.lack_of_fit_alpha" => "lack-of-fit-alpha",
         "ring.diameter_uncertainty" => "ring-diameter-uncertainty",
+        "plate.corner_radius_uncertainty" => "corner-radius-uncertainty",
+        "stylus.tip_radius_uncertainty" => "tip-radius-uncertainty",
+        "plate.seating_uncertainty" => "seating-uncertainty",
         _ => "meters-per-count",
     }
 }
