@@ -40,6 +40,14 @@
 //!   degrees of freedom); a Fourier coefficient of `N` equal-angle samples has variance
 //!   `σ_r²/N` (`a_0`) or `2σ_r²/N`, so a figure's is `σ_r²/N (g_0² + 2 Σ_k g_k²)` over the
 //!   responses `g_k` to `cos kθ` and `sin kθ`.
+//!   The noise as the calibration measured it ([`TraceNoise`]): with a lag-1 correlation `φ`
+//!   (AR(1), `calibration.noise_lag1`) the fourth differences see `(70 - 112φ + 56φ² -
+//!   16φ³ + 2φ⁴)/70` of the noise's variance and the scatter above `K` the mean of its
+//!   density there, both turned back into the marginal `σ_r`; each `g_k²` is weighted by the
+//!   density at `ω = 2πk/N`, `(1 - φ²)/(1 - 2φ cos ω + φ²)`, and a side from the raw points
+//!   sums its weights with `φ^|i-j|`. Never below one count's `q/√12`; what repeated traces
+//!   show beyond it (`size.reproducibility`, `u_R`) adds `(g_uniform u_R)²`, the response
+//!   to a uniform radial change.
 //!
 //! `U95 = 2 √(var_calibration + var_noise)` (k = 2). A resampled radius' own: the
 //! calibration's part at its angle, and the samples' own noise ([`sample_noise`], not the
