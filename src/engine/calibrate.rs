@@ -98,7 +98,7 @@ pub struct Options {
     /// model spikes many.
     pub max_rejected_fraction: f64,
     /// Standard uncertainty of the plate's side from its certificate, metres
-    /// (`plate.side_uncertainty`): a type B component of the covariance ([`certificate`]).
+    /// (`plate.side_uncertainty`): a type B component of the covariance (`inputs_of`).
     pub plate_side_uncertainty: f64,
     /// Standard uncertainty of the ring gauge's diameter from its certificate, metres
     /// (`ring.diameter_uncertainty`), for the tip models.
@@ -924,7 +924,7 @@ fn finish(
 /// fit saw (true lengths under the scale in force), so the result is relative to it.
 /// A plate whose side is certified to `side_u` only adds that to the uncertainty (a
 /// plate a little larger looks like an encoder reading a little short): the step's
-/// sensitivity to the side, `-(JᵀJ)⁻¹ Jᵀ ∂r/∂S`, times `side_u` ([`certificate`]).
+/// sensitivity to the side, `-(JᵀJ)⁻¹ Jᵀ ∂r/∂S`, times `side_u` (as `inputs_of` does).
 pub fn scale_score(model: FullModel, x: &full::Params, side_u: f64) -> Option<ScaleEstimate> {
     let b = model.side_sensitivity(x, 0.0)?;
     score_test(&FullScaleModel::new(model), &full_scale::from_full(x, 1.0), full_scale::SCALE, &b, side_u)
@@ -952,7 +952,7 @@ where
     // σ̂² from the residuals after the step: ‖r‖² - gᵀ(JᵀJ)⁻¹g, the linearised cost.
     let ss = (2.0 * ne.cost - ne.jtr.dot(&(&inv * &ne.jtr))).max(0.0);
     let sigma2 = ss / (n - p) as f64;
-    let side = certificate_of(model, x, b, side_u, &[Some(k)]).ok()?[(0, 0)];
+    let side = inputs_of(model, x, &[Input { dr: Cow::Borrowed(b), u: side_u, own: None }], &[Some(k)]).ok()?[(0, 0)];
     // Under white noise: a misfit's localised residuals (a wrong ring gauge's, in the
     // corners) look like correlated noise to [`correlated`], and would widen the very test
     // meant to catch them.
@@ -1194,41 +1194,6 @@ impl Fit {
     }
 }
 
-/// The type B part of the covariance an artefact's certified size `A` brings (GUM 4.3,
-/// 5.1): the estimate moves with `A` as the normal equations `Jᵀr = 0` hold at the
-/// minimum, `s = dx̂/dA = -(JᵀJ)⁻¹ Jᵀ ∂r/∂A` (one more pass over the samples the fit
-/// used, `∂r/∂A` a value per row of `model`), and adds `s sᵀ u²` for a standard
-/// uncertainty `u` of `A`; returned in the tracer's [`Covariance`] layout (`tracer` as
-/// in `Fit::from_rounds`). Zero when `u` is.
-pub fn certificate<D: Dim>(
-    model: &impl Problem<D>,
-    x: &OVector<f64, D>,
-    dr_da: &[f64],
-    u: f64,
-    tracer: [Option<usize>; 5],
-) -> Result<Covariance, CalibrationError>
-where
-    DefaultAllocator: Allocator<D> + Allocator<D, D>,
-{
-    let term = certificate_of(model, x, dr_da, u, &tracer)?;
-    Ok(Covariance::from_fn(|i, j| term[(i, j)]))
-}
-
-/// [`certificate`] over any parameters: `rows[i]` where the model keeps row `i` of the
-/// result (`None`: a zero row).
-fn certificate_of<D: Dim>(
-    model: &impl Problem<D>,
-    x: &OVector<f64, D>,
-    dr_da: &[f64],
-    u: f64,
-    rows: &[Option<usize>],
-) -> Result<DMatrix<f64>, CalibrationError>
-where
-    DefaultAllocator: Allocator<D> + Allocator<D, D>,
-{
-    inputs_of(model, x, &[Input { dr: Cow::Borrowed(dr_da), u, own: None }], rows)
-}
-
 /// An input a fit takes as known: how each residual the fit used moves with it, its
 /// standard uncertainty, and its own row in the covariance when the calibration reports it
 /// (the tip radius, the scale), else `None`.
@@ -1238,9 +1203,14 @@ struct Input<'a> {
     own: Option<usize>,
 }
 
-/// The type B part of the covariance the inputs bring ([`certificate`] for each, in one
-/// pass over the samples): with `s = dx̂/dA`, `v = (s; 1)` (the input's own row 1, its
-/// estimate being itself) and `v vᵀ u²` each, summed (the inputs independent).
+/// The type B part of the covariance the inputs a fit takes as known bring (GUM 4.3, 5.1),
+/// in one pass over the samples the fit used. An input `A` (an artefact's certified size,
+/// the tip radius or scale in force) moves the estimate as the normal equations `Jᵀr = 0`
+/// hold at the minimum, `s = dx̂/dA = -(JᵀJ)⁻¹ Jᵀ ∂r/∂A` (`∂r/∂A` a value per row of
+/// `model`); with `v = (s; 1)` (1 in the input's own row, its estimate being itself) it adds
+/// `v vᵀ u²` for a standard uncertainty `u`, summed over the inputs (independent). `rows[i]`:
+/// where the model keeps row `i` of the result (`None`: a zero row but an input's own).
+/// Zero for inputs whose `u` is.
 fn inputs_of<D: Dim>(
     model: &impl Problem<D>,
     x: &OVector<f64, D>,
@@ -1279,6 +1249,20 @@ where
     if term.iter().all(|v| v.is_finite()) { Ok(term) } else { Err(CalibrationError::Singular) }
 }
 
+/// [`inputs_of`] in the tracer's [`Covariance`] layout (`tracer` as in `Fit::from_rounds`).
+fn inputs_in_layout<D: Dim>(
+    model: &impl Problem<D>,
+    x: &OVector<f64, D>,
+    inputs: &[Input],
+    tracer: [Option<usize>; 5],
+) -> Result<Covariance, CalibrationError>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let term = inputs_of(model, x, inputs, &tracer)?;
+    Ok(Covariance::from_fn(|i, j| term[(i, j)]))
+}
+
 /// The inputs a fit of `opt.model` takes as known, from each sample's derivatives
 /// (`inputs`, of `q`; a residual `q/k - rho` moves by them over `k`): the plate's side and
 /// corner radius, the ring's diameter when there is a ring, the tip radius and the scale
@@ -1309,9 +1293,9 @@ fn fit_full(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fit, Cal
     let tracer = [Some(full::ALPHA0), Some(full::OFFSET), Some(full::DELTA_L), None, None];
     let used = all.retain(|i| r.active[i]);
     let inputs = used.input_derivatives(&r.x, 0.0).ok_or(CalibrationError::Singular)?;
-    let types_b = inputs_of(&used, &r.x, &known_inputs(opt, &inputs, 1.0, false), &tracer)?;
+    let types_b = inputs_in_layout(&used, &r.x, &known_inputs(opt, &inputs, 1.0, false), tracer)?;
     let mut fit = Fit::from_rounds(ModelKind::Full, r.x, 1.0, tracer, r);
-    fit.covariance += Covariance::from_fn(|i, j| types_b[(i, j)]);
+    fit.covariance += types_b;
     Ok(fit)
 }
 
@@ -1325,9 +1309,10 @@ fn fit_full_scale(all: &FullModel, x0: full::Params, opt: &Options) -> Result<Fi
     // r = q/k - rho: ∂r/∂S = (∂q/∂S)/k.
     let used = all.retain(|i| r.active[i]);
     let inputs = used.input_derivatives(&x, 0.0).ok_or(CalibrationError::Singular)?;
-    let types_b = inputs_of(&FullScaleModel::new(used), &r.x, &known_inputs(opt, &inputs, scale, false), &tracer)?;
+    let types_b =
+        inputs_in_layout(&FullScaleModel::new(used), &r.x, &known_inputs(opt, &inputs, scale, false), tracer)?;
     let mut fit = Fit::from_rounds(ModelKind::FullScale, x, scale, tracer, r);
-    fit.covariance += Covariance::from_fn(|i, j| types_b[(i, j)]);
+    fit.covariance += types_b;
     Ok(fit)
 }
 
@@ -1383,19 +1368,19 @@ fn fit_tip(
             Some(at(tip::TIP_RADIUS)),
         ];
         let used = TipScaleModel::new(model.retain(|i| r.active[i]));
-        let types_b = inputs_of(&used, &r.x, &known_inputs(opt, &inputs(used.tip(), &x)?, k, true), &tracer)?;
+        let types_b = inputs_in_layout(&used, &r.x, &known_inputs(opt, &inputs(used.tip(), &x)?, k, true), tracer)?;
         let (x5, _, _) = tip::to_full(&x);
         let mut fit = Fit::from_rounds(ModelKind::FullScaleTip, x5, k, tracer, r);
-        fit.covariance += Covariance::from_fn(|i, j| types_b[(i, j)]);
+        fit.covariance += types_b;
         (x, k, fit)
     } else {
         let r = fit_rounds(&model, x0, opt)?;
         let tracer = [Some(tip::ALPHA0), Some(tip::OFFSET), Some(tip::DELTA_L), None, Some(tip::TIP_RADIUS)];
         let used = model.retain(|i| r.active[i]);
-        let types_b = inputs_of(&used, &r.x, &known_inputs(opt, &inputs(&used, &r.x)?, 1.0, true), &tracer)?;
+        let types_b = inputs_in_layout(&used, &r.x, &known_inputs(opt, &inputs(&used, &r.x)?, 1.0, true), tracer)?;
         let (x, (x5, _, _)) = (r.x, tip::to_full(&r.x));
         let mut fit = Fit::from_rounds(ModelKind::FullTip, x5, 1.0, tracer, r);
-        fit.covariance += Covariance::from_fn(|i, j| types_b[(i, j)]);
+        fit.covariance += types_b;
         (x, 1.0, fit)
     };
     let (_, tip_radius, ring_center) = tip::to_full(&x);

@@ -17,7 +17,7 @@ pub use value::ParamValue;
 use nalgebra::DMatrix;
 
 use crate::engine::angle::{AngleError, HarmonicOrders};
-use crate::engine::calibrate::{Options as CalibrationOptions, covariance_names, named_covariance_from_values};
+use crate::engine::calibrate::{Options as CalibrationOptions, covariance_names, layout, named_covariance_from_values};
 use crate::engine::{ModelKind, Mounting, PlateSpec, RingSpec};
 
 /// The contract's parameter names.
@@ -577,8 +577,8 @@ impl Parameters {
             plate_side_uncertainty: self.plate_side_uncertainty,
             ring_diameter_uncertainty: self.ring_diameter_uncertainty,
             corner_radius_uncertainty: self.corner_radius_uncertainty,
-            tip_radius_uncertainty: self.carried(self.tip_radius_uncertainty, 4),
-            scale_uncertainty: self.carried(0.0, 3),
+            tip_radius_uncertainty: self.carried(self.tip_radius_uncertainty, layout::TIP_RADIUS),
+            scale_uncertainty: self.carried(0.0, layout::SCALE),
             seating_uncertainty: self.seating_uncertainty,
             lack_of_fit_alpha: self.lack_of_fit_alpha,
             angle_harmonics: self.angle_harmonics,
@@ -587,7 +587,7 @@ impl Parameters {
     }
 
     /// The standard uncertainty of an input a model may take as known (the tip radius,
-    /// row 4 of the covariance; the scale, row 3): `given` when it is set, else what the
+    /// the scale: its row of the covariance): `given` when it is set, else what the
     /// calibration in force states of it (an earlier fit of it, carried), else 0.
     fn carried(&self, given: f64, row: usize) -> f64 {
         if given > 0.0 {
