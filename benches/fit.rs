@@ -159,6 +159,7 @@ fn bench(c: &mut Criterion) {
         mounting: m,
         tip_radius: 0.0,
         traced: tracer_calib::engine::Traced::Outside,
+        groove: Default::default(),
         angle_orders: tracer_calib::engine::angle::HarmonicOrders::NONE,
         noise: Default::default(),
     };

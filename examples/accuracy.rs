@@ -285,7 +285,7 @@ fn size_part(trials: usize) {
 
 /// Part 4: the stylus tip (module docs).
 fn tip_part(bench: &Bench, trials: usize) {
-    let ring = RingSpec { diameter: 0.040 };
+    let ring = RingSpec::plain(0.040);
     let ring_shape = Ellipse { center: Vector2::new(-0.0006, 0.0004), a: 0.020, b: 0.020, angle: 0.0 };
     let frame = RoundedRect { center: Vector2::new(0.001, -0.0005), half_w: 0.025, half_h: 0.015, radius: 0.008 };
     println!(

@@ -166,7 +166,7 @@ fn the_tip_models_fit_harmonics_with_a_ring_gauge_too() {
     .scan;
     for model in [ModelKind::FullTip, ModelKind::FullScaleTip] {
         let opt = Options { model, ..options(&[1, 2, 4]) };
-        let ring = Ring { scan: &ring, spec: RingSpec { diameter: 0.04 } };
+        let ring = Ring { scan: &ring, spec: RingSpec::plain(0.04) };
         let cal = calibrate_placements(&[&a, &b], Some(ring), &PLATE, &opt).unwrap();
         println!("{}", cal.summary());
         assert!((cal.tip_radius - 0.0005).abs() < 1e-9, "{model}: tip {}", cal.tip_radius);
@@ -200,6 +200,7 @@ fn frame_sizes(cal: &Calibration, sigma: f64, rng: &mut StdRng) -> ([f64; 4], [f
         mounting: cal.mounting,
         tip_radius: 0.0,
         traced: Traced::Inside,
+        groove: Default::default(),
         angle_orders: cal.angle.orders(),
         noise: Default::default(),
     };

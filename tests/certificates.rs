@@ -16,7 +16,7 @@ use tracer_calib::engine::shape::Ellipse;
 use tracer_calib::engine::simulate::{SimOptions, simulate};
 
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
-const RING: RingSpec = RingSpec { diameter: 0.040 };
+const RING: RingSpec = RingSpec::plain(0.040);
 const TIP: f64 = 0.0003;
 
 fn truth() -> Mounting {
@@ -104,7 +104,7 @@ fn a_monte_carlo_of_the_artefacts_is_covered() {
         let (mut sq, mut reported, mut noise_only) = ([0.0; 5], [0.0; 5], [0.0; 5]);
         for t in 0..trials {
             let true_plate = PlateSpec { side: PLATE.side + sd_side.sample(&mut rng), ..PLATE };
-            let true_ring = RingSpec { diameter: RING.diameter + sd_diameter.sample(&mut rng) };
+            let true_ring = RingSpec::plain(RING.diameter + sd_diameter.sample(&mut rng));
             let (p, g) = scans(&true_plate, &true_ring, 2e-6, 100 + t);
             let c = fit(model, &p, &g, (PLATE, RING), (u_side, u_diameter));
             // The noise's part alone: the same noise on the certified artefacts.

@@ -103,7 +103,7 @@ fn run(sigma: f64, lag1: f64, inputs: Inputs, trials: usize, seed: u64) -> Tally
         t.trials += 1;
         let cal = match calibrate_placements(
             &[&first, &second],
-            Some(Ring { scan: &ring, spec: RingSpec { diameter: DIAMETER } }),
+            Some(Ring { scan: &ring, spec: RingSpec::plain(DIAMETER) }),
             &PlateSpec { side: SIDE, corner_radius: CORNER },
             &opt,
         ) {
@@ -155,6 +155,7 @@ fn measure(
         mounting,
         tip_radius: tip,
         traced: Traced::Inside,
+        groove: Default::default(),
         angle_orders: angle.orders(),
         noise: TraceNoise { lag1, ..TraceNoise::default() },
     };
@@ -218,8 +219,9 @@ const FED_SHORT: f64 = 0.77;
 #[test]
 fn angle_harmonics_white_noise() {
     let b = Bounds {
-        covered: [0.92, 0.93, 0.93, FED_SHORT],
-        short: "C covered 92.7 %, FED 79.6 % (mean error +17 µm)",
+        covered: [0.90, 0.93, 0.93, FED_SHORT],
+        bias: [4e-6, 2e-6, 2e-6],
+        short: "C covered 91.3 %, mean error +3.4 µm (the noise the smooth keeps lengthens it: the chord normals' tilt at the corners, -1.2 µm, no longer hides it); FED 79.6 % (mean error +17 µm)",
         ..TARGETS
     };
     check("h = {1, 2, 4}, σ 10 µm, white", &run(10e-6, 0.0, Inputs::default(), 1000, 1), b);
@@ -228,9 +230,9 @@ fn angle_harmonics_white_noise() {
 #[test]
 fn angle_harmonics_noise_correlated_lag_0_5() {
     let b = Bounds {
-        covered: [0.91, 0.93, 0.93, FED_SHORT],
-        bias: [9e-6, 2e-6, 2e-6],
-        short: "C covered 91.8 %, mean error +7.6 µm (the noise the smooth keeps lengthens it); FED 84.6 %",
+        covered: [0.90, 0.93, 0.93, FED_SHORT],
+        bias: [10e-6, 2e-6, 2e-6],
+        short: "C covered 91.1 %, mean error +9.1 µm (the noise the smooth keeps lengthens it); FED 83.5 %",
         ..TARGETS
     };
     check("h = {1, 2, 4}, σ 10 µm, lag-1 0.5", &run(10e-6, 0.5, Inputs::default(), 1000, 2), b);
@@ -242,7 +244,7 @@ fn angle_harmonics_noise_correlated_lag_0_8() {
         covered: [0.92, 0.93, 0.92, FED_SHORT],
         bias: [8e-6, 3e-6, 2e-6],
         refused: 110,
-        short: "9.2 % refused by the scale check (its variance white); C covered 93.0 %, B 92.7 %; mean error C +6.1, A +2.5 µm; FED 84.4 %",
+        short: "9.2 % refused by the scale check (its variance white); C covered 92.2 %, B 92.7 %; mean error C +7.4, A +2.4 µm; FED 84.4 %",
     };
     check("h = {1, 2, 4}, σ 10 µm, lag-1 0.8", &run(10e-6, 0.8, Inputs::default(), 1000, 3), b);
 }
@@ -252,9 +254,9 @@ fn every_input_uncertain() {
     // Certificates of 2 µm (side, ring), 5 µm (corner) and a seating known to 0.02°.
     let inputs = Inputs { side: 2e-6, corner: 5e-6, diameter: 2e-6, seating: 0.02f64.to_radians() };
     let b = Bounds {
-        covered: [0.93, 0.93, 0.93, FED_SHORT],
+        covered: [0.93, 0.93, 0.92, FED_SHORT],
         bias: [2e-6, 2e-6, 3e-6],
-        short: "B's mean error +2.1 µm; FED covered 79.1 %",
+        short: "B covered 92.9 %, its mean error +2.0 µm; FED covered 80.2 %",
         ..TARGETS
     };
     check("h = {1, 2, 4}, σ 10 µm, every input uncertain", &run(10e-6, 0.0, inputs, 1000, 4), b);

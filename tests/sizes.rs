@@ -88,6 +88,7 @@ fn the_calibration_responses_are_the_chains_own() {
             mounting: m,
             tip_radius: tip,
             traced,
+            groove: Default::default(),
             angle_orders: HarmonicOrders::NONE,
             noise: Default::default(),
         };

@@ -22,7 +22,7 @@ use tracer_calib::engine::simulate::{SimOptions, SimScan, simulate};
 use tracer_calib::engine::stylus::{Traced, touched_surface};
 
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
-const RING: RingSpec = RingSpec { diameter: 0.040 };
+const RING: RingSpec = RingSpec::plain(0.040);
 
 fn truth() -> Mounting {
     Mounting::new(2f64.to_radians(), 0.005, 0.002)
@@ -139,14 +139,13 @@ fn a_ring_that_does_not_fit_is_refused_with_the_reason() {
     // tip are one length on the ring, and the plate tells the tip from dL only weakly,
     // by its corners' radii.)
     for wrong in [0.039, 0.041, 0.045] {
-        let e =
-            calibrate_with_ring(&plate, Some(Ring { scan: &ring, spec: RingSpec { diameter: wrong } }), &PLATE, &opt)
-                .map(|c| format!("{} tip {} ring rms {:?}", c.summary(), c.tip_radius, c.ring.map(|r| r.rms_residual)))
-                .expect_err(&format!("diameter {wrong} accepted"));
+        let e = calibrate_with_ring(&plate, Some(Ring { scan: &ring, spec: RingSpec::plain(wrong) }), &PLATE, &opt)
+            .map(|c| format!("{} tip {} ring rms {:?}", c.summary(), c.tip_radius, c.ring.map(|r| r.rms_residual)))
+            .expect_err(&format!("diameter {wrong} accepted"));
         assert!(e.to_string().contains("ring") || e.to_string().contains("plate"), "{e}");
     }
     // An invalid diameter.
-    let e = calibrate_with_ring(&plate, Some(Ring { scan: &ring, spec: RingSpec { diameter: -1.0 } }), &PLATE, &opt)
-        .unwrap_err();
+    let e =
+        calibrate_with_ring(&plate, Some(Ring { scan: &ring, spec: RingSpec::plain(-1.0) }), &PLATE, &opt).unwrap_err();
     assert!(e.to_string().contains("diameter"), "{e}");
 }

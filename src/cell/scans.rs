@@ -9,7 +9,7 @@ use crate::engine::correct::{Corrector, PolarContour, default_max_gap, resample_
 use crate::engine::geometry::Mounting;
 use crate::engine::scan::Scan;
 use crate::engine::size::{self, Correction};
-use crate::engine::stylus::{Traced, touched_surface};
+use crate::engine::stylus::{Groove, Traced, contact_offset, touched_surface};
 use crate::interfaces::{Contour, Header, Point, Point32, Polygon, PolygonStamped, RawScan, Time};
 
 /// Largest coordinate of a corrected point, metres: what a `Point32` of the polygon holds.
@@ -88,9 +88,16 @@ impl NodeState {
             }
         };
         let tip = self.params.tip_radius;
-        let traced = match msg.target {
-            RawScan::TARGET_FRAME | RawScan::TARGET_RING_GAUGE => Traced::Inside,
-            _ => Traced::Outside,
+        // What the tip traced from inside sits in a groove: a frame's as the cell assumes
+        // it, the ring gauge's as certified (engine::stylus).
+        let (traced, groove) = match msg.target {
+            RawScan::TARGET_FRAME => (Traced::Inside, self.params.frame_groove),
+            RawScan::TARGET_RING_GAUGE => (Traced::Inside, Groove::new(self.params.ring_groove_angle, 0.0)),
+            _ => (Traced::Outside, Groove::default()),
+        };
+        let offset = match traced {
+            Traced::Inside => contact_offset(tip, groove.angle),
+            Traced::Outside => tip,
         };
         if tip == 0.0 {
             corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, emit);
@@ -99,7 +106,7 @@ impl NodeState {
             let mut path = Vec::with_capacity(n);
             corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, |p| path.push(p));
             let closed = goes_round(&msg.step, steps_per_rev);
-            touched_surface(&mut path, tip, traced, closed);
+            touched_surface(&mut path, offset, traced, closed);
             path.into_iter().for_each(&mut emit);
         }
         if let Some((index, p)) = out_of_range {
@@ -118,6 +125,7 @@ impl NodeState {
             mounting,
             tip_radius: tip,
             traced,
+            groove,
             angle_orders: angle.orders(),
             noise: self.params.trace_noise(),
         };

@@ -515,9 +515,21 @@ fn traced_msg(
     m: &Mounting,
     tip: f64,
 ) -> (RawScan, Vec<Vector2<f64>>) {
+    traced_in_groove(scan_id, target, shape, m, tip, crate::engine::stylus::PLAIN_BORE)
+}
+
+/// [`traced_msg`], from inside in a V-groove of included angle `groove` (rad).
+fn traced_in_groove(
+    scan_id: u32,
+    target: u8,
+    shape: &impl crate::engine::shape::Shape,
+    m: &Mounting,
+    tip: f64,
+    groove: f64,
+) -> (RawScan, Vec<Vector2<f64>>) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(u64::from(scan_id));
     let inside = matches!(target, RawScan::TARGET_FRAME | RawScan::TARGET_RING_GAUGE);
-    let opt = SimOptions { noise: 2e-6, tip_radius: tip, inside, ..SimOptions::default() };
+    let opt = SimOptions { noise: 2e-6, tip_radius: tip, inside, groove_angle: groove, ..SimOptions::default() };
     let sim = simulate(shape, m, &opt, &mut rng).unwrap();
     let msg = RawScan {
         header: Header::default(),
@@ -692,4 +704,85 @@ fn two_placements_fit_the_angle_harmonics_and_every_layer_carries_them() {
         .fold(0.0, f64::max);
     assert!(worst < 15e-6, "worst point {worst}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The stylus in a V-groove (engine::stylus): calibrated on the plate and a grooved ring
+/// gauge whose groove is entered, the cell corrects a frame traced in a groove of another
+/// angle to its groove's bottom, and states the groove angle's uncertainty in its U95.
+/// A grooved ring entered as a plain bore is refused as that.
+#[test]
+fn a_frame_traced_in_its_groove_is_its_groove_bottom() {
+    let m = Mounting::new(0.02, 0.004, 0.001);
+    let tip = 0.0005;
+    let (ring_groove, frame_groove) = (110f64.to_radians(), 116f64.to_radians());
+    let plate = PlateSpec::default().at(Vector2::new(0.0005, -0.0003));
+    let frame = crate::engine::shape::RoundedRect {
+        center: Vector2::new(0.001, 0.0),
+        half_w: 0.026,
+        half_h: 0.016,
+        radius: 0.006,
+    };
+    let p = Parameters { model: crate::engine::ModelKind::FullTip, ring_diameter: 0.040, ..Parameters::default() };
+    let mut st = NodeState::new("/cell1/tracer".into(), p);
+    st.on_raw_scan(&traced_msg(1, RawScan::TARGET_CALIBRATION_PLATE, &plate, &m, tip).0, false).unwrap();
+    st.on_raw_scan(&traced_in_groove(2, RawScan::TARGET_RING_GAUGE, &ring_gauge(), &m, tip, ring_groove).0, false)
+        .unwrap();
+    let req = CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] };
+    // Entered as a plain bore: refused, naming the groove the scans agree with.
+    let out = st.on_calibrate(&req);
+    assert!(!out.response.success, "{}", out.response.message);
+    assert!(out.response.message.contains("ring.groove_angle is 180.0° (a plain bore)"), "{}", out.response.message);
+    assert!(!st.params.calibration_valid);
+    st.params.ring_groove_angle = ring_groove;
+    let out = st.on_calibrate(&req);
+    assert!(out.response.success, "{}", out.response.message);
+    let r = &out.response;
+    assert!(
+        (r.tip_radius - tip).abs() < 4.0 * r.tip_radius_stddev + 1e-7,
+        "{} ± {}",
+        r.tip_radius,
+        r.tip_radius_stddev
+    );
+    let (msg, truth) = traced_in_groove(3, RawScan::TARGET_FRAME, &frame, &m, tip, frame_groove);
+    // How far each point is from the groove's bottom (the polygon of the points touched;
+    // a chord's normal slides a point along the contour where its curvature changes).
+    let worst = |c: &crate::interfaces::Contour| {
+        let from_truth = |p: Vector2<f64>| {
+            (0..truth.len())
+                .map(|i| {
+                    let (a, b) = (truth[i], truth[(i + 1) % truth.len()]);
+                    let f = ((p - a).dot(&(b - a)) / (b - a).norm_squared()).clamp(0.0, 1.0);
+                    (a + (b - a) * f - p).norm()
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        c.points.iter().map(|p| from_truth(Vector2::new(p.x, p.y))).fold(0.0, f64::max)
+    };
+    // The frames' groove taken as a plain bore: the contour is the ball's wall, 90 µm in.
+    let plain = st.on_raw_scan(&msg, false).unwrap().contour;
+    assert!(worst(&plain) > 80e-6, "{}", worst(&plain));
+    st.params.frame_groove = crate::engine::Groove::new(frame_groove, 0.0);
+    let exact = st.on_raw_scan(&msg, false).unwrap().contour;
+    assert!(worst(&exact) < 30e-6, "a point {:.1} µm from the groove's bottom", worst(&exact) * 1e6);
+    let want = frame.exact_sizes();
+    let got = [exact.circumference, exact.box_width, exact.box_height, exact.effective_diameter];
+    for f in 0..4 {
+        assert!(
+            (got[f] - want[f]).abs() <= exact.size_u95[f],
+            "figure {f}: {} for {} ± {}",
+            got[f],
+            want[f],
+            exact.size_u95[f]
+        );
+    }
+    // Known to a degree: 3.2 µm of radius a degree at 116°, 2 × 2π × 3.2 = 40 µm of C's U95.
+    st.params.frame_groove = crate::engine::Groove::new(frame_groove, 1f64.to_radians());
+    let wider = st.on_raw_scan(&msg, false).unwrap().contour;
+    assert_eq!(wider.circumference, exact.circumference);
+    let u =
+        crate::engine::stylus::contact_offset_per_groove_angle(r.tip_radius, frame_groove).abs() * 1f64.to_radians();
+    let alone = 2.0 * std::f64::consts::TAU * u;
+    let c_u95 = (exact.size_u95[0].powi(2) + alone * alone).sqrt();
+    assert!((wider.size_u95[0] - c_u95).abs() < 0.02 * c_u95, "{} for {}", wider.size_u95[0], c_u95);
+    assert!(wider.radii_u95.iter().zip(&exact.radii_u95).all(|(w, e)| w > e));
 }

@@ -66,6 +66,11 @@ pub struct Args {
     /// Certified inner diameter of the ring gauge, metres (ring.diameter).
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub ring_diameter: Option<f64>,
+    /// Included angle of the ring gauge's V-groove, radians (ring.groove_angle): the
+    /// ball's centre sits tip / sin(angle/2) from the groove's bottom, whose diameter
+    /// --ring-diameter gives; π = a plain bore.
+    #[arg(long, value_name = "RAD", allow_hyphen_values = true)]
+    pub ring_groove_angle: Option<f64>,
     /// Standard uncertainty of the plate's side from its certificate, metres
     /// (plate.side_uncertainty): a type B part of the covariance.
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
@@ -146,6 +151,7 @@ pub fn settings(args: &Args) -> Result<Parameters, String> {
     set("plate.corner_radius", args.corner_radius)?;
     set("encoder.meters_per_count", args.meters_per_count)?;
     set("ring.diameter", args.ring_diameter)?;
+    set("ring.groove_angle", args.ring_groove_angle)?;
     set("stylus.tip_radius", args.tip_radius)?;
     set("plate.side_uncertainty", args.plate_side_uncertainty)?;
     set("ring.diameter_uncertainty", args.ring_diameter_uncertainty)?;
@@ -170,6 +176,7 @@ fn flag(name: &str) -> &'static str {
         "plate.side" => "plate-side",
         "plate.corner_radius" => "corner-radius",
         "ring.diameter" => "ring-diameter",
+        "ring.groove_angle" => "ring-groove-angle",
         "stylus.tip_radius" => "tip-radius",
         "plate.side_uncertainty" => "plate-side-uncertainty",
         "calibration.lack_of_fit_alpha" => "lack-of-fit-alpha",

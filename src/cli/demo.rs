@@ -373,7 +373,7 @@ fn demo(args: &Args) -> Result<(), String> {
     // others told the tip radius the node fitted.
     println!();
     println!("The plate scan fitted offline with every model (the others told the fitted tip radius):");
-    let ring_gauge = Ring { scan: &ring_scan.scan, spec: RingSpec { diameter: cell.ring_diameter } };
+    let ring_gauge = Ring { scan: &ring_scan.scan, spec: RingSpec::plain(cell.ring_diameter) };
     let mut tip_cal = None;
     for model in ModelKind::ALL {
         let opt = Options { model, tip_radius: if model.fits_tip() { 0.0 } else { tip }, ..Options::default() };

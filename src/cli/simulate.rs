@@ -88,6 +88,11 @@ pub struct Args {
     /// Radius of the probe's ball tip, metres: the encoder reads where its centre is.
     #[arg(long, default_value_t = 0.0)]
     pub tip_radius: f64,
+    /// Included angle of the V-groove a frame (rect) or ring gauge is traced in, radians:
+    /// the ball touches both flanks, its centre tip / sin(angle/2) from the groove's
+    /// bottom, which is the shape; π = a plain bore.
+    #[arg(long, default_value_t = std::f64::consts::PI, allow_hyphen_values = true)]
+    pub groove_angle: f64,
     /// Encoder noise (standard deviation), metres.
     #[arg(long, default_value_t = 0.0)]
     pub noise: f64,
@@ -214,10 +219,14 @@ fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, 
         spikes: a.spikes,
         tip_radius: a.tip_radius,
         inside: matches!(kind, ShapeKind::Rect | ShapeKind::Ring),
+        groove_angle: a.groove_angle,
         ..SimOptions::default()
     };
     if !(a.tip_radius.is_finite() && a.tip_radius >= 0.0) {
         return Err(format!("--tip-radius must be a length of at least 0 m, got {}", a.tip_radius));
+    }
+    if !crate::engine::stylus::valid_groove_angle(a.groove_angle) {
+        return Err(format!("--groove-angle must be an included angle in (0, π] rad, got {}", a.groove_angle));
     }
     let sim = match kind {
         ShapeKind::Plate => {
@@ -230,7 +239,7 @@ fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, 
         }
         ShapeKind::Ring => {
             let r = a.ring_diameter / 2.0;
-            if !(r.is_finite() && r > a.tip_radius) {
+            if !(r.is_finite() && r > crate::engine::stylus::contact_offset(a.tip_radius, a.groove_angle)) {
                 return Err(format!("--ring-diameter must be larger than the tip's diameter, got {}", a.ring_diameter));
             }
             simulate(&Ellipse { center, a: r, b: r, angle: 0.0 }, &m, &opt, rng)

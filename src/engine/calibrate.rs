@@ -462,6 +462,15 @@ pub enum CalibrationError {
         noise: Option<f64>,
         diameter: f64,
     },
+    /// A tip model's ring and plate disagree as a ring whose groove is not the one entered
+    /// would make them: the plate's scale agrees with the one in force when the ring's
+    /// groove has included angle `fits` ± `stddev` (rad), not `entered`
+    /// ([`crate::engine::stylus`]).
+    RingGroove {
+        entered: f64,
+        fits: f64,
+        stddev: f64,
+    },
     /// The fitted tip radius is not one a stylus can have.
     TipRadiusImplausible {
         radius: f64,
@@ -517,6 +526,14 @@ impl fmt::Display for CalibrationError {
                     (rel * 25e-3 * 1e6).abs(),
                 )
             }
+            Self::RingGroove { entered, fits, stddev } => write!(
+                f,
+                "the ring gauge's groove does not fit the scans: the plate and the ring agree with the encoder scale in force when the ring's groove has an included angle of {:.1}° ± {:.1}°, where ring.groove_angle is {:.1}°{}: set ring.groove_angle (rad) to the ring's certified groove angle, ring.diameter to its groove bottom's diameter, and check that the scan is of the ring gauge",
+                fits.to_degrees(),
+                stddev.to_degrees(),
+                entered.to_degrees(),
+                if *entered == crate::engine::stylus::PLAIN_BORE { " (a plain bore)" } else { "" },
+            ),
             Self::InvalidScale(k) => write!(f, "the encoder scale in force must be a positive number, got {k}"),
             Self::HarmonicInseparable { order, inflation, placements } => {
                 let what =
@@ -668,7 +685,14 @@ pub fn calibrate_placements(
         let grown = FullModel::from_scan(&plate.grown(fit.tip_radius), &scan);
         let x = fit.x;
         let score = |tested: &[bool]| scale_score(grown.retain(|i| tested[i]), &x, opt.plate_side_uncertainty);
-        return finish(&scan, &[], fit, Some((&ring_scan, &ring.spec)), opt, score);
+        let result = finish(&scan, &[], fit, Some((&ring_scan, &ring.spec)), opt, score);
+        return match result {
+            Err(CalibrationError::ScaleOff { estimate, .. }) => {
+                Err(ring_groove_instead(&scan, &ring_scan, &ring.spec, plate, opt, estimate)
+                    .unwrap_or(CalibrationError::ScaleOff { estimate, k0: opt.scale }))
+            }
+            other => other,
+        };
     }
     if plates.len() > 1 || !opt.angle_harmonics.is_empty() {
         let plates = plates.iter().map(|s| scaled(s)).collect::<Result<Vec<_>, _>>()?;
@@ -1389,6 +1413,57 @@ fn fit_tip(
     fit.rejected = fit.used.iter().filter(|&&u| !u).count();
     fit.iterations += first_iterations;
     Ok(Fit { scale, tip_radius, ring: Some((ring_center, ring_residuals, ring_used)), ..fit })
+}
+
+/// A tip model's plate showing a scale off ([`CalibrationError::ScaleOff`], `off` the
+/// estimate in force's terms) may be a ring whose groove is not the one entered: the
+/// ring's contact factor `c = 1/sin(γ/2)` ([`crate::engine::stylus`]) moves the fitted
+/// tip, and the plate, grown by it, looks scaled. The scale the plate shows as a function
+/// of `c`, `k(c)`, is found at the entered `c₀` (given) and `c₀ + 0.05` (one more fit),
+/// and its root `k(c*) = 1` by two secant steps (a fit each); `u(c*) = u(k)/|k'|`.
+/// The refusal names the groove when `c* ≥ 1` (a groove can have it), it differs from
+/// `c₀` by more than 3 `u`, and at `c*` the scale agrees with the one in force; else
+/// `None` (the scale it is).
+fn ring_groove_instead(
+    scan: &Scan,
+    ring_scan: &Scan,
+    ring: &RingSpec,
+    plate: &PlateSpec,
+    opt: &Options,
+    off: ScaleEstimate,
+) -> Option<CalibrationError> {
+    let relative = |e: ScaleEstimate| ScaleEstimate { scale: e.scale / opt.scale, stddev: e.stddev / opt.scale };
+    let angle_of = |c: f64| (c >= 1.0).then(|| 2.0 * (1.0 / c).asin());
+    let scale_at = |c: f64| -> Option<ScaleEstimate> {
+        let spec = RingSpec::grooved(ring.diameter, angle_of(c)?);
+        let fit = fit_tip(scan, ring_scan, &spec, plate, opt).ok()?;
+        let grown = FullModel::from_scan(&plate.grown(fit.tip_radius), scan);
+        scale_score(grown.retain(|i| fit.used[i]), &fit.x, opt.plate_side_uncertainty)
+    };
+    // The secant twice: k(c) bends a little over a tenth of c.
+    let (mut a, mut ka) = (ring.contact_factor(), relative(off).scale);
+    let (mut b, mut at) = (a + 0.05, scale_at(a + 0.05)?);
+    let mut slope = 0.0;
+    for _ in 0..2 {
+        slope = (at.scale - ka) / (b - a);
+        if !(slope.is_finite() && slope != 0.0) {
+            return None;
+        }
+        let c = b + (1.0 - at.scale) / slope;
+        (a, ka) = (b, at.scale);
+        (b, at) = (c, scale_at(c)?);
+    }
+    let (c, c0) = (b, ring.contact_factor());
+    let stddev_c = at.stddev / slope.abs();
+    let off = (at.scale - 1.0).abs();
+    let agrees = off <= opt.scale_tolerance || off <= opt.max_scale_sigma * at.stddev;
+    if !(agrees && (c - c0).abs() > 3.0 * stddev_c) {
+        return None;
+    }
+    // γ = 2 asin(1/c): dγ/dc = -2 / (c √(c² - 1)).
+    let fits = angle_of(c)?;
+    let stddev = stddev_c * 2.0 / (c * (c * c - 1.0).max(1e-12).sqrt());
+    Some(CalibrationError::RingGroove { entered: ring.groove_angle, fits, stddev })
 }
 
 /// Variance inflation above which an angle harmonic is refused before the fit: its

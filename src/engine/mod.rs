@@ -16,7 +16,8 @@
 //!    [`lack_of_fit`] — whether the fit left structure in the residuals (a test of their
 //!    low harmonics against the scan's own noise);
 //! 8. [`correct`](mod@correct) — every sample to the tip's centre, and equal-angle resampling;
-//! 9. [`stylus`] — from the tip's centre to the surface it touched;
+//! 9. [`smooth`] — a closed contour as a Fourier series `r(θ)`;
+//!    [`stylus`] — from the tip's centre to the surface it touched (or the groove's bottom);
 //! 10. [`size`] — circumference, box and FED of a corrected contour from a smooth fit, with
 //!     their 95 % uncertainty from the calibration's covariance and the scan's noise.
 //!
@@ -33,6 +34,7 @@ pub mod scan;
 pub mod shape;
 pub mod simulate;
 pub mod size;
+pub mod smooth;
 pub mod start;
 pub mod stylus;
 
@@ -42,4 +44,4 @@ pub use geometry::Mounting;
 pub use model::tip::{RingError, RingSpec};
 pub use model::{ModelKind, PlateError, PlateSpec};
 pub use scan::{Sample, Scan, ScanError};
-pub use stylus::{Traced, touched_surface};
+pub use stylus::{Groove, Traced, touched_surface};

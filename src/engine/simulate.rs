@@ -16,6 +16,7 @@ use rand_distr::{Distribution, Normal};
 use super::geometry::{Mounting, rail_angle, rail_frame};
 use super::scan::{Sample, Scan};
 use super::shape::Shape;
+use super::stylus::contact_offset;
 
 /// How a simulated revolution is taken.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,6 +40,10 @@ pub struct SimOptions {
     /// The shape is traced from inside (a frame, a ring gauge), the tip touching it
     /// from within; else from outside (a plate, a lens).
     pub inside: bool,
+    /// Traced from inside, the shape is the bottom of a V-groove of this included angle
+    /// (rad; π a plain bore): the tip's centre sits `tip_radius / sin(angle/2)` from it
+    /// ([`crate::engine::stylus`]).
+    pub groove_angle: f64,
     /// The turntable's angle error round the turn, `ε(θ) = Σ c_h cos hθ + s_h sin hθ`
     /// (radians) added to the rail angle at `θ = 2π step / N`: up to three harmonics,
     /// each `(h, c_h, s_h)`; `h = 0` unused. A disc or gear eccentricity is `h = 1`, an
@@ -61,6 +66,7 @@ impl Default for SimOptions {
             spike_height: 0.5e-3,
             tip_radius: 0.0,
             inside: false,
+            groove_angle: crate::engine::stylus::PLAIN_BORE,
             angle_harmonics: [(0, 0.0, 0.0); 3],
             noise_lag1: 0.0,
         }
@@ -167,6 +173,7 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
     let mut correlated = if phi == 0.0 { 0.0 } else { noise.sample(rng) };
     let mut samples = Vec::with_capacity(n as usize);
     let mut truth = Vec::with_capacity(n as usize);
+    let contact = if opt.inside { contact_offset(opt.tip_radius, opt.groove_angle) } else { opt.tip_radius };
     for i in 0..n {
         let step = (opt.start_step % n + i) % n;
         if opt.missing > 0.0 && rng.random::<f64>() < opt.missing {
@@ -174,8 +181,7 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
         }
         let (u, v) = rail_frame(rail_angle(m.alpha0, step, n) + opt.angle_error(step, n));
         let origin = v * m.offset;
-        let (t, touched) =
-            tip_exit(shape, origin, u, opt.tip_radius, opt.inside).ok_or(SimError::RayMissesShape { step })?;
+        let (t, touched) = tip_exit(shape, origin, u, contact, opt.inside).ok_or(SimError::RayMissesShape { step })?;
         let e = if phi == 0.0 {
             noise.sample(rng)
         } else {

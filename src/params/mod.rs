@@ -18,7 +18,8 @@ use nalgebra::DMatrix;
 
 use crate::engine::angle::{AngleError, HarmonicOrders};
 use crate::engine::calibrate::{Options as CalibrationOptions, covariance_names, layout, named_covariance_from_values};
-use crate::engine::{ModelKind, Mounting, PlateSpec, RingSpec};
+use crate::engine::stylus::PLAIN_BORE;
+use crate::engine::{Groove, ModelKind, Mounting, PlateSpec, RingSpec};
 
 /// The contract's parameter names.
 pub mod names {
@@ -57,8 +58,11 @@ pub mod names {
     pub const SEATING_UNCERTAINTY: &str = "plate.seating_uncertainty";
     pub const NOISE_LAG1: &str = "calibration.noise_lag1";
     pub const REPRODUCIBILITY: &str = "size.reproducibility";
+    pub const FRAME_GROOVE_ANGLE: &str = "frame.groove_angle";
+    pub const FRAME_GROOVE_ANGLE_UNCERTAINTY: &str = "frame.groove_angle_uncertainty";
+    pub const RING_GROOVE_ANGLE: &str = "ring.groove_angle";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 35] = [
+    pub const ALL: [&str; 38] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -94,6 +98,9 @@ pub mod names {
         SEATING_UNCERTAINTY,
         NOISE_LAG1,
         REPRODUCIBILITY,
+        FRAME_GROOVE_ANGLE,
+        FRAME_GROOVE_ANGLE_UNCERTAINTY,
+        RING_GROOVE_ANGLE,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
@@ -153,6 +160,11 @@ pub struct Parameters {
     pub ring_diameter: f64,
     /// Standard uncertainty of `ring.diameter` from its certificate, metres.
     pub ring_diameter_uncertainty: f64,
+    /// Included angle of the ring gauge's V-groove, rad; π a plain bore.
+    pub ring_groove_angle: f64,
+    /// The frames' V-groove as the cell assumes it: its included angle and that angle's
+    /// standard uncertainty, rad (π, 0: a plain bore, exactly).
+    pub frame_groove: Groove,
     pub meters_per_count: f64,
     pub model: ModelKind,
     pub output_frame_id: String,
@@ -247,6 +259,8 @@ impl Default for Parameters {
             plate_side_uncertainty: 0.0,
             ring_diameter: 0.0,
             ring_diameter_uncertainty: 0.0,
+            ring_groove_angle: PLAIN_BORE,
+            frame_groove: Groove::default(),
             meters_per_count: 1.0e-6,
             model: ModelKind::Full,
             output_frame_id: "tracer_axis".into(),
@@ -331,6 +345,9 @@ impl Parameters {
             names::SEATING_UNCERTAINTY => Double(self.seating_uncertainty),
             names::NOISE_LAG1 => Double(self.noise_lag1),
             names::REPRODUCIBILITY => Double(self.reproducibility),
+            names::FRAME_GROOVE_ANGLE => Double(self.frame_groove.angle),
+            names::FRAME_GROOVE_ANGLE_UNCERTAINTY => Double(self.frame_groove.uncertainty),
+            names::RING_GROOVE_ANGLE => Double(self.ring_groove_angle),
             _ => return None,
         })
     }
@@ -513,6 +530,9 @@ impl Parameters {
             names::SEATING_UNCERTAINTY => next.seating_uncertainty = double(value)?,
             names::NOISE_LAG1 => next.noise_lag1 = double(value)?,
             names::REPRODUCIBILITY => next.reproducibility = double(value)?,
+            names::FRAME_GROOVE_ANGLE => next.frame_groove.angle = double(value)?,
+            names::FRAME_GROOVE_ANGLE_UNCERTAINTY => next.frame_groove.uncertainty = double(value)?,
+            names::RING_GROOVE_ANGLE => next.ring_groove_angle = double(value)?,
             names::ANGLE_HARMONICS => {
                 next.angle_harmonics =
                     HarmonicOrders::new(&integers(value)?).map_err(|e| ParamError::Invalid(e.to_string()))?
@@ -609,7 +629,7 @@ impl Parameters {
 
     /// The ring gauge, if `ring.diameter` names one.
     pub fn ring(&self) -> Option<RingSpec> {
-        (self.ring_diameter > 0.0).then_some(RingSpec { diameter: self.ring_diameter })
+        (self.ring_diameter > 0.0).then_some(RingSpec::grooved(self.ring_diameter, self.ring_groove_angle))
     }
 }
 
@@ -653,7 +673,7 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 35);
+        assert_eq!(list.len(), 38);
         assert_eq!(p.get("calibration.angle_harmonics"), Some(ParamValue::IntegerArray(Vec::new())));
         assert_eq!(p.get("calibration.angle_coefficients"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("calibration.covariance_names"), Some(ParamValue::StringArray(Vec::new())));

@@ -117,7 +117,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 35] = [
+pub const SPECS: [Spec; 38] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -181,6 +181,12 @@ pub const SPECS: [Spec; 35] = [
         .bound(Bound::Float { from: -0.95, to: 0.95 }),
     Spec::new(names::REPRODUCIBILITY, "standard uncertainty of a radius between repeated traces of one shape beyond their noise (m, from repeated traces: re-seating, clamping), added to every contour's size and radius uncertainty; 0 = none")
         .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::FRAME_GROOVE_ANGLE, "included angle of the V-groove of the frames the tracer traces (rad; 100-120 degrees is 1.745-2.094): the ball touches both flanks, its centre stylus.tip_radius / sin(angle/2) from the groove's bottom, and a frame's contour and sizes are of that bottom, where the lens's bevel sits; pi = a plain bore")
+        .bound(Bound::Float { from: 0.5, to: std::f64::consts::PI }),
+    Spec::new(names::FRAME_GROOVE_ANGLE_UNCERTAINTY, "standard uncertainty of frame.groove_angle (rad): the frames' groove angle varies by maker; it moves the groove's bottom against the ball's centre, into every frame's size and radius uncertainty")
+        .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
+    Spec::new(names::RING_GROOVE_ANGLE, "included angle of the ring gauge's V-groove (rad), ring.diameter that of its bottom: the ball's centre sits stylus.tip_radius / sin(angle/2) from it; pi = a plain bore")
+        .bound(Bound::Float { from: 0.5, to: std::f64::consts::PI }),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.

@@ -93,10 +93,20 @@ impl Tracer {
         (u, Vector2::new(-u.y, u.x))
     }
 
-    /// Where the ball's centre stops on rail `k`: the far root of `sdf = side ρ`.
-    fn stop(&self, shape: &impl Sdf, k: u32, side: f64) -> f64 {
+    /// Where the ball's centre stops on rail `k`: the far root of `sdf = side ρ`, or in a
+    /// groove of included angle `groove` (rad, π a plain bore) of the centre's distance
+    /// from a flank `= ρ` (module docs).
+    fn stop(&self, shape: &impl Sdf, k: u32, side: f64, groove: f64) -> f64 {
         let (u, v) = self.rail(k);
-        let f = |t: f64| shape.sdf(v * self.d + u * t) - side * self.ball;
+        let flank = Vector2::new((0.5 * groove).cos(), (0.5 * groove).sin());
+        let from_flank = |depth: f64| {
+            let p = Vector2::new(depth, 0.0);
+            (p - flank * p.dot(&flank)).norm().copysign(depth)
+        };
+        let f = |t: f64| {
+            let sdf = shape.sdf(v * self.d + u * t);
+            if side < 0.0 { self.ball - from_flank(-sdf) } else { sdf - self.ball }
+        };
         // The rail passes near the axis, inside every shape here: `t = 0` is inside the
         // contour the ball's centre follows, `t = 1 m` far outside.
         let (mut lo, mut hi) = (0.0, 1.0);
@@ -110,6 +120,11 @@ impl Tracer {
 
     /// One revolution over `shape`, traced from outside (`inside = false`) or inside.
     pub fn trace(&self, shape: &impl Sdf, inside: bool, rng: &mut impl Rng) -> Scan {
+        self.trace_groove(shape, inside, std::f64::consts::PI, rng)
+    }
+
+    /// [`Self::trace`], from inside in a V-groove of included angle `groove` (rad).
+    pub fn trace_groove(&self, shape: &impl Sdf, inside: bool, groove: f64, rng: &mut impl Rng) -> Scan {
         let side = if inside { -1.0 } else { 1.0 };
         let innovation = (1.0 - self.lag1 * self.lag1).sqrt();
         let mut e: f64 = StandardNormal.sample(rng);
@@ -121,7 +136,7 @@ impl Tracer {
                     let z: f64 = StandardNormal.sample(rng);
                     e = self.lag1 * e + innovation * z;
                 }
-                let read = (self.stop(shape, k, side) + self.dl) / self.k + self.sigma * e;
+                let read = (self.stop(shape, k, side, groove) + self.dl) / self.k + self.sigma * e;
                 if self.count > 0.0 { (read / self.count).round() * self.count } else { read }
             })
             .collect();

@@ -17,7 +17,7 @@ use tracer_calib::engine::size::{Correction, uncertainty};
 use tracer_calib::engine::stylus::{Traced, touched_surface};
 
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
-const RING: RingSpec = RingSpec { diameter: 0.040 };
+const RING: RingSpec = RingSpec::plain(0.040);
 
 pub struct Coverage {
     pub covered: [usize; 4],
@@ -97,6 +97,7 @@ pub fn run(
             mounting: cal.mounting,
             tip_radius: cal.tip_radius,
             traced,
+            groove: Default::default(),
             angle_orders: cal.angle.orders(),
             noise: Default::default(),
         };

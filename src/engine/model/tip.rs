@@ -5,7 +5,9 @@
 //! ball's centre is. The centre follows the traced contour offset by `ρ` along its
 //! normal: outward for what is traced from outside (the plate: a square of side
 //! `S + 2ρ` with corners `r + ρ`), inward for what is traced from inside (a ring gauge
-//! of diameter `D`: a circle of radius `D/2 - ρ`). From the plate alone `ρ` is nearly
+//! of diameter `D`: a circle of radius `D/2 - ρ`; of a ring with a V-groove of included
+//! angle `γ`, `D` its groove bottom's diameter, `D/2 - ρ/sin(γ/2)`,
+//! [`crate::engine::stylus`]). From the plate alone `ρ` is nearly
 //! the encoder zero `dL` (correlation -0.95: both lengthen every sample); the ring moves
 //! the other way, so the two scans together pin both.
 //!
@@ -13,7 +15,7 @@
 //! ring's), and `k` after `ρ` for `full_scale_tip`. Plate samples are those of
 //! [`super::full`] with the plate grown by `ρ`
 //! ([`FullModel::for_each_grown_prediction`]); a ring sample at rail angle `a` leaves the
-//! circle `|X - g| = R`, `R = D/2 - ρ`, from inside, at
+//! circle `|X - g| = R`, `R = D/2 - cρ`, `c = 1/sin(γ/2)`, from inside, at
 //!
 //! ```text
 //! p = d v - g      t = -p·u + sqrt((p·u)² - |p|² + R²)      q = t + dL
@@ -23,7 +25,7 @@
 //!
 //! **Jacobian.** As in [`super::full`], `N·(dX - dg) = dR` at the exit point `X` with
 //! outward normal `N = (X - g)/R`, so the full model's row holds with `g` for `c`, and
-//! `∂t/∂R = 1/(N·u)`, hence `∂q/∂ρ = -1/(N·u)` on the ring; on the grown plate
+//! `∂t/∂R = 1/(N·u)`, hence `∂q/∂ρ = -c/(N·u)` on the ring; on the grown plate
 //! `∂q/∂ρ = +1/(N·u)`.
 
 use nalgebra::{SVector, Vector2};
@@ -33,6 +35,7 @@ use super::full::{self, FullModel, TableSample};
 use crate::engine::geometry::rotate;
 use crate::engine::lm::Problem;
 use crate::engine::scan::Scan;
+use crate::engine::stylus::{PLAIN_BORE, groove_factor, valid_groove_angle};
 
 /// Parameter vector of `full_tip`.
 pub type Params = SVector<f64, 8>;
@@ -54,22 +57,56 @@ pub const SCALE: usize = 4;
 /// The ring gauge's certified size.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RingSpec {
-    /// Inner diameter, metres.
+    /// Inner diameter, metres: of the groove's bottom for a grooved ring.
     pub diameter: f64,
+    /// Included angle of the ring's V-groove, rad; π (the default) a plain bore.
+    #[serde(default = "plain_bore")]
+    pub groove_angle: f64,
+}
+
+fn plain_bore() -> f64 {
+    PLAIN_BORE
 }
 
 impl RingSpec {
-    /// A ring a tracer can trace: a positive, finite diameter.
+    /// A plain bore of `diameter` (m).
+    pub const fn plain(diameter: f64) -> Self {
+        RingSpec { diameter, groove_angle: PLAIN_BORE }
+    }
+
+    /// A ring whose groove's bottom has `diameter` (m), included angle `groove_angle` (rad).
+    pub const fn grooved(diameter: f64, groove_angle: f64) -> Self {
+        RingSpec { diameter, groove_angle }
+    }
+
+    /// A ring a tracer can trace: a positive, finite diameter, a groove angle in `(0, π]`.
     pub fn validate(&self) -> Result<(), RingError> {
-        if self.diameter.is_finite() && self.diameter > 0.0 { Ok(()) } else { Err(RingError(self.diameter)) }
+        if !(self.diameter.is_finite() && self.diameter > 0.0) {
+            return Err(RingError::Diameter(self.diameter));
+        }
+        if !valid_groove_angle(self.groove_angle) {
+            return Err(RingError::GrooveAngle(self.groove_angle));
+        }
+        Ok(())
+    }
+
+    /// `c = 1/sin(γ/2)`: how far the ball's centre sits from the ring's wall (its groove's
+    /// bottom) per unit of tip radius.
+    pub fn contact_factor(&self) -> f64 {
+        groove_factor(self.groove_angle)
     }
 }
 
-/// A ring gauge's diameter that is not a positive length ([`RingSpec::validate`]): the
-/// diameter given, metres.
+/// A ring gauge that is not one ([`RingSpec::validate`]): which dimension is wrong.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
-#[error("the ring gauge's diameter must be a positive length in metres, got {0}")]
-pub struct RingError(pub f64);
+pub enum RingError {
+    /// The diameter given, metres.
+    #[error("the ring gauge's diameter must be a positive length in metres, got {0}")]
+    Diameter(f64),
+    /// The groove angle given, rad.
+    #[error("the ring gauge's groove angle must be an included angle in (0, π] rad (π = a plain bore), got {0}")]
+    GrooveAngle(f64),
+}
 
 /// `full_tip`'s parameters from the full model's and the tip radius and ring centre.
 pub fn from_full(x: &full::Params, tip_radius: f64, ring_center: Vector2<f64>) -> Params {
@@ -114,11 +151,13 @@ pub struct TipModel {
     plate: FullModel,
     ring: Vec<TableSample>,
     ring_radius: f64,
+    /// `c` of the module docs.
+    ring_contact: f64,
 }
 
 impl TipModel {
     pub fn new(plate: FullModel, ring: &RingSpec, ring_samples: Vec<TableSample>) -> Self {
-        TipModel { plate, ring: ring_samples, ring_radius: ring.diameter / 2.0 }
+        TipModel { plate, ring: ring_samples, ring_radius: ring.diameter / 2.0, ring_contact: ring.contact_factor() }
     }
 
     /// The model of a plate's model and a ring-gauge scan.
@@ -140,7 +179,7 @@ impl TipModel {
         let n = self.plate.samples().len();
         let plate = self.plate.retain(&mut keep);
         let ring = self.ring.iter().enumerate().filter(|(i, _)| keep(n + i)).map(|(_, s)| *s).collect();
-        TipModel { plate, ring, ring_radius: self.ring_radius }
+        TipModel { plate, ring, ring_radius: self.ring_radius, ring_contact: self.ring_contact }
     }
 
     /// Calls `f(sample, q, ∂q/∂x)` for every sample, plate's then ring's (module docs);
@@ -184,7 +223,8 @@ impl TipModel {
         if !plate {
             return false;
         }
-        let radius = self.ring_radius - tip;
+        let c = self.ring_contact;
+        let radius = self.ring_radius - c * tip;
         if radius.is_nan() || radius <= 0.0 {
             return false;
         }
@@ -204,7 +244,7 @@ impl TipModel {
                 -n.dot(&(v * t - u * d)) * inv,
                 -n.dot(&v) * inv,
                 1.0,
-                -inv,
+                -c * inv,
                 0.0,
                 0.0,
                 n.x * inv,
@@ -289,30 +329,41 @@ mod tests {
     use crate::engine::PlateSpec;
     use crate::engine::lm::{differentiate_numerically, jacobian, residuals};
 
-    const RING: RingSpec = RingSpec { diameter: 0.040 };
+    const RING: RingSpec = RingSpec::plain(0.040);
 
     #[test]
     fn a_ring_without_a_diameter_is_refused() {
         assert_eq!(RING.validate(), Ok(()));
-        let e = RingSpec { diameter: -1.0 }.validate().unwrap_err();
-        assert_eq!(e, RingError(-1.0));
+        let e = RingSpec::plain(-1.0).validate().unwrap_err();
+        assert_eq!(e, RingError::Diameter(-1.0));
         assert_eq!(e.to_string(), "the ring gauge's diameter must be a positive length in metres, got -1");
-        assert!(matches!(RingSpec { diameter: f64::NAN }.validate(), Err(RingError(d)) if d.is_nan()));
+        assert!(matches!(RingSpec::plain(f64::NAN).validate(), Err(RingError::Diameter(d)) if d.is_nan()));
+        let e = RingSpec::grooved(0.04, 4.0).validate().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "the ring gauge's groove angle must be an included angle in (0, π] rad (π = a plain bore), got 4"
+        );
+        assert_eq!(RingSpec::grooved(0.04, 2.0).validate(), Ok(()));
     }
 
     /// A noise-free plate and ring scan of a tracer with a 0.5 mm tip.
     fn model_and_truth() -> (TipModel, Params) {
+        model_and_truth_in(&RING)
+    }
+
+    /// [`model_and_truth`] with the ring `ring`.
+    fn model_and_truth_in(ring: &RingSpec) -> (TipModel, Params) {
         let plate = PlateSpec::default();
         let truth = Params::from([0.0349, 0.005, 0.002, 0.0005, 0.0008, -0.0005, -0.0006, 0.0004]);
         let blank = || (0..400).map(|k| TableSample::new(k, 400, 0.0)).collect::<Vec<_>>();
-        let m = TipModel::new(FullModel::new(&plate, blank()), &RING, blank());
+        let m = TipModel::new(FullModel::new(&plate, blank()), ring, blank());
         let mut rho = Vec::new();
         assert!(m.for_each_prediction(&truth, |_, q, _| rho.push(q)));
         let (p, r) = rho.split_at(400);
         let with = |s: &[TableSample], rho: &[f64]| -> Vec<TableSample> {
             s.iter().zip(rho).map(|(s, &rho)| TableSample { rho, ..*s }).collect()
         };
-        let m = TipModel::new(FullModel::new(&plate, with(m.plate.samples(), p)), &RING, with(&m.ring, r));
+        let m = TipModel::new(FullModel::new(&plate, with(m.plate.samples(), p)), ring, with(&m.ring, r));
         (m, truth)
     }
 
@@ -331,11 +382,24 @@ mod tests {
         let mut q = vec![];
         m.for_each_prediction(&x, |_, qi, _| q.push(qi));
         approx::assert_relative_eq!(q[0], 0.020 - 0.0003 + 0.002, epsilon = 1e-15);
+        // In a 120° groove the ball's centre sits ρ/sin 60° from the groove's bottom.
+        let ring = RingSpec::grooved(0.040, 120f64.to_radians());
+        let m =
+            TipModel::new(FullModel::new(&PlateSpec::default(), vec![]), &ring, vec![TableSample::new(7, 400, 0.0)]);
+        m.for_each_prediction(&x, |_, qi, _| q[0] = qi);
+        approx::assert_relative_eq!(q[0], 0.020 - 0.0003 / 60f64.to_radians().sin() + 0.002, epsilon = 1e-15);
     }
 
     #[test]
     fn analytic_jacobians_match_finite_differences() {
-        let (m, truth) = model_and_truth();
+        let (grooved, truth) = model_and_truth_in(&RingSpec::grooved(0.040, 1.9));
+        assert!(residuals(&grooved, &truth).unwrap().amax() < 1e-16);
+        for m in [model_and_truth().0, grooved] {
+            jacobians_match(m, truth);
+        }
+    }
+
+    fn jacobians_match(m: TipModel, truth: Params) {
         let step = Params::from([1e-2, 1e-3, 1e-3, 1e-4, 1e-3, 1e-3, 1e-3, 1e-3]);
         let off = truth + Params::from([0.03, -0.002, 0.001, 0.0002, 0.0004, 0.0011, -0.0003, 0.0002]);
         for x in [truth, off] {

@@ -406,7 +406,7 @@ mod tests {
     /// from the model itself at `truth`.
     fn model_and_truth(scale: bool) -> (TurntableModel, DVector<f64>) {
         let orders = HarmonicOrders::new(&[1, 2, 4]).unwrap();
-        let ring = RingSpec { diameter: 0.04 };
+        let ring = RingSpec::plain(0.04);
         let b = blank();
         let m = TurntableModel::new(&PLATE, &[&b, &b], Some((&ring, &b)), orders, scale);
         let l = *m.layout();
