@@ -35,11 +35,17 @@ const DEFAULT_BY_HAND: &[&str] =
 /// earlier version) ends before that field; it still decodes, the fields it lacks taking
 /// their "absent" value (zero, empty; a `Time` zero): `RosMsg::from_earlier_cdr`.
 const APPENDED: &[(&str, &[&str])] = &[
-    // The size figures (metrology), then the calibration it was corrected with (adoption).
-    ("tracer_calib_msgs/msg/Contour", &["circumference", "calibration_stamp"]),
+    // The size figures (metrology), then the calibration it was corrected with (adoption),
+    // ... then the frame's 3-D figures (the height channel).
+    ("tracer_calib_msgs/msg/Contour", &["circumference", "calibration_stamp", "circumference_3d"]),
     // The tip radius and the covariance, then the angle harmonics and the named covariance (metrology).
     ("tracer_calib_msgs/msg/Calibration", &["tip_radius", "covariance_names"]),
 ];
+
+/// Sequences appended last to a type that a subscriber reads as empty when a publisher
+/// built before them sends a message that ends where they would begin (over DDS, where no
+/// type hash keeps the two apart): `crate::interfaces::cdr::absent_at_end`.
+const ABSENT_AT_END: &[(&str, &str)] = &[("tracer_calib_msgs/msg/RawScan", "height_counts")];
 
 /// Rust names of types whose ROS names would clash with another type's (`KeyValue` is
 /// diagnostic_msgs' too) or say too little on their own (lifecycle_msgs' `State`).
@@ -176,6 +182,10 @@ fn generate(t: &Type, known: &mut Traits, out: &mut String) {
     writeln!(out, "#[derive({})]\npub struct {} {{", derives.join(", "), t.rust).unwrap();
     for f in &fields {
         doc(out, "    ", &f.comments);
+        if ABSENT_AT_END.contains(&(t.ros_name.as_str(), f.name)) {
+            writeln!(out, "    #[serde(default, deserialize_with = \"crate::interfaces::cdr::absent_at_end\")]")
+                .unwrap();
+        }
         writeln!(out, "    pub {}: {},", field_ident(f.name), rust_field_type(f.ty, &t.package)).unwrap();
     }
     writeln!(out, "}}\n").unwrap();

@@ -137,6 +137,7 @@ fn bench(c: &mut Criterion) {
         steps_per_revolution: 400,
         step: lens_scan.samples().iter().map(|s| s.step).collect(),
         counts: lens_scan.samples().iter().map(|s| (s.rho * 1e6).round() as i32).collect(),
+        height_counts: Vec::new(),
     };
     // A calibration in force with its covariance, as after /calibrate: the size figures'
     // uncertainty has its calibration part.

@@ -112,6 +112,9 @@ fn relay(prefix: &str) {
         radii_u95: vec![2e-6; 400],
         calibration_stamp: tracer_calib::interfaces::Time::from_nanos(1_700_000_000_000_000_000),
         calibration_scan_id: 1,
+        circumference_3d: 0.128,
+        circumference_3d_u95: 5e-6,
+        frame_curve: 6.0,
     };
     smol::block_on(async {
         let mut stream = std::pin::pin!(sub.async_stream());
@@ -230,6 +233,7 @@ fn main() {
         steps_per_revolution: 400,
         step: sim.scan.samples().iter().map(|s| s.step).collect(),
         counts: sim.scan.samples().iter().map(|s| (s.rho * 1e6).round() as i32).collect(),
+        height_counts: Vec::new(),
     };
 
     let ctx = context();

@@ -74,6 +74,7 @@ fn scan(shape: &impl Shape, target: u8, seed: u64) -> RawScan {
         steps_per_revolution: 400,
         step: sim.scan.samples().iter().map(|s| s.step).collect(),
         counts: sim.scan.samples().iter().map(|s| (s.rho * 1e6).round() as i32).collect(),
+        height_counts: Vec::new(),
     }
 }
 

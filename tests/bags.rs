@@ -73,6 +73,7 @@ fn raw_scan(scan_id: u32, stamp_ns: u64) -> RawScan {
         target: if scan_id == 2 { RawScan::TARGET_LENS } else { RawScan::TARGET_CALIBRATION_PLATE },
         steps_per_revolution: 400,
         counts: steps.iter().map(|&k| 24_000 + (k as i32 * 37 + scan_id as i32 * 11) % 900 - 450).collect(),
+        height_counts: Vec::new(),
         step: steps,
     }
 }
@@ -95,6 +96,9 @@ fn contour(scan_id: u32, stamp_ns: u64) -> Contour {
         radii_u95: vec![2e-6; n],
         calibration_stamp: if scan_id.is_multiple_of(2) { stamp(1_700_000_000_000_000_000) } else { stamp(0) },
         calibration_scan_id: if scan_id.is_multiple_of(2) { 1 } else { 0 },
+        circumference_3d: 0.12813 + scan_id as f64 * 1e-6,
+        circumference_3d_u95: 5e-6,
+        frame_curve: 4.25,
     }
 }
 
@@ -335,6 +339,7 @@ fn check_rosbags_fixture(bag: &Bag) {
     // Written by an earlier version of the message: the calibration it was corrected with
     // is absent, read as zero.
     assert_eq!((contour.calibration_stamp, contour.calibration_scan_id), (Time::ZERO, 0));
+    assert_eq!((contour.circumference_3d, contour.frame_curve), (0.0, 0.0));
     assert_eq!(contour.points.len() as u64, u64_of(&c["points"]));
     assert_eq!(contour.points[0].x, c["first_point"][0].as_f64().unwrap());
     assert_eq!(contour.points[0].y, c["first_point"][1].as_f64().unwrap());
@@ -515,7 +520,7 @@ fn check_rosbags_view(seen: &Value, sample: &Sample) {
     let raw_scan = &seen["types"]["tracer_calib_msgs/msg/RawScan"];
     assert_eq!(
         raw_scan["fields"],
-        serde_json::json!(["header", "scan_id", "target", "steps_per_revolution", "step", "counts"])
+        serde_json::json!(["header", "scan_id", "target", "steps_per_revolution", "step", "counts", "height_counts"])
     );
     assert_eq!(
         raw_scan["constants"],
@@ -543,7 +548,10 @@ fn check_rosbags_view(seen: &Value, sample: &Sample) {
             "size_u95",
             "radii_u95",
             "calibration_stamp",
-            "calibration_scan_id"
+            "calibration_scan_id",
+            "circumference_3d",
+            "circumference_3d_u95",
+            "frame_curve"
         ])
     );
     for ty in
@@ -589,6 +597,9 @@ fn check_rosbags_view(seen: &Value, sample: &Sample) {
             Some(i64::from(want.calibration_stamp.to_nanos().div_euclid(1_000_000_000) as i32))
         );
         assert_eq!(u64_of(&m["calibration_scan_id"]), u64::from(want.calibration_scan_id));
+        // The frame's 3-D figures.
+        assert!(close(want.circumference_3d, &m["circumference_3d"]), "{}", m["circumference_3d"]);
+        assert!(close(want.frame_curve, &m["frame_curve"]), "{}", m["frame_curve"]);
     }
     let polys = of("/contour_polygon");
     assert_eq!(polys.len(), 1);

@@ -39,6 +39,7 @@ fn scan_msg(shape: &impl Shape, m: &Mounting, opt: &SimOptions, seed: u64, scan_
         steps_per_revolution: opt.steps_per_rev,
         step: sim.scan.samples().iter().map(|s| s.step).collect(),
         counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+        height_counts: Vec::new(),
     }
 }
 
@@ -89,6 +90,7 @@ fn main() {
                 steps_per_revolution: 4,
                 step: vec![0, 1, 3],
                 counts: vec![20_000, 21_000, -5],
+                height_counts: Vec::new(),
             },
         ),
     ];

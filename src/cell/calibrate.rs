@@ -4,9 +4,12 @@
 
 use super::{InForce, NodeState, Now};
 use crate::engine::calibrate::{Calibration, Ring, calibrate_placements, named_covariance_values};
+use crate::engine::correct::Corrector;
 use crate::engine::geometry::Mounting;
+use crate::engine::height::{AxisTilt, TiltError, fit_axis_tilt};
 use crate::interfaces::{CalibrateRequest, CalibrateResponse};
 use crate::records::{self, Previous, Record};
+use nalgebra::Vector2;
 
 /// What a calibrate request did.
 #[derive(Debug, Clone, PartialEq)]
@@ -85,20 +88,20 @@ impl NodeState {
                 };
                 return fail(self, message);
             };
-            Some((kept.scan_id, Ring { scan: &kept.scan, spec }))
+            Some((kept.scan_id, Ring { scan: &kept.scan, spec }, kept))
         } else {
             None
         };
         let scans: Vec<&crate::engine::scan::Scan> = plates.iter().map(|p| &p.scan).collect();
         let fitted = calibrate_placements(
             &scans,
-            ring.as_ref().map(|(_, r)| *r),
+            ring.as_ref().map(|(_, r, _)| *r),
             &self.params.plate,
             &self.params.calibration_options(),
         );
         let plate_ids: Vec<String> = plates.iter().map(|p| p.scan_id.to_string()).collect();
         let scans = match (&ring, plate_ids.len()) {
-            (Some((ring_id, _)), _) => format!("scans {} and {ring_id} (ring gauge)", plate_ids.join(", ")),
+            (Some((ring_id, _, _)), _) => format!("scans {} and {ring_id} (ring gauge)", plate_ids.join(", ")),
             (None, 1) => format!("scan {scan_id}"),
             (None, _) => format!("scans {}", plate_ids.join(", ")),
         };
@@ -108,6 +111,18 @@ impl NodeState {
         };
         self.stats.last_fit_rms = Some(cal.rms_residual);
         let mut response = response_for(&cal, format!("{scans}: {}", cal.summary()));
+        // The axis's tilt, from the heights of the artefacts that have them.
+        let with_heights: Vec<&super::scans::KeptScan> =
+            plates.iter().copied().chain(ring.as_ref().map(|(_, _, k)| *k)).filter(|k| !k.heights.is_empty()).collect();
+        let tilt = (!with_heights.is_empty()).then(|| fit_tilt(&with_heights, &cal));
+        match &tilt {
+            Some(Ok(t)) => response.message = format!("{}; {}", response.message, describe_tilt(t)),
+            Some(Err(e)) => {
+                response.message =
+                    format!("{}; the axis's tilt not fitted, the one in force kept: {e}", response.message)
+            }
+            None => {}
+        }
         let mut stddev = cal.stddev.to_vec();
         if cal.model.fits_scale() {
             stddev.push(cal.scale_stddev);
@@ -165,6 +180,9 @@ impl NodeState {
         self.params.angle_coefficients = response.angle_coefficients.clone();
         self.params.tip_radius = cal.tip_radius;
         self.params.noise_lag1 = cal.noise_lag1;
+        if let Some(Ok(t)) = tilt {
+            self.params.axis_tilt = t;
+        }
         // The time the record gives, to the millisecond: what a restart reads back.
         self.in_force = InForce {
             applied_at: record.applied_at().unwrap_or(now.wall),
@@ -187,6 +205,31 @@ impl NodeState {
         self.stats.last_fit_message = response.message.clone();
         CalibrateOutcome { response, applied: Some(cal.mounting) }
     }
+}
+
+/// The axis's tilt against the holder's plane from flat artefacts' heights, each at its
+/// ball's centre as the new calibration `cal` corrects its scan ([`crate::engine::height`]).
+fn fit_tilt(artefacts: &[&super::scans::KeptScan], cal: &Calibration) -> Result<AxisTilt, TiltError> {
+    let centres: Vec<Vec<Vector2<f64>>> = artefacts
+        .iter()
+        .map(|k| Corrector::with_angle(cal.mounting, &cal.angle, k.scan.steps_per_rev()).correct(&k.scan))
+        .collect();
+    let pairs: Vec<(&[Vector2<f64>], &[f64])> =
+        centres.iter().zip(artefacts).map(|(c, k)| (c.as_slice(), k.heights.as_slice())).collect();
+    fit_axis_tilt(&pairs)
+}
+
+/// `axis tilt 0.10 ± 0.01 mrad, -0.05 ± 0.01 mrad` (standard uncertainties).
+fn describe_tilt(t: &AxisTilt) -> String {
+    let u = |i: usize| t.covariance[3 * i].max(0.0).sqrt() * 1e3;
+    format!(
+        "axis tilt {:.4} ± {:.4} mrad, {:.4} ± {:.4} mrad, holder at {:.1} µm",
+        t.angles[0] * 1e3,
+        u(0),
+        t.angles[1] * 1e3,
+        u(1),
+        t.height_zero * 1e6
+    )
 }
 
 /// The Calibrate response of a successful fit (the node's, and the offline tool's JSON):

@@ -24,6 +24,16 @@ pub enum ScanRejected {
     /// The samples themselves (a step out of range, a count not finite, ...).
     #[error(transparent)]
     Samples(#[from] ScanError),
+    /// `height_counts` neither empty (no height channel) nor one a sample.
+    #[error(
+        "step has {samples} entries but height_counts has {heights} (one a sample, or none without a height channel)"
+    )]
+    HeightCounts {
+        /// Entries of `step`.
+        samples: usize,
+        /// Entries of `height_counts`.
+        heights: usize,
+    },
     /// A corrected point beyond what a contour can hold (extreme parameters).
     #[error(
         "sample {index}: the corrected point ({x}, {y}) m is out of range (check encoder.meters_per_count and the calibration)"
@@ -59,6 +69,9 @@ pub fn check_limits(msg: &RawScan) -> Result<(), ScanRejected> {
     if msg.step.len() < 3 {
         return Err(ScanRejected::TooSmall(msg.step.len()));
     }
+    if !msg.height_counts.is_empty() && msg.height_counts.len() != msg.step.len() {
+        return Err(ScanRejected::HeightCounts { samples: msg.step.len(), heights: msg.height_counts.len() });
+    }
     Ok(())
 }
 
@@ -67,6 +80,12 @@ pub fn check_limits(msg: &RawScan) -> Result<(), ScanRejected> {
 pub fn check(msg: &RawScan, meters_per_count: f64) -> Result<(), ScanRejected> {
     check_limits(msg)?;
     Ok(Scan::check_counts(msg.steps_per_revolution, &msg.step, &msg.counts, meters_per_count)?)
+}
+
+/// The heights of a checked scan, metres (`height_counts` × `height_meters_per_count`);
+/// empty without a height channel.
+pub fn heights(msg: &RawScan, height_meters_per_count: f64) -> Vec<f64> {
+    msg.height_counts.iter().map(|&c| f64::from(c) * height_meters_per_count).collect()
 }
 
 /// Check a raw scan and turn it into an engine scan; the error says what is wrong.

@@ -7,6 +7,7 @@ use nalgebra::Vector2;
 
 use crate::engine::correct::{Corrector, PolarContour, default_max_gap, resample_radii};
 use crate::engine::geometry::Mounting;
+use crate::engine::height::Frame3d;
 use crate::engine::scan::Scan;
 use crate::engine::size::{self, Correction};
 use crate::engine::stylus::{Groove, Traced, contact_offset, touched_surface};
@@ -25,6 +26,8 @@ pub const PLATE_SCANS_KEPT: usize = 16;
 pub(super) struct KeptScan {
     pub(super) scan_id: u32,
     pub(super) scan: Scan,
+    /// Its heights, metres, one a sample; empty without a height channel.
+    pub(super) heights: Vec<f64>,
 }
 
 /// A corrected scan, ready to publish.
@@ -60,7 +63,8 @@ impl NodeState {
             if keep.len() == PLATE_SCANS_KEPT {
                 keep.pop_front();
             }
-            keep.push_back(KeptScan { scan_id: msg.scan_id, scan });
+            let heights = intake::heights(msg, self.params.height_meters_per_count);
+            keep.push_back(KeptScan { scan_id: msg.scan_id, scan, heights });
         }
         let calibration = self.params.calibration_in_force();
         let mounting = calibration.unwrap_or(Mounting::IDEAL);
@@ -99,16 +103,27 @@ impl NodeState {
             Traced::Inside => contact_offset(tip, groove.angle),
             Traced::Outside => tip,
         };
-        if tip == 0.0 {
+        // With a height channel, each point's height above the holder's plane, the axis's
+        // tilt taken at the ball's centre (engine::height).
+        let tilt = self.params.axis_tilt_in_force();
+        let raw_heights = intake::heights(msg, self.params.height_meters_per_count);
+        let above = |centres: &[Point]| -> Vec<f64> {
+            centres.iter().zip(&raw_heights).map(|(c, h)| tilt.height_above(&Vector2::new(c.x, c.y), *h)).collect()
+        };
+        let heights = if tip == 0.0 {
             corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, emit);
+            above(&points)
         } else {
             // The tip's centre first, then the surface it touched (engine::stylus).
             let mut path = Vec::with_capacity(n);
             corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, |p| path.push(p));
+            let heights = above(&path.iter().map(|p| Point { x: p.x, y: p.y, z: 0.0 }).collect::<Vec<_>>());
             let closed = goes_round(&msg.step, steps_per_rev);
             touched_surface(&mut path, offset, traced, closed);
             path.into_iter().for_each(&mut emit);
-        }
+            heights
+        };
+        points.iter_mut().zip(&heights).for_each(|(p, z)| p.z = *z);
         if let Some((index, p)) = out_of_range {
             return Err(self.reject(msg, ScanRejected::OutOfRange { index, x: p.x, y: p.y }));
         }
@@ -134,12 +149,25 @@ impl NodeState {
         let polygon = with_polygon.then(|| PolygonStamped {
             header: header.clone(),
             polygon: Polygon {
-                points: points.iter().map(|p| Point32 { x: p.x as f32, y: p.y as f32, z: 0.0 }).collect(),
+                points: points.iter().map(|p| Point32 { x: p.x as f32, y: p.y as f32, z: p.z as f32 }).collect(),
             },
         });
+        // The third dimension, when the scan has heights and the contour goes round.
+        let frame = report
+            .as_ref()
+            .filter(|_| !heights.is_empty())
+            .and_then(|r| Frame3d::of(&r.sizes, &surface, &heights, self.params.height_meters_per_count));
         let (figures, size_u95, radii_u95) = match report {
             Some(r) => (r.sizes.figures(), r.u95, if radii.is_empty() { Vec::new() } else { r.radii_u95 }),
             None => ([0.0; 4], [0.0; 4], Vec::new()),
+        };
+        let (circumference_3d, circumference_3d_u95, frame_curve) = match &frame {
+            Some(f) => (
+                f.circumference,
+                f.circumference_u95(figures[0], size_u95[0], &tilt.slope_covariance()),
+                f.frame_curve(),
+            ),
+            None => (figures[0], size_u95[0], 0.0),
         };
         let contour = Contour {
             header,
@@ -156,6 +184,9 @@ impl NodeState {
             radii_u95,
             calibration_stamp: if calibration.is_some() { self.in_force.ros_time } else { Time::ZERO },
             calibration_scan_id: if calibration.is_some() { self.in_force.scan_id } else { 0 },
+            circumference_3d,
+            circumference_3d_u95,
+            frame_curve,
         };
         self.stats.contours_published += 1;
         Ok(Corrected { contour, polygon })

@@ -29,6 +29,7 @@ fn plate_msg_with(scan_id: u32, m: &Mounting, opt: &SimOptions) -> RawScan {
         steps_per_revolution: 400,
         step: sim.scan.samples().iter().map(|s| s.step).collect(),
         counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+        height_counts: Vec::new(),
     }
 }
 
@@ -164,6 +165,7 @@ fn lens_msg(scan_id: u32, m: &Mounting) -> (RawScan, Vec<Vector2<f64>>) {
         steps_per_revolution: 400,
         step: sim.scan.samples().iter().map(|s| s.step).collect(),
         counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+        height_counts: Vec::new(),
     };
     (msg, sim.truth)
 }
@@ -538,6 +540,7 @@ fn traced_in_groove(
         steps_per_revolution: 400,
         step: sim.scan.samples().iter().map(|s| s.step).collect(),
         counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+        height_counts: Vec::new(),
     };
     (msg, sim.truth)
 }

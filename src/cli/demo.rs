@@ -99,6 +99,7 @@ fn raw_msg(scan_id: u32, target: u8, sim: &SimScan) -> RawScan {
         steps_per_revolution: sim.scan.steps_per_rev(),
         step: sim.scan.samples().iter().map(|s| s.step).collect(),
         counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+        height_counts: Vec::new(),
     }
 }
 

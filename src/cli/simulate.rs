@@ -179,6 +179,7 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
             steps_per_revolution: a.steps_per_rev,
             step: rev.step,
             counts: rev.counts,
+            height_counts: Vec::new(),
         };
         writer.write("/raw_scan", t, &msg).map_err(|e| e.to_string())?;
     }

@@ -19,7 +19,9 @@
 //! 9. [`smooth`] — a closed contour as a Fourier series `r(θ)`;
 //!    [`stylus`] — from the tip's centre to the surface it touched (or the groove's bottom);
 //! 10. [`size`] — circumference, box and FED of a corrected contour from a smooth fit, with
-//!     their 95 % uncertainty from the calibration's covariance and the scan's noise.
+//!     their 95 % uncertainty from the calibration's covariance and the scan's noise;
+//!     [`height`] — the axis's tilt from the flat artefacts' heights, and a frame's curve
+//!     and 3-D length from its groove's.
 //!
 //! [`simulate`] makes scans of known shapes with known errors for tests and tools.
 
@@ -27,6 +29,7 @@ pub mod angle;
 pub mod calibrate;
 pub mod correct;
 pub mod geometry;
+pub mod height;
 pub mod lack_of_fit;
 pub mod lm;
 pub mod model;

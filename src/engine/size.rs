@@ -324,6 +324,11 @@ impl Sizes {
         }
     }
 
+    /// `r` and `r'` at the [`GRID`] angles.
+    pub fn grid(&self) -> &[(f64, f64)] {
+        &self.grid
+    }
+
     /// `[C, A, B, FED]`.
     pub fn figures(&self) -> [f64; 4] {
         [self.circumference, self.box_width, self.box_height, self.effective_diameter]

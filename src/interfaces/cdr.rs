@@ -97,3 +97,38 @@ pub fn decode_whole<T: DeserializeOwned>(payload: &[u8], rep_id: RepresentationI
     let (value, used) = rustdds::serialization::deserialize_from_cdr_with_rep_id::<T>(payload, rep_id).ok()?;
     (payload.len().saturating_sub(used) <= 3).then_some(value)
 }
+
+/// A sequence appended last to a message that subscribers must read from publishers built
+/// before it was (a tracer's driver against an earlier `RawScan`): serde's
+/// `deserialize_with` for such a field. A payload that ends where the field would begin
+/// fails before the sequence's count is read, before the visitor is entered: the field is
+/// absent, and reads as empty. A payload that has the count but ends within its elements
+/// is truncated, and stays an error.
+pub fn absent_at_end<'de, D, T>(deserializer: D) -> Result<Vec<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: serde::Deserialize<'de>,
+{
+    use std::cell::Cell;
+    struct Elements<'a, T>(&'a Cell<bool>, std::marker::PhantomData<T>);
+    impl<'de, T: serde::Deserialize<'de>> serde::de::Visitor<'de> for Elements<'_, T> {
+        type Value = Vec<T>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a sequence")
+        }
+        fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Vec<T>, A::Error> {
+            self.0.set(true);
+            let mut out = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(1 << 16));
+            while let Some(x) = seq.next_element()? {
+                out.push(x);
+            }
+            Ok(out)
+        }
+    }
+    let entered = Cell::new(false);
+    match deserializer.deserialize_seq(Elements(&entered, std::marker::PhantomData)) {
+        Ok(v) => Ok(v),
+        Err(_) if !entered.get() => Ok(Vec::new()),
+        Err(e) => Err(e),
+    }
+}

@@ -34,6 +34,11 @@ macro_rules! for_every_type {
 /// A value of the type with distinct field values and non-empty sequences.
 trait Sample: Sized {
     fn sample() -> Self;
+    /// The sample as a publisher built before its trailing sequence was appended sends it,
+    /// for a type that has one (`cdr::absent_at_end`).
+    fn without_trailing(&self) -> Option<Self> {
+        None
+    }
 }
 
 impl Sample for Time {
@@ -55,7 +60,11 @@ impl Sample for RawScan {
             steps_per_revolution: 400,
             step: vec![0, 1, 2, 399],
             counts: vec![-5, 0, 17_000_000, i32::MIN],
+            height_counts: vec![3, -2, 0, i32::MAX],
         }
+    }
+    fn without_trailing(&self) -> Option<Self> {
+        Some(RawScan { height_counts: Vec::new(), ..self.clone() })
     }
 }
 impl Sample for Point {
@@ -85,6 +94,9 @@ impl Sample for Contour {
             radii_u95: vec![2e-6, 2.5e-6, 3e-6],
             calibration_stamp: Time::from_nanos(1_700_000_010_000_000_250),
             calibration_scan_id: 10,
+            circumference_3d: 0.1286,
+            circumference_3d_u95: 5.5e-6,
+            frame_curve: 6.0,
         }
     }
 }
@@ -182,15 +194,22 @@ fn round_trip<T: RosMsg + Sample + PartialEq + fmt::Debug>() {
     assert_eq!(&bytes[..4], &CDR_LE_HEADER, "{}", T::NAME.ros_name());
     let back: T = from_cdr(&bytes).unwrap();
     assert_eq!(back, value, "{}", T::NAME.ros_name());
-    // Every strict prefix of the payload is an error, never a panic or a wrong value.
+    // Every strict prefix of the payload is an error, never a panic or a wrong value; but
+    // the one that ends where a trailing sequence a later version appended begins, which is
+    // the message without it (and with up to 3 bytes after it, which plain CDR takes as
+    // padding).
     for cut in 4..bytes.len() {
         let truncated = &bytes[..cut];
-        assert!(
-            from_cdr::<T>(truncated).is_err(),
-            "{} decoded from {cut} of {} bytes",
-            T::NAME.ros_name(),
-            bytes.len()
-        );
+        match from_cdr::<T>(truncated) {
+            Err(_) => {}
+            Ok(v) => assert!(
+                Some(&v) == value.without_trailing().as_ref()
+                    && to_cdr(&v).is_ok_and(|b| (cut + 4).checked_sub(b.len()).is_some_and(|pad| pad < 4)),
+                "{} decoded from {cut} of {} bytes",
+                T::NAME.ros_name(),
+                bytes.len()
+            ),
+        }
     }
     // Also through rustdds' DDS adapter, the path the publisher and subscription take.
     use rustdds::no_key::{Decode, DefaultDecoder, SerializerAdapter};
@@ -209,11 +228,35 @@ fn cdr_round_trip_of_every_type() {
 
 #[test]
 fn messages_of_an_earlier_layout_decode_with_the_appended_fields_absent() {
-    // A contour as the previous version wrote it: up to radii_u95, without the calibration
-    // it was corrected with (a Time and a uint32: 12 bytes after the 8-aligned doubles).
-    let now = Contour { calibration_stamp: Time::ZERO, calibration_scan_id: 0, ..Contour::sample() };
+    // A contour as the version before the height channel wrote it: up to
+    // calibration_scan_id, without the 3-D figures.
+    let now = Contour { circumference_3d: 0.0, circumference_3d_u95: 0.0, frame_curve: 0.0, ..Contour::sample() };
+    let c = now.clone();
+    let before_3d = to_cdr(&(
+        c.header,
+        c.scan_id,
+        c.target,
+        c.calibrated,
+        c.points,
+        c.radii,
+        c.circumference,
+        c.box_width,
+        c.box_height,
+        c.effective_diameter,
+        c.size_u95,
+        c.radii_u95,
+        c.calibration_stamp,
+        c.calibration_scan_id,
+    ))
+    .unwrap();
     let full = to_cdr(&now).unwrap();
-    let earlier = &full[..full.len() - 12];
+    assert!(full.starts_with(&before_3d) && full.len() > before_3d.len());
+    assert!(from_cdr::<Contour>(&before_3d).is_err(), "not the current layout");
+    assert_eq!(from_cdr_msg::<Contour>(&before_3d).unwrap(), now);
+    // The one before: up to radii_u95, without the calibration it was corrected with (a
+    // Time and a uint32: 12 bytes after the 8-aligned doubles).
+    let now = Contour { calibration_stamp: Time::ZERO, calibration_scan_id: 0, ..now };
+    let earlier = &before_3d[..before_3d.len() - 12];
     assert!(from_cdr::<Contour>(earlier).is_err(), "not the current layout");
     assert_eq!(from_cdr_msg::<Contour>(earlier).unwrap(), now);
     // And as the first version wrote it: up to radii, before the size figures.
@@ -226,16 +269,41 @@ fn messages_of_an_earlier_layout_decode_with_the_appended_fields_absent() {
         radii_u95: Vec::new(),
         ..now.clone()
     };
-    let tail = 4 * 8 + 4 * 8 + 4 + 12; // four figures, size_u95, radii_u95's count, the calibration
-    let full = to_cdr(&first).unwrap();
-    assert_eq!(from_cdr_msg::<Contour>(&full[..full.len() - tail]).unwrap(), first);
+    let f = first.clone();
+    let first_bytes = to_cdr(&(f.header, f.scan_id, f.target, f.calibrated, f.points, f.radii)).unwrap();
+    assert_eq!(from_cdr_msg::<Contour>(&first_bytes).unwrap(), first);
     // Cut anywhere else, it is still an error.
     for cut in [1, 4, 8, 13, 20] {
-        assert!(from_cdr_msg::<Contour>(&full[..full.len() - cut]).is_err(), "cut {cut}");
+        assert!(from_cdr_msg::<Contour>(&first_bytes[..first_bytes.len() - cut]).is_err(), "cut {cut}");
     }
-    // A type without appended fields has no earlier layout.
-    let scan = to_cdr(&RawScan::sample()).unwrap();
-    assert!(from_cdr_msg::<RawScan>(&scan[..scan.len() - 4]).is_err());
+}
+
+#[test]
+fn a_raw_scan_of_a_driver_without_heights_reads_as_no_heights() {
+    use rustdds::RepresentationIdentifier;
+    use rustdds::no_key::{Decode, DefaultDecoder};
+    use rustdds::serialization::CDRDeserializerAdapter;
+    // What a driver built against the RawScan before height_counts sends: the message up to
+    // counts. Over DDS (the subscription's decoder) and from a bag, it reads as no heights.
+    let scan = RawScan { height_counts: Vec::new(), ..RawScan::sample() };
+    let s = scan.clone();
+    let earlier = to_cdr(&(s.header, s.scan_id, s.target, s.steps_per_revolution, s.step, s.counts)).unwrap();
+    assert_eq!(to_cdr(&scan).unwrap().len(), earlier.len() + 4, "the current layout adds the heights' count");
+    let decoder = || <CDRDeserializerAdapter<RawScan> as DefaultDecoder<RawScan>>::DECODER;
+    let read: RawScan = decoder().decode_bytes(&earlier[4..], RepresentationIdentifier::CDR_LE).unwrap();
+    assert_eq!(read, scan);
+    assert_eq!(from_cdr_msg::<RawScan>(&earlier).unwrap(), scan);
+    // A scan with heights, cut within them, is truncated: an error, not "no heights".
+    let with = to_cdr(&RawScan::sample()).unwrap();
+    for cut in [1, 4, 8, 12] {
+        assert!(from_cdr_msg::<RawScan>(&with[..with.len() - cut]).is_err(), "cut {cut}");
+        assert!(
+            decoder().decode_bytes(&with[4..with.len() - cut], RepresentationIdentifier::CDR_LE).is_err(),
+            "cut {cut}"
+        );
+    }
+    // Cut within counts, it is an error too.
+    assert!(from_cdr_msg::<RawScan>(&earlier[..earlier.len() - 4]).is_err());
 }
 
 #[test]
@@ -285,6 +353,7 @@ fn raw_scan_bytes_match_hand_computed_cdr() {
         steps_per_revolution: 400,
         step: vec![0, 1],
         counts: vec![-1, 5],
+        height_counts: Vec::new(),
     };
     #[rustfmt::skip]
     let expected: &[u8] = &[
@@ -304,10 +373,13 @@ fn raw_scan_bytes_match_hand_computed_cdr() {
         0x02, 0x00, 0x00, 0x00, // [40] counts: 2 elements
         0xff, 0xff, 0xff, 0xff, // [44] -1
         0x05, 0x00, 0x00, 0x00, // [48] 5
+        0x00, 0x00, 0x00, 0x00, // [52] height_counts: none (no height channel)
     ];
     let bytes = to_cdr(&scan).unwrap();
     assert_eq!(bytes, expected);
     assert_eq!(from_cdr::<RawScan>(expected).unwrap(), scan);
+    // From a driver built before height_counts was appended: the same, no heights.
+    assert_eq!(from_cdr::<RawScan>(&expected[..expected.len() - 4]).unwrap(), scan);
 }
 
 #[test]

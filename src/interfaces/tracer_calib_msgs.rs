@@ -50,6 +50,9 @@ impl Default for Contour {
             radii_u95: Vec::new(),
             calibration_stamp: crate::interfaces::Time::ZERO,
             calibration_scan_id: 0,
+            circumference_3d: 0.0,
+            circumference_3d_u95: 0.0,
+            frame_curve: 0.0,
         }
     }
 }

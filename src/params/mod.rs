@@ -18,6 +18,7 @@ use nalgebra::DMatrix;
 
 use crate::engine::angle::{AngleError, HarmonicOrders};
 use crate::engine::calibrate::{Options as CalibrationOptions, covariance_names, layout, named_covariance_from_values};
+use crate::engine::height::AxisTilt;
 use crate::engine::stylus::PLAIN_BORE;
 use crate::engine::{Groove, ModelKind, Mounting, PlateSpec, RingSpec};
 
@@ -61,8 +62,12 @@ pub mod names {
     pub const FRAME_GROOVE_ANGLE: &str = "frame.groove_angle";
     pub const FRAME_GROOVE_ANGLE_UNCERTAINTY: &str = "frame.groove_angle_uncertainty";
     pub const RING_GROOVE_ANGLE: &str = "ring.groove_angle";
+    pub const HEIGHT_METERS_PER_COUNT: &str = "encoder.height_meters_per_count";
+    pub const AXIS_TILT: &str = "calibration.axis_tilt";
+    pub const AXIS_TILT_COVARIANCE: &str = "calibration.axis_tilt_covariance";
+    pub const HEIGHT_ZERO: &str = "calibration.height_zero";
     /// Every parameter, in the order they are written.
-    pub const ALL: [&str; 38] = [
+    pub const ALL: [&str; 42] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -101,10 +106,14 @@ pub mod names {
         FRAME_GROOVE_ANGLE,
         FRAME_GROOVE_ANGLE_UNCERTAINTY,
         RING_GROOVE_ANGLE,
+        HEIGHT_METERS_PER_COUNT,
+        AXIS_TILT,
+        AXIS_TILT_COVARIANCE,
+        HEIGHT_ZERO,
     ];
 
     /// The parameters that make up the calibration in force: setting one changes it.
-    pub const CALIBRATION_IN_FORCE: [&str; 10] = [
+    pub const CALIBRATION_IN_FORCE: [&str; 13] = [
         ALPHA0,
         OFFSET,
         DELTA_L,
@@ -115,6 +124,9 @@ pub mod names {
         ANGLE_COEFFICIENTS,
         COVARIANCE_NAMES,
         NOISE_LAG1,
+        AXIS_TILT,
+        AXIS_TILT_COVARIANCE,
+        HEIGHT_ZERO,
     ];
 }
 
@@ -166,6 +178,12 @@ pub struct Parameters {
     /// standard uncertainty, rad (π, 0: a plain bore, exactly).
     pub frame_groove: Groove,
     pub meters_per_count: f64,
+    /// The height encoder's resolution (m per count), for scans with `height_counts`.
+    pub height_meters_per_count: f64,
+    /// The calibration in force: the turntable axis's tilt against the frame holder's
+    /// plane and that plane's height, fitted by `/calibrate` from the flat artefacts'
+    /// heights ([`crate::engine::height`]).
+    pub axis_tilt: AxisTilt,
     pub model: ModelKind,
     pub output_frame_id: String,
     pub resample_points: usize,
@@ -262,6 +280,8 @@ impl Default for Parameters {
             ring_groove_angle: PLAIN_BORE,
             frame_groove: Groove::default(),
             meters_per_count: 1.0e-6,
+            height_meters_per_count: 1.0e-6,
+            axis_tilt: AxisTilt::NONE,
             model: ModelKind::Full,
             output_frame_id: "tracer_axis".into(),
             resample_points: 400,
@@ -348,6 +368,10 @@ impl Parameters {
             names::FRAME_GROOVE_ANGLE => Double(self.frame_groove.angle),
             names::FRAME_GROOVE_ANGLE_UNCERTAINTY => Double(self.frame_groove.uncertainty),
             names::RING_GROOVE_ANGLE => Double(self.ring_groove_angle),
+            names::HEIGHT_METERS_PER_COUNT => Double(self.height_meters_per_count),
+            names::AXIS_TILT => DoubleArray(self.axis_tilt.angles.to_vec()),
+            names::AXIS_TILT_COVARIANCE => DoubleArray(self.axis_tilt.covariance.to_vec()),
+            names::HEIGHT_ZERO => Double(self.axis_tilt.height_zero),
             _ => return None,
         })
     }
@@ -491,6 +515,15 @@ impl Parameters {
             ParamValue::StringArray(c) => Ok(c.clone()),
             v => Err(wrong("a string array", v)),
         };
+        // Empty (none: zeros) or exactly `N` values.
+        fn fixed<const N: usize>(v: Vec<f64>, what: &str) -> Result<[f64; N], ParamError> {
+            if v.is_empty() {
+                return Ok([0.0; N]);
+            }
+            v.try_into().map_err(|v: Vec<f64>| {
+                ParamError::Invalid(format!("expected {what} (or none), got {} values", v.len()))
+            })
+        }
         match name {
             names::ALPHA0 => next.calibration.alpha0 = double(value)?,
             names::OFFSET => next.calibration.offset = double(value)?,
@@ -533,6 +566,18 @@ impl Parameters {
             names::FRAME_GROOVE_ANGLE => next.frame_groove.angle = double(value)?,
             names::FRAME_GROOVE_ANGLE_UNCERTAINTY => next.frame_groove.uncertainty = double(value)?,
             names::RING_GROOVE_ANGLE => next.ring_groove_angle = double(value)?,
+            names::HEIGHT_METERS_PER_COUNT => next.height_meters_per_count = double(value)?,
+            names::AXIS_TILT => next.axis_tilt.angles = fixed(doubles(value)?, "two angles, [tau_x, tau_y]")?,
+            names::AXIS_TILT_COVARIANCE => {
+                let c: [f64; 4] = fixed(doubles(value)?, "four values, the angles' 2 x 2 covariance row-major")?;
+                if c[0] < 0.0 || c[3] < 0.0 || c[1] != c[2] || c[1] * c[1] > c[0] * c[3] * (1.0 + 1e-9) {
+                    return Err(ParamError::Invalid(
+                        "not a covariance: symmetric, no negative variance, |correlation| <= 1".into(),
+                    ));
+                }
+                next.axis_tilt.covariance = c
+            }
+            names::HEIGHT_ZERO => next.axis_tilt.height_zero = double(value)?,
             names::ANGLE_HARMONICS => {
                 next.angle_harmonics =
                     HarmonicOrders::new(&integers(value)?).map_err(|e| ParamError::Invalid(e.to_string()))?
@@ -580,6 +625,12 @@ impl Parameters {
             return AngleError::NONE;
         }
         AngleError::new(self.angle_harmonics, self.angle_coefficients.clone()).unwrap_or(AngleError::NONE)
+    }
+
+    /// The axis's tilt in force ([`crate::engine::height`]): none without a calibration
+    /// in force.
+    pub fn axis_tilt_in_force(&self) -> AxisTilt {
+        if self.calibration_valid { self.axis_tilt } else { AxisTilt::NONE }
     }
 
     /// The named covariance of the calibration in force, when it is known.
@@ -673,7 +724,10 @@ mod tests {
     fn defaults_are_the_contracts() {
         let p = Parameters::default();
         let list = p.to_list();
-        assert_eq!(list.len(), 38);
+        assert_eq!(list.len(), 42);
+        assert_eq!(p.get("calibration.axis_tilt"), Some(ParamValue::DoubleArray(vec![0.0; 2])));
+        assert_eq!(p.get("calibration.axis_tilt_covariance"), Some(ParamValue::DoubleArray(vec![0.0; 4])));
+        assert_eq!(p.get("encoder.height_meters_per_count"), Some(ParamValue::Double(1e-6)));
         assert_eq!(p.get("calibration.angle_harmonics"), Some(ParamValue::IntegerArray(Vec::new())));
         assert_eq!(p.get("calibration.angle_coefficients"), Some(ParamValue::DoubleArray(Vec::new())));
         assert_eq!(p.get("calibration.covariance_names"), Some(ParamValue::StringArray(Vec::new())));

@@ -117,7 +117,7 @@ impl Spec {
 }
 
 /// Every parameter of the node, in [`names::ALL`] order.
-pub const SPECS: [Spec; 38] = [
+pub const SPECS: [Spec; 42] = [
     Spec::new(names::ALPHA0, "calibration in force: start angle error alpha0 of the rail (rad)")
         .bound(Bound::Float { from: -std::f64::consts::PI, to: std::f64::consts::PI }),
     Spec::new(names::OFFSET, "calibration in force: offset d of the rail from the turning axis (m)"),
@@ -187,6 +187,13 @@ pub const SPECS: [Spec; 38] = [
         .bound(Bound::Float { from: 0.0, to: f64::INFINITY }),
     Spec::new(names::RING_GROOVE_ANGLE, "included angle of the ring gauge's V-groove (rad), ring.diameter that of its bottom: the ball's centre sits stylus.tip_radius / sin(angle/2) from it; pi = a plain bore")
         .bound(Bound::Float { from: 0.5, to: std::f64::consts::PI }),
+    Spec::new(names::HEIGHT_METERS_PER_COUNT, "the height encoder's resolution (m per count), for the scans that carry RawScan.height_counts")
+        .bound(Bound::Positive),
+    Spec::new(names::AXIS_TILT, "calibration in force: the turntable axis's tilt against the frame holder's plane, [tau_x, tau_y] (rad), a flat artefact's height h = height_zero + x tan(tau_x) + y tan(tau_y); fitted by /calibrate from the plate's and ring's heights; removed from every contour's heights; empty = none")
+        .constraints("empty, or two finite values"),
+    Spec::new(names::AXIS_TILT_COVARIANCE, "calibration in force: the covariance of calibration.axis_tilt, 2 x 2 row-major (rad^2); into every frame's 3-D length uncertainty; empty = unknown (zero)")
+        .constraints("empty, or four finite values of a symmetric matrix with no negative variance"),
+    Spec::new(names::HEIGHT_ZERO, "calibration in force: the frame holder's plane's height where the axis meets it (m), as the plate's heights showed it; a contour's z is the height above that plane"),
 ];
 
 /// The declaration of `name`, if it is one of the node's parameters.

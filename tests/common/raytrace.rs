@@ -11,6 +11,14 @@
 //! `sdf(d v + t u) = ±ρ` along the rail, found by bisection on the shape's signed distance
 //! function. The encoder reads `(t + dL)/k` plus noise that is AR(1) along the trace
 //! (marginal `σ`, lag-1 `φ`), rounded to whole counts when a count's length is given.
+//!
+//! A height channel ([`HeightChannel`], [`Tracer::trace_3d`]) reads the ball's height along
+//! the axis. The ball sits at the height of the groove's bottom it touches (the groove's
+//! bisector horizontal), the shape's nearest point to the ball's centre, where the
+//! artefact's surface (a plane, a frame's sphere) gives the height in the holder; the
+//! holder is tilted against the axis by `τ_x`, `τ_y`, so the reading is
+//! `z_0 + x tan τ_x + y tan τ_y + surface(bottom)` at the ball's centre `(x, y)`, plus
+//! white noise, rounded to whole counts when a count's length is given.
 
 use nalgebra::Vector2;
 use rand::Rng;
@@ -119,16 +127,64 @@ impl Tracer {
     }
 
     /// One revolution over `shape`, traced from outside (`inside = false`) or inside.
+    #[allow(dead_code)] // not every test traces without heights
     pub fn trace(&self, shape: &impl Sdf, inside: bool, rng: &mut impl Rng) -> Scan {
         self.trace_groove(shape, inside, std::f64::consts::PI, rng)
     }
 
     /// [`Self::trace`], from inside in a V-groove of included angle `groove` (rad).
+    #[allow(dead_code)] // not every test traces without heights
     pub fn trace_groove(&self, shape: &impl Sdf, inside: bool, groove: f64, rng: &mut impl Rng) -> Scan {
+        self.trace_centres(shape, inside, groove, rng).0
+    }
+
+    /// [`Self::trace_groove`] with the height channel `heights` over an artefact whose
+    /// height in the holder at `p` is `surface(p)` (module docs): the scan and each
+    /// sample's height reading, and where the ball's centre was.
+    #[allow(dead_code)] // tests/height.rs's alone
+    pub fn trace_3d(
+        &self,
+        shape: &impl Sdf,
+        inside: bool,
+        groove: f64,
+        surface: impl Fn(Vector2<f64>) -> f64,
+        heights: &HeightChannel,
+        rng: &mut impl Rng,
+    ) -> (Scan, Vec<f64>, Vec<Vector2<f64>>) {
+        let (scan, centres) = self.trace_centres(shape, inside, groove, rng);
+        let slopes = Vector2::new(heights.tilt[0].tan(), heights.tilt[1].tan());
+        let h = 1e-7;
+        let read = centres
+            .iter()
+            .map(|&c| {
+                // The groove's bottom: the shape's nearest point, along the distance's gradient.
+                let grad = Vector2::new(
+                    shape.sdf(c + Vector2::new(h, 0.0)) - shape.sdf(c - Vector2::new(h, 0.0)),
+                    shape.sdf(c + Vector2::new(0.0, h)) - shape.sdf(c - Vector2::new(0.0, h)),
+                )
+                .normalize();
+                let bottom = c - grad * shape.sdf(c);
+                let z: f64 = StandardNormal.sample(rng);
+                let read = heights.zero + c.dot(&slopes) + surface(bottom) + heights.sigma * z;
+                if heights.count > 0.0 { (read / heights.count).round() * heights.count } else { read }
+            })
+            .collect();
+        (scan, read, centres)
+    }
+
+    /// One revolution and where the ball's centre stopped on each rail.
+    fn trace_centres(
+        &self,
+        shape: &impl Sdf,
+        inside: bool,
+        groove: f64,
+        rng: &mut impl Rng,
+    ) -> (Scan, Vec<Vector2<f64>>) {
         let side = if inside { -1.0 } else { 1.0 };
         let innovation = (1.0 - self.lag1 * self.lag1).sqrt();
         let mut e: f64 = StandardNormal.sample(rng);
         let steps: Vec<u32> = (0..self.steps).collect();
+        let mut centres = Vec::with_capacity(steps.len());
         let rho: Vec<f64> = steps
             .iter()
             .map(|&k| {
@@ -136,10 +192,26 @@ impl Tracer {
                     let z: f64 = StandardNormal.sample(rng);
                     e = self.lag1 * e + innovation * z;
                 }
-                let read = (self.stop(shape, k, side, groove) + self.dl) / self.k + self.sigma * e;
+                let t = self.stop(shape, k, side, groove);
+                let (u, v) = self.rail(k);
+                centres.push(v * self.d + u * t);
+                let read = (t + self.dl) / self.k + self.sigma * e;
                 if self.count > 0.0 { (read / self.count).round() * self.count } else { read }
             })
             .collect();
-        Scan::new(self.steps, &steps, &rho).expect("a whole revolution")
+        (Scan::new(self.steps, &steps, &rho).expect("a whole revolution"), centres)
     }
+}
+
+/// A height encoder and the holder it reads against (module docs).
+#[allow(dead_code)] // tests/height.rs's alone
+#[derive(Debug, Clone, Copy)]
+pub struct HeightChannel {
+    /// The holder's plane's height where the axis meets it, `z_0`.
+    pub zero: f64,
+    /// `τ_x`, `τ_y`, rad.
+    pub tilt: [f64; 2],
+    pub sigma: f64,
+    /// A count's length; 0: not rounded.
+    pub count: f64,
 }
