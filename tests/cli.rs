@@ -659,3 +659,73 @@ fn the_tip_models_take_a_ring_gauge() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(json(&o).get("tip_radius").is_none());
 }
+
+/// A tracer with a height channel, offline: `simulate --heights` writes height_counts,
+/// `correct --json` gives the frame's 3-D length and curve, `--oma` its Z records, FCRV
+/// and CIRC3D beside the 2-D CIRC.
+#[test]
+fn heights_through_simulate_correct_and_oma() {
+    let bag = temp("heights_bag");
+    let _ = std::fs::remove_dir_all(&bag);
+    let b = bag.to_str().unwrap();
+    let o = tool(&[
+        "simulate",
+        "--shape",
+        "plate",
+        "--shape",
+        "rect",
+        "--noise",
+        "2e-6",
+        "--heights",
+        "--base-curve",
+        "6",
+        "--axis-tilt-deg",
+        "0,0",
+        "--height-noise",
+        "2e-6",
+        "--height-meters-per-count",
+        "1e-7",
+        "--out",
+        b,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cal = tool(&["calibrate", "--input", b, "--json"]);
+    assert_eq!(cal.status.code(), Some(0), "{}", stderr(&cal));
+    let params = calibration_params("heights_cal.yaml", &json(&cal), None);
+    let mut text = std::fs::read_to_string(&params).unwrap();
+    text.push_str("    encoder.height_meters_per_count: 1.0e-7\n");
+    std::fs::write(&params, text).unwrap();
+    let o = tool(&["correct", "--input", b, "--params", params.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let frame = rows.iter().find(|r| r["target"] == 2).expect("the frame's row");
+    let (c, c3) = (frame["circumference"].as_f64().unwrap(), frame["circumference_3d"].as_f64().unwrap());
+    assert!(c3 - c > 0.1e-3 && c3 - c < 2e-3, "C {c}, 3-D {c3}");
+    assert!(frame["circumference_3d_u95"].as_f64().unwrap() > 0.0);
+    assert!((frame["frame_curve"].as_f64().unwrap() - 6.0).abs() < 0.1, "{}", frame["frame_curve"]);
+    // The plate is flat: its 3-D length is its C, near enough, and its curve near 0.
+    let plate = rows.iter().find(|r| r["target"] == 1).expect("the plate's row");
+    assert!(plate["frame_curve"].as_f64().unwrap().abs() < 0.1, "{}", plate["frame_curve"]);
+    let out = temp("heights_corrected.mcap");
+    let oma_path = temp("heights_frame.oma");
+    let o = correct_to_oma(b, &params, &out, &oma_path, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let oma = std::fs::read_to_string(&oma_path).unwrap();
+    assert!(oma.contains("ZFMT=1;400;E;R;F\r\n"), "{oma}");
+    let z: Vec<i64> = oma
+        .lines()
+        .filter_map(|l| l.strip_prefix("Z="))
+        .flat_map(|l| l.split(';').map(|v| v.parse::<i64>().unwrap()).collect::<Vec<_>>())
+        .collect();
+    assert_eq!(z.len(), 400);
+    // On a base-6 sphere (R 88.3 mm) 2 mm above the holder, a 50 x 30 mm frame's groove
+    // lies 2 + 1.3 (15 mm from the apex) to 2 + 4.9 mm (its corners, 29 mm) up.
+    assert!(z.iter().all(|&v| (320..=700).contains(&v)), "{:?}", &z[..10]);
+    assert!(z.iter().any(|&v| v < 340) && z.iter().any(|&v| v > 650));
+    assert!(oma.contains("FCRV=6.0") || oma.contains("FCRV=5.9"), "{oma}");
+    let circ3d = oma.lines().find_map(|l| l.strip_prefix("CIRC3D=")).expect("CIRC3D");
+    let circ = oma.lines().find_map(|l| l.strip_prefix("CIRC=")).expect("CIRC");
+    let mm = |v: &str| v.trim_end_matches(';').parse::<f64>().unwrap();
+    assert!((mm(circ3d) - c3 * 1e3).abs() < 0.006 && (mm(circ) - c * 1e3).abs() < 0.006, "{circ} {circ3d}");
+}

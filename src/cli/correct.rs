@@ -43,7 +43,8 @@ pub struct Args {
     #[arg(long, default_value = "R", value_parser = ["R", "L", "B"])]
     pub eye: String,
     /// Print one JSON object a line per corrected scan: scan_id, target, calibrated,
-    /// circumference, box_width, box_height, effective_diameter, size_u95 (metres).
+    /// circumference, box_width, box_height, effective_diameter, size_u95 (metres), and
+    /// circumference_3d, circumference_3d_u95 (metres), frame_curve (dioptres).
     #[arg(long)]
     pub json: bool,
 }
@@ -59,10 +60,22 @@ struct SizeLine {
     box_height: f64,
     effective_diameter: f64,
     size_u95: [f64; 4],
+    circumference_3d: f64,
+    circumference_3d_u95: f64,
+    frame_curve: f64,
 }
 
-/// A lens or frame scan for the OMA export: scan id, target, radii and size figures.
-type Traced = (u32, u8, Vec<f64>, Option<[f64; 4]>);
+/// A lens or frame scan for the OMA export.
+struct Traced {
+    scan_id: u32,
+    target: u8,
+    radii: Vec<f64>,
+    /// `[C, A, B, FED]`, if it has them.
+    sizes: Option<[f64; 4]>,
+    /// With a height channel: the heights at the radii's angles, the 3-D length and the
+    /// frame curve.
+    third: Option<(Vec<f64>, f64, f64)>,
+}
 
 pub fn run(args: &Args) -> i32 {
     match correct_bag(args) {
@@ -113,7 +126,17 @@ fn correct_bag(args: &Args) -> Result<String, String> {
                 corrected += 1;
                 let c = &out.contour;
                 if msg.target == RawScan::TARGET_LENS || msg.target == RawScan::TARGET_FRAME {
-                    traces.push((msg.scan_id, msg.target, c.radii.clone(), sizes_of(c)));
+                    let third = (!msg.height_counts.is_empty())
+                        .then(|| heights_at_radii(&c.points, c.radii.len()))
+                        .flatten()
+                        .map(|z| (z, c.circumference_3d, c.frame_curve));
+                    traces.push(Traced {
+                        scan_id: msg.scan_id,
+                        target: msg.target,
+                        radii: c.radii.clone(),
+                        sizes: sizes_of(c),
+                        third,
+                    });
                 }
                 if args.json {
                     let line = SizeLine {
@@ -125,6 +148,9 @@ fn correct_bag(args: &Args) -> Result<String, String> {
                         box_height: c.box_height,
                         effective_diameter: c.effective_diameter,
                         size_u95: c.size_u95,
+                        circumference_3d: c.circumference_3d,
+                        circumference_3d_u95: c.circumference_3d_u95,
+                        frame_curve: c.frame_curve,
                     };
                     println!("{}", serde_json::to_string(&line).expect("a size line serialises"));
                 }
@@ -161,15 +187,47 @@ fn sizes_of(c: &Contour) -> Option<[f64; 4]> {
     (c.circumference > 0.0).then_some([c.circumference, c.box_width, c.box_height, c.effective_diameter])
 }
 
-/// A scan's size records for the OMA file: `CIRC`, `HBOX`, `VBOX`, `FED` in millimetres
-/// (1/100 mm), chiral as the VCA standard lays them out (`right;left`: the eye's side
-/// filled, both for `B`).
-fn size_records(eye: Eye, sizes: [f64; 4]) -> Vec<(String, String)> {
-    ["CIRC", "HBOX", "VBOX", "FED"]
-        .iter()
-        .zip(sizes)
-        .map(|(label, v)| {
-            let mm = format!("{:.2}", v * 1e3);
+/// The heights of a contour's `points` (in sample order round the axis) at the `m` equal
+/// angles of its radii, `2πk/m` counter-clockwise from +x: linear between the two points
+/// about each angle, round the turn. `None` for fewer than 3 points or none.
+fn heights_at_radii(points: &[crate::interfaces::Point], m: usize) -> Option<Vec<f64>> {
+    if points.len() < 3 || m == 0 {
+        return None;
+    }
+    let tau = std::f64::consts::TAU;
+    let mut polar: Vec<(f64, f64)> = points.iter().map(|p| (p.y.atan2(p.x).rem_euclid(tau), p.z)).collect();
+    polar.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let n = polar.len();
+    let mut j = 0;
+    let heights = (0..m)
+        .map(|k| {
+            let t = tau * k as f64 / m as f64;
+            while j < n && polar[j].0 < t {
+                j += 1;
+            }
+            // Between the point before `t` and the one at or after it, round the turn.
+            let (a, b) = (polar[(j + n - 1) % n], polar[j % n]);
+            let (ta, tb) = (if j == 0 { a.0 - tau } else { a.0 }, if j == n { b.0 + tau } else { b.0 });
+            if tb > ta { a.1 + (b.1 - a.1) * (t - ta) / (tb - ta) } else { a.1 }
+        })
+        .collect();
+    Some(heights)
+}
+
+/// A scan's size records for the OMA file: `CIRC` (the circumference in the plane, 2-D),
+/// `HBOX`, `VBOX`, `FED` in millimetres (1/100 mm), and with heights `CIRC3D` (the
+/// groove's length in 3-D) and `FCRV` (the frame curve, dioptres), chiral as the VCA
+/// standard lays them out (`right;left`: the eye's side filled, both for `B`).
+fn size_records(eye: Eye, sizes: [f64; 4], third: Option<(f64, f64)>) -> Vec<(String, String)> {
+    let mut records: Vec<(&str, String)> =
+        ["CIRC", "HBOX", "VBOX", "FED"].iter().zip(sizes).map(|(l, v)| (*l, format!("{:.2}", v * 1e3))).collect();
+    if let Some((c3, curve)) = third {
+        records.push(("CIRC3D", format!("{:.2}", c3 * 1e3)));
+        records.push(("FCRV", format!("{curve:.2}")));
+    }
+    records
+        .into_iter()
+        .map(|(label, mm)| {
             let value = match eye {
                 Eye::Right => format!("{mm};"),
                 Eye::Left => format!(";{mm}"),
@@ -183,17 +241,23 @@ fn size_records(eye: Eye, sizes: [f64; 4]) -> Vec<(String, String)> {
 /// One OMA file per traced lens or frame (radii present), named after `path`.
 fn write_oma(path: &Path, eye: &str, traces: &[Traced]) -> Result<Vec<String>, String> {
     let eye = Eye::from_code(eye).ok_or_else(|| format!("--eye: unknown eye '{eye}'"))?;
-    let usable: Vec<_> = traces.iter().filter(|(_, _, r, _)| !r.is_empty()).collect();
+    let usable: Vec<_> = traces.iter().filter(|t| !t.radii.is_empty()).collect();
     if usable.is_empty() {
         return Err("--oma: no lens or frame scan in the bag goes all the way round: no trace to write".into());
     }
     let mut written = Vec::new();
-    for (scan_id, target, radii, sizes) in &usable {
-        let trace_type = if *target == RawScan::TARGET_FRAME { TraceType::Frame } else { TraceType::Lens };
+    for t in &usable {
+        let scan_id = t.scan_id;
+        let trace_type = if t.target == RawScan::TARGET_FRAME { TraceType::Frame } else { TraceType::Lens };
+        let mut trace = Trace::equiangular(eye, trace_type, t.radii.clone());
+        trace.heights = t.third.as_ref().map(|(z, _, _)| z.clone());
         let file = OmaFile {
             job: Some(scan_id.to_string()),
-            traces: vec![Trace::equiangular(eye, trace_type, radii.clone())],
-            other: sizes.map(|s| size_records(eye, s)).unwrap_or_default(),
+            traces: vec![trace],
+            other: t
+                .sizes
+                .map(|s| size_records(eye, s, t.third.as_ref().map(|(_, c, f)| (*c, *f))))
+                .unwrap_or_default(),
         };
         let target_path = if usable.len() == 1 {
             path.to_path_buf()

@@ -25,7 +25,7 @@ use crate::engine::geometry::Mounting;
 use crate::engine::model::tip::RingSpec;
 use crate::engine::model::{ModelKind, PlateSpec};
 use crate::engine::shape::{Ellipse, RoundedRect, Shape};
-use crate::engine::simulate::{SimOptions, SimScan, simulate};
+use crate::engine::simulate::{HeightOptions, SimOptions, SimScan, on_sphere, simulate, simulate_heights};
 use crate::interfaces::{Calibrate, CalibrateRequest, Contour, Header, RawScan, RosMsg, RosService};
 
 /// Simulate a miscalibrated tracer, run the node, calibrate it over DDS, correct scans.
@@ -73,6 +73,8 @@ struct Cell {
     ring_diameter: f64,
     rng: StdRng,
     noise: f64,
+    /// The height channel's noise, from a stream of its own (the scans stay as they were).
+    height_rng: StdRng,
 }
 
 impl Cell {
@@ -89,6 +91,31 @@ impl Cell {
         };
         simulate(shape, &self.truth, &opt, &mut self.rng).map_err(|e| e.to_string())
     }
+
+    /// The height channel's readings of `sim` over an artefact at `surface`, the holder
+    /// tilted 0.1° about y against the axis.
+    fn heights(&mut self, sim: &SimScan, surface: impl Fn(Vector2<f64>) -> f64) -> Result<Vec<f64>, String> {
+        let opt = HeightOptions { zero: 0.0, tilt: [DEMO_TILT, 0.0], noise: self.noise, quantum: 1e-6 };
+        simulate_heights(sim, surface, &opt, &mut self.height_rng).map_err(|e| e.to_string())
+    }
+}
+
+/// The demo's holder tilt against the turntable's axis: 0.1°.
+const DEMO_TILT: f64 = 0.1 * std::f64::consts::PI / 180.0;
+/// The demo frame's base curve, dioptres.
+const DEMO_BASE: f64 = 6.0;
+
+/// A shape's groove length in 3-D over `surface`: 20 000 points round its centre, each
+/// where the ray from the centre leaves the shape, at its height.
+fn length_3d(shape: &impl Shape, center: Vector2<f64>, surface: impl Fn(Vector2<f64>) -> f64) -> f64 {
+    let n = 20_000;
+    let at = |i: usize| {
+        let t = std::f64::consts::TAU * i as f64 / n as f64;
+        let u = Vector2::new(t.cos(), t.sin());
+        let p = shape.exit(center, u).map_or(center, |hit| center + u * hit.t);
+        nalgebra::Vector3::new(p.x, p.y, surface(p))
+    };
+    (0..n).map(|i| (at(i + 1) - at(i)).norm()).sum()
 }
 
 fn raw_msg(scan_id: u32, target: u8, sim: &SimScan) -> RawScan {
@@ -100,6 +127,14 @@ fn raw_msg(scan_id: u32, target: u8, sim: &SimScan) -> RawScan {
         step: sim.scan.samples().iter().map(|s| s.step).collect(),
         counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
         height_counts: Vec::new(),
+    }
+}
+
+/// [`raw_msg`] with the height channel's readings `heights` (1 µm counts).
+fn raw_msg_3d(scan_id: u32, target: u8, sim: &SimScan, heights: &[f64]) -> RawScan {
+    RawScan {
+        height_counts: heights.iter().map(|h| (h / 1e-6).round() as i32).collect(),
+        ..raw_msg(scan_id, target, sim)
     }
 }
 
@@ -169,6 +204,7 @@ fn demo(args: &Args) -> Result<(), String> {
         ring_diameter: 40e-3,
         rng: StdRng::seed_from_u64(args.seed),
         noise: args.noise,
+        height_rng: StdRng::seed_from_u64(args.seed ^ 0x4845_4947_4854),
     };
     let t = cell.truth;
     println!(
@@ -252,6 +288,13 @@ fn demo(args: &Args) -> Result<(), String> {
     let ring_scan = cell.scan(&ring, 0, true)?;
     let lens_after = cell.scan(&lens, 0, false)?;
     let frame_after = cell.scan(&frame, 0, true)?;
+    // The tracer reads heights too: the plate on the holder's datum, the ring 1.5 mm below,
+    // the frame's groove on a base-6 sphere whose apex is at its centre, 2 mm above.
+    let frame_surface = on_sphere(DEMO_BASE, frame.center, 2e-3);
+    let plate_heights = cell.heights(&plate_scan, |_| 0.0)?;
+    let ring_heights = cell.heights(&ring_scan, |_| -1.5e-3)?;
+    let frame_heights = cell.heights(&frame_after, &frame_surface)?;
+    let frame_3d = length_3d(&frame, frame.center, &frame_surface);
 
     let outcome = smol::block_on(async {
         let mut stream = std::pin::pin!(contours.async_stream());
@@ -285,8 +328,8 @@ fn demo(args: &Args) -> Result<(), String> {
             before.calibrated,
             rms_error(&before, &lens_before.truth) * 1e3
         );
-        exchange(raw_msg(2, RawScan::TARGET_CALIBRATION_PLATE, &plate_scan)).await?;
-        exchange(raw_msg(3, RawScan::TARGET_RING_GAUGE, &ring_scan)).await?;
+        exchange(raw_msg_3d(2, RawScan::TARGET_CALIBRATION_PLATE, &plate_scan, &plate_heights)).await?;
+        exchange(raw_msg_3d(3, RawScan::TARGET_RING_GAUGE, &ring_scan, &ring_heights)).await?;
         println!(
             "2. Calibration plate traced (scan 2, two dust spikes on it), then the ring gauge, Ø {:.0} mm (scan 3).",
             cell.ring_diameter * 1e3
@@ -318,7 +361,7 @@ fn demo(args: &Args) -> Result<(), String> {
             println!("{name:>14} {:>10.4}{unit:<3} {:>10.4} ± {:.4}{unit}", truth * scale, fit * scale, sd * scale);
         }
         let lens_c = exchange(raw_msg(4, RawScan::TARGET_LENS, &lens_after)).await?;
-        let frame_c = exchange(raw_msg(5, RawScan::TARGET_FRAME, &frame_after)).await?;
+        let frame_c = exchange(raw_msg_3d(5, RawScan::TARGET_FRAME, &frame_after, &frame_heights)).await?;
         Ok::<_, String>((before, lens_c, frame_c, response.tip_radius))
     });
     let (before, lens_c, frame_c, tip) = outcome?;
@@ -359,6 +402,18 @@ fn demo(args: &Args) -> Result<(), String> {
             .collect();
         println!("   {name:>6}: {}", shown.join(", "));
     }
+    println!(
+        "   The frame's groove on a base-{DEMO_BASE} sphere, from the tracer's heights (the holder tilted {:.2}° against the axis, removed):",
+        DEMO_TILT.to_degrees()
+    );
+    println!(
+        "   circumference in the plane {:.3} mm, along the groove in 3-D {:.3} ± {:.3} mm ({:.3}), frame curve {:.2} D ({DEMO_BASE:.2})",
+        frame_c.circumference * 1e3,
+        frame_c.circumference_3d * 1e3,
+        frame_c.circumference_3d_u95 * 1e3,
+        frame_3d * 1e3,
+        frame_c.frame_curve
+    );
     println!("5. The node persisted its parameters to {}", params_path.display());
     println!(
         "   and recorded the calibration in {} (tracer_calib history --input FILE)",

@@ -10,7 +10,7 @@ use super::exit;
 use crate::engine::geometry::Mounting;
 use crate::engine::model::PlateSpec;
 use crate::engine::shape::{Ellipse, RoundedRect};
-use crate::engine::simulate::{SimOptions, SimScan, simulate};
+use crate::engine::simulate::{HeightOptions, SimOptions, SimScan, on_sphere, simulate, simulate_heights};
 use crate::interfaces::{Header, RawScan, Time};
 use crate::io::bag::BagWriter;
 use crate::io::csv::{self, RawRevolution};
@@ -119,6 +119,24 @@ pub struct Args {
     /// The plate turned by this angle (degrees, counter-clockwise): a second placement.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub plate_turn_deg: f64,
+    /// A height channel: every scan of a bag carries height_counts. The plate lies on the
+    /// holder's datum, the ring gauge 1.5 mm below it, a frame (rect) or lens (ellipse) on
+    /// a sphere of --base-curve whose apex is at the shape's centre, 2 mm above.
+    #[arg(long)]
+    pub heights: bool,
+    /// Frame curve of the frames and lenses traced with --heights, dioptres (530 mm / the
+    /// sphere's radius); 0 = flat.
+    #[arg(long, default_value_t = 6.0)]
+    pub base_curve: f64,
+    /// The holder's tilt against the turntable's axis with --heights: `X,Y` degrees.
+    #[arg(long, value_name = "X,Y", value_delimiter = ',', default_values_t = [0.1, 0.0], allow_hyphen_values = true)]
+    pub axis_tilt_deg: Vec<f64>,
+    /// Height noise (standard deviation) with --heights, metres.
+    #[arg(long, default_value_t = 0.0)]
+    pub height_noise: f64,
+    /// Height encoder, metres per count.
+    #[arg(long, default_value_t = 1e-6)]
+    pub height_meters_per_count: f64,
     /// Output: a CSV file ('step,counts', one revolution), or a bag (a directory, or a
     /// file ending in .mcap).
     #[arg(long, value_name = "FILE")]
@@ -148,15 +166,35 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
             sequence.len()
         ));
     }
+    if a.heights && to_csv {
+        return Err(format!(
+            "{}: --heights writes a bag (.mcap or a directory); a CSV file has no heights",
+            a.out.display()
+        ));
+    }
+    let sound =
+        a.height_meters_per_count > 0.0 && a.height_noise >= 0.0 && a.base_curve.is_finite() && a.base_curve >= 0.0;
+    if !sound {
+        return Err(format!(
+            "--height-meters-per-count must be positive, --height-noise and --base-curve at least 0; got {}, {}, {}",
+            a.height_meters_per_count, a.height_noise, a.base_curve
+        ));
+    }
+    if a.axis_tilt_deg.len() != 2 || a.axis_tilt_deg.iter().any(|t| !t.is_finite()) {
+        return Err(format!("--axis-tilt-deg takes two angles X,Y in degrees, got {:?}", a.axis_tilt_deg));
+    }
     let mut rng = StdRng::seed_from_u64(a.seed);
+    // The heights' noise from a stream of its own: the scans stay as without --heights.
+    let mut height_rng = StdRng::seed_from_u64(a.seed ^ 0x4845_4947_4854);
     let mut revolutions = Vec::with_capacity(sequence.len());
     for kind in &sequence {
         let sim = simulate_one(a, *kind, &mut rng)?;
+        let heights = if a.heights { Some(heights_of(a, *kind, &sim, &mut height_rng)?) } else { None };
         let rev = RawRevolution {
             step: sim.scan.samples().iter().map(|s| s.step).collect(),
             counts: sim.scan.samples().iter().map(|s| (s.rho / a.meters_per_count).round() as i32).collect(),
         };
-        revolutions.push((*kind, rev));
+        revolutions.push((*kind, rev, heights));
     }
     if to_csv {
         return std::fs::write(&a.out, csv::render(&revolutions[0].1))
@@ -165,7 +203,7 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
     let mut writer = BagWriter::create(&a.out).map_err(|e| e.to_string())?;
     writer.add_topic::<RawScan>("/raw_scan").map_err(|e| e.to_string())?;
     let start_ns: u64 = 1_700_000_000_000_000_000;
-    for (i, (kind, rev)) in revolutions.into_iter().enumerate() {
+    for (i, (kind, rev, heights)) in revolutions.into_iter().enumerate() {
         let t = start_ns + (i as f64 * a.period * 1e9) as u64;
         let msg = RawScan {
             header: Header { stamp: Time::from_nanos(t as i64), frame_id: "tracer".into() },
@@ -179,7 +217,9 @@ fn simulate_to_file(a: &Args) -> Result<(), String> {
             steps_per_revolution: a.steps_per_rev,
             step: rev.step,
             counts: rev.counts,
-            height_counts: Vec::new(),
+            height_counts: heights
+                .map(|h| h.iter().map(|z| (z / a.height_meters_per_count).round() as i32).collect())
+                .unwrap_or_default(),
         };
         writer.write("/raw_scan", t, &msg).map_err(|e| e.to_string())?;
     }
@@ -198,6 +238,24 @@ fn parse_harmonic(s: &str) -> Result<(u32, f64, f64), String> {
         return Err(bad());
     }
     Ok((h, c.to_radians(), sn.to_radians()))
+}
+
+/// The height readings of a scan (`--heights`): the artefact's surface as `--heights`
+/// says, the holder tilted by `--axis-tilt-deg`.
+fn heights_of(a: &Args, kind: ShapeKind, sim: &SimScan, rng: &mut StdRng) -> Result<Vec<f64>, String> {
+    let center = Vector2::new(a.center_x, a.center_y);
+    let (base, level) = match kind {
+        ShapeKind::Plate => (0.0, 0.0),
+        ShapeKind::Ring => (0.0, -1.5e-3),
+        ShapeKind::Rect | ShapeKind::Ellipse => (a.base_curve, 2e-3),
+    };
+    let opt = HeightOptions {
+        zero: 0.0,
+        tilt: [a.axis_tilt_deg[0].to_radians(), a.axis_tilt_deg[1].to_radians()],
+        noise: a.height_noise,
+        quantum: a.height_meters_per_count,
+    };
+    simulate_heights(sim, on_sphere(base, center, level), &opt, rng).map_err(|e| e.to_string())
 }
 
 fn simulate_one(a: &Args, kind: ShapeKind, rng: &mut StdRng) -> Result<SimScan, String> {

@@ -7,6 +7,11 @@
 //! noise, optionally quantised to the encoder's counts, with optional spikes (dust, a
 //! probe bounce) and missing samples. The true touched point `d v + t u` comes along,
 //! so a corrected scan can be compared with the truth.
+//!
+//! A height channel ([`simulate_heights`]) reads each sample's height along the axis: the
+//! groove bottom's, where the shape lies on a surface in the frame holder ([`on_sphere`]:
+//! a frame's base curve), plus the holder's tilt against the axis at the ball's centre
+//! ([`super::height`]'s model), plus noise, in counts.
 
 use nalgebra::Vector2;
 use rand::Rng;
@@ -93,6 +98,8 @@ pub struct SimScan {
     pub truth: Vec<Vector2<f64>>,
     /// Which samples were spiked.
     pub spiked: Vec<bool>,
+    /// Where the tip's centre was at each sample, in sample order.
+    pub centres: Vec<Vector2<f64>>,
 }
 
 /// Why a scan cannot be simulated.
@@ -173,6 +180,7 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
     let mut correlated = if phi == 0.0 { 0.0 } else { noise.sample(rng) };
     let mut samples = Vec::with_capacity(n as usize);
     let mut truth = Vec::with_capacity(n as usize);
+    let mut centres = Vec::with_capacity(n as usize);
     let contact = if opt.inside { contact_offset(opt.tip_radius, opt.groove_angle) } else { opt.tip_radius };
     for i in 0..n {
         let step = (opt.start_step % n + i) % n;
@@ -195,6 +203,7 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
         }
         samples.push(Sample { step, rho });
         truth.push(touched);
+        centres.push(origin + u * t);
     }
     let mut spiked = vec![false; samples.len()];
     for i in sample_indices(rng, samples.len(), opt.spikes.min(samples.len())) {
@@ -202,5 +211,52 @@ pub fn simulate(shape: &impl Shape, m: &Mounting, opt: &SimOptions, rng: &mut im
         spiked[i] = true;
     }
     let scan = Scan::from_samples(n, samples).map_err(|e| SimError::Invalid(e.to_string()))?;
-    Ok(SimScan { scan, truth, spiked })
+    Ok(SimScan { scan, truth, spiked, centres })
+}
+
+/// A height channel and the frame holder it reads against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeightOptions {
+    /// The holder's plane's height where the axis meets it, metres.
+    pub zero: f64,
+    /// The holder's tilt against the axis, `[τ_x, τ_y]`, rad.
+    pub tilt: [f64; 2],
+    /// Standard deviation of the height noise, metres.
+    pub noise: f64,
+    /// The height count's length, metres; 0 = not quantised.
+    pub quantum: f64,
+}
+
+/// The height reading of each sample of `sim`: `zero + c·(tan τ_x, tan τ_y) + surface(X)`
+/// at the tip's centre `c` over the point touched `X` (the groove's bottom, whose height
+/// the ball shares), plus noise, quantised.
+pub fn simulate_heights(
+    sim: &SimScan,
+    surface: impl Fn(Vector2<f64>) -> f64,
+    opt: &HeightOptions,
+    rng: &mut impl Rng,
+) -> Result<Vec<f64>, SimError> {
+    let noise = Normal::new(0.0, opt.noise).map_err(|e| SimError::Invalid(e.to_string()))?;
+    let slopes = Vector2::new(opt.tilt[0].tan(), opt.tilt[1].tan());
+    Ok(sim
+        .centres
+        .iter()
+        .zip(&sim.truth)
+        .map(|(c, x)| {
+            let h = opt.zero + c.dot(&slopes) + surface(*x) + noise.sample(rng);
+            if opt.quantum > 0.0 { (h / opt.quantum).round() * opt.quantum } else { h }
+        })
+        .collect())
+}
+
+/// A sphere of `base` dioptres (radius `530 mm / base`) whose apex is at `apex`, `level`
+/// above the holder: the height of a frame's groove over `p` (`level` everywhere for a
+/// base of 0, a flat artefact).
+pub fn on_sphere(base: f64, apex: Vector2<f64>, level: f64) -> impl Fn(Vector2<f64>) -> f64 {
+    let radius = if base > 0.0 { super::height::FRAME_CURVE_METRES / base } else { f64::INFINITY };
+    move |p: Vector2<f64>| {
+        let q = (p - apex).norm_squared();
+        // `R - √(R² - q)`, written to keep its digits for a large R.
+        if radius.is_finite() { level + q / (radius + (radius * radius - q).max(0.0).sqrt()) } else { level }
+    }
 }

@@ -19,7 +19,11 @@
 //! - `R=`: the radii, whole numbers in 1/100 mm, `;`-separated, 10 a line here (a reader
 //!   takes any number a line).
 //! - `A=`: for a `U` trace, the angle of each point, whole numbers in 1/100 degree.
-//! - Every other record (`JOB`, `ZFMT`/`Z=` sag, ...) is kept as it is, not interpreted,
+//! - `ZFMT=format;N;E|U;eye;type` after a trace, then its `Z=` records: the height of each
+//!   of the trace's points (a tracer with a height channel), whole numbers in 1/100 mm,
+//!   signed; `N`, `E|U` and the eye those of the trace before it of that eye
+//!   ([`Trace::heights`]).
+//! - Every other record (`JOB`, `FCRV`, `CIRC`, ...) is kept as it is, not interpreted,
 //!   except `JOB`, which [`OmaFile::job`] carries.
 //!
 //! # Angle convention (ours; state it to whoever reads the file)
@@ -151,12 +155,15 @@ pub struct Trace {
     /// `None`: equiangular (`E`), point `i` at `i·2π/N`. `Some`: not equiangular (`U`), the
     /// angle of each point, radians, counter-clockwise from +x; same length as `radii`.
     pub angles: Option<Vec<f64>>,
+    /// The height of each point (`ZFMT`/`Z=`), metres; same length as `radii`. `None`:
+    /// no heights.
+    pub heights: Option<Vec<f64>>,
 }
 
 impl Trace {
     /// An equiangular trace: `radii[i]` (metres) at angle `i·2π/N`, like `Contour.radii`.
     pub fn equiangular(eye: Eye, trace_type: TraceType, radii: Vec<f64>) -> Self {
-        Trace { eye, trace_type, radii, angles: None }
+        Trace { eye, trace_type, radii, angles: None, heights: None }
     }
 
     /// `N`, the number of points.
@@ -308,6 +315,7 @@ fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, Pars
             // count is the "declares N points" error at the end of the trace, not an abort.
             radii: Vec::with_capacity(n.min(MAX_PREALLOCATED_POINTS)),
             angles: if equiangular { None } else { Some(Vec::new()) },
+            heights: None,
         },
         angles: Vec::new(),
     })
@@ -318,6 +326,21 @@ fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, Pars
 pub fn parse(text: &str, path: &str) -> Result<OmaFile, ParseError> {
     let mut out = OmaFile::default();
     let mut pending: Option<Pending> = None;
+    // A `ZFMT` block being read: the trace it belongs to, its line, its heights.
+    let mut heights: Option<(usize, usize, Vec<f64>)> = None;
+    let finish_heights = |out: &mut OmaFile, h: Option<(usize, usize, Vec<f64>)>| -> Result<(), ParseError> {
+        if let Some((index, line_no, z)) = h {
+            let n = out.traces[index].n();
+            if z.len() != n {
+                return Err(ParseError(format!(
+                    "{path}:{line_no}: ZFMT declares {n} points, the Z= records that follow give {}",
+                    z.len()
+                )));
+            }
+            out.traces[index].heights = Some(z);
+        }
+        Ok(())
+    };
     for (i, raw) in text.split('\n').enumerate() {
         let line_no = i + 1;
         let line = raw.trim_matches(|c: char| c.is_whitespace() || c == '\0');
@@ -335,7 +358,44 @@ pub fn parse(text: &str, path: &str) -> Result<OmaFile, ParseError> {
                 if let Some(p) = pending.take() {
                     out.traces.push(p.finish(path)?);
                 }
+                finish_heights(&mut out, heights.take())?;
                 pending = Some(parse_trcfmt(value, path, line_no)?);
+            }
+            "ZFMT" => {
+                if let Some(p) = pending.take() {
+                    out.traces.push(p.finish(path)?);
+                }
+                finish_heights(&mut out, heights.take())?;
+                let z = parse_trcfmt(value, path, line_no)?;
+                let Some(index) = out.traces.iter().rposition(|t| t.eye == z.trace.eye) else {
+                    return Err(ParseError(format!(
+                        "{path}:{line_no}: ZFMT for eye {} before any trace of that eye",
+                        z.trace.eye
+                    )));
+                };
+                let t = &out.traces[index];
+                if z.n != t.n() || z.trace.angles.is_some() != t.angles.is_some() {
+                    return Err(ParseError(format!(
+                        "{path}:{line_no}: ZFMT '{value}' does not match the {} trace of {} points before it",
+                        if t.angles.is_some() { "U" } else { "E" },
+                        t.n()
+                    )));
+                }
+                heights = Some((index, line_no, Vec::with_capacity(z.n.min(MAX_PREALLOCATED_POINTS))));
+            }
+            "Z" => {
+                let Some((index, zline, z)) = heights.as_mut() else {
+                    return Err(ParseError(format!("{path}:{line_no}: Z= record before any ZFMT record")));
+                };
+                let n = out.traces[*index].n();
+                for v in parse_values(value, "height", "1/100 mm", path, line_no)? {
+                    if z.len() == n {
+                        return Err(ParseError(format!(
+                            "{path}:{line_no}: more heights than the {n} declared by ZFMT on line {zline}"
+                        )));
+                    }
+                    z.push(v as f64 * METRES_PER_UNIT);
+                }
             }
             "R" => {
                 let Some(p) = pending.as_mut() else {
@@ -381,6 +441,7 @@ pub fn parse(text: &str, path: &str) -> Result<OmaFile, ParseError> {
     if let Some(p) = pending.take() {
         out.traces.push(p.finish(path)?);
     }
+    finish_heights(&mut out, heights.take())?;
     Ok(out)
 }
 
@@ -474,6 +535,28 @@ pub fn render(file: &OmaFile) -> Result<String, RenderError> {
         push_values(&mut out, "R", &radii);
         if let Some(units) = &angles {
             push_values(&mut out, "A", units);
+        }
+        if let Some(z) = &trace.heights {
+            if z.len() != n {
+                return Err(RenderError(format!("{name}: {} heights for {n} radii", z.len())));
+            }
+            let mut units = Vec::with_capacity(n);
+            for (k, &h) in z.iter().enumerate() {
+                if !h.is_finite() || h.abs() >= MAX_RADIUS {
+                    return Err(RenderError(format!(
+                        "{name}: height {k} is {h} m, not a length within {MAX_RADIUS} m"
+                    )));
+                }
+                units.push((h / METRES_PER_UNIT).round() as i64);
+            }
+            let _ = write!(
+                out,
+                "ZFMT={FORMAT_ASCII};{n};{};{};{}\r\n",
+                if angles.is_some() { "U" } else { "E" },
+                trace.eye,
+                trace.trace_type
+            );
+            push_values(&mut out, "Z", &units);
         }
     }
     Ok(out)
@@ -573,7 +656,13 @@ mod tests {
         let angles: Vec<f64> = (0..13).map(|k| (k as f64 * 27.0 + 0.5).to_radians()).collect();
         let file = OmaFile {
             job: None,
-            traces: vec![Trace { eye: Eye::Both, trace_type: TraceType::Pattern, radii, angles: Some(angles.clone()) }],
+            traces: vec![Trace {
+                eye: Eye::Both,
+                trace_type: TraceType::Pattern,
+                radii,
+                angles: Some(angles.clone()),
+                heights: None,
+            }],
             other: vec![("DO".into(), "B".into())],
         };
         let text = render(&file).unwrap();
@@ -601,10 +690,34 @@ mod tests {
                 trace_type: TraceType::Frame,
                 radii: vec![0.02, 0.02],
                 angles: Some(vec![-0.5f64.to_radians(), 359.996f64.to_radians()]),
+                heights: None,
             }],
             ..Default::default()
         };
         assert!(render(&file).unwrap().contains("A=35950;0\r\n"));
+    }
+
+    #[test]
+    fn heights_round_trip_as_z_records() {
+        let mut t = Trace::equiangular(Eye::Right, TraceType::Frame, vec![0.025, 0.02, 0.025, 0.02]);
+        t.heights = Some(vec![0.00213, -0.0001, 0.002134, 0.0]);
+        let file = OmaFile { traces: vec![t], ..Default::default() };
+        let text = render(&file).unwrap();
+        assert!(text.contains("ZFMT=1;4;E;R;F\r\nZ=213;-10;213;0\r\n"), "{text}");
+        let back = parse(&text, "x").unwrap();
+        let z = back.traces[0].heights.as_ref().unwrap();
+        assert!(z.iter().zip([0.00213, -0.0001, 0.00213, 0.0]).all(|(a, b)| (a - b).abs() < 1e-12), "{z:?}");
+        // Heights that do not fit their trace: named.
+        let e = parse("TRCFMT=1;3;E;R;F\r\nR=1;2;3\r\nZFMT=1;4;E;R;F\r\n", "f").unwrap_err().to_string();
+        assert!(e.contains("f:3: ZFMT '1;4;E;R;F' does not match the E trace of 3 points"), "{e}");
+        let e = parse("TRCFMT=1;3;E;R;F\r\nR=1;2;3\r\nZFMT=1;3;E;L;F\r\n", "f").unwrap_err().to_string();
+        assert!(e.contains("f:3: ZFMT for eye L before any trace of that eye"), "{e}");
+        let e = parse("TRCFMT=1;3;E;R;F\r\nR=1;2;3\r\nZFMT=1;3;E;R;F\r\nZ=1;2\r\n", "f").unwrap_err().to_string();
+        assert!(e.contains("f:3: ZFMT declares 3 points, the Z= records that follow give 2"), "{e}");
+        let e = parse("TRCFMT=1;3;E;R;F\r\nR=1;2;3\r\nZFMT=1;3;E;R;F\r\nZ=1;2;3;4\r\n", "f").unwrap_err().to_string();
+        assert!(e.contains("f:4: more heights than the 3 declared by ZFMT on line 3"), "{e}");
+        let e = parse("Z=1\r\n", "f").unwrap_err().to_string();
+        assert!(e.contains("f:1: Z= record before any ZFMT record"), "{e}");
     }
 
     #[test]
@@ -643,8 +756,11 @@ mod tests {
         assert_eq!(file.traces.len(), 2);
         assert_eq!(file.traces[0].radii, file.traces[1].radii);
         assert!((file.traces[0].radii[5] - 0.02).abs() < 1e-12);
-        assert_eq!(file.other.len(), 3);
+        assert_eq!(file.other.len(), 1);
         assert_eq!(file.other[0], ("REQ".to_string(), "FIL".to_string()));
+        // The sag records are the right trace's heights.
+        assert_eq!(file.traces[0].heights, Some(vec![0.0; 10]));
+        assert_eq!(file.traces[1].heights, None);
         // No trace at all is not an error.
         assert!(parse("JOB=1\r\n", "x").unwrap().traces.is_empty());
     }
