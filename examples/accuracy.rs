@@ -28,6 +28,13 @@
 //!    (inside, a 0.5 mm tip, `full_tip`), each trial calibrated from its own scans: how
 //!    often the reported U95 of circumference, A, B and FED covers the exact figure, the
 //!    mean U95 and the mean error, at σ = 1, 5 and 10 µm.
+//! 6. The third dimension: a tracer with a height channel (the engine's simulator,
+//!    `simulate_heights`), the holder tilted 0.1° against the axis, σ = 5 µm radial and in
+//!    height, a 0.5 mm ball; through the cell (`NodeState`: the plate and a flat 110° ring
+//!    gauge with heights, `/calibrate` with `full_tip`, then a 52×32 mm frame in a 110°
+//!    groove on a sphere of base 2, 4, 6, 8; a quarter of the trials a base): the 3-D
+//!    length's mean error, spread and U95 coverage, the frame curve's worst error, and the
+//!    axis tilt's spread against what the calibration states.
 
 #[path = "../tests/common/size_coverage.rs"]
 #[allow(dead_code)] // shared with tests/sizes.rs and tests/stylus_tip.rs
@@ -227,6 +234,103 @@ fn main() {
 
     println!("5. Size figures: share of trials whose U95 covers the exact [C, A, B, FED], {trials} a row");
     size_part(trials);
+    println!();
+
+    println!("6. The third dimension: frames on a sphere, a height channel, {} trials a base", trials.max(4) / 4);
+    height_part(trials.max(4) / 4);
+}
+
+/// Part 6 (module docs).
+fn height_part(trials: usize) {
+    use tracer_calib::cell::NodeState;
+    use tracer_calib::engine::shape::Shape;
+    use tracer_calib::engine::simulate::{HeightOptions, on_sphere, simulate_heights};
+    use tracer_calib::engine::stylus::Groove;
+    use tracer_calib::interfaces::{CalibrateRequest, Header, RawScan};
+    use tracer_calib::params::Parameters;
+    let groove = 110f64.to_radians();
+    let truth = Mounting::new(2f64.to_radians(), 0.005, 0.002);
+    let plate = PlateSpec::default();
+    let ring = Ellipse { center: Vector2::new(-0.0006, 0.0004), a: 0.020, b: 0.020, angle: 0.0 };
+    let frame = RoundedRect { center: Vector2::new(0.001, -0.0005), half_w: 0.026, half_h: 0.016, radius: 0.005 };
+    let tilt = [0.1f64.to_radians(), 0.0];
+    let heights = HeightOptions { zero: 0.0, tilt, noise: 5e-6, quantum: 1e-7 };
+    let scan = |sim: &tracer_calib::engine::simulate::SimScan, id: u32, target: u8, z: &[f64]| RawScan {
+        header: Header::default(),
+        scan_id: id,
+        target,
+        steps_per_revolution: 400,
+        step: sim.scan.samples().iter().map(|s| s.step).collect(),
+        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+        height_counts: z.iter().map(|h| (h / 1e-7).round() as i32).collect(),
+    };
+    println!(
+        "{:>6} {:>14} {:>16} {:>9} {:>12} {:>16} {:>18}",
+        "base", "L3 - C [mm]", "mean error µm", "sd µm", "U95 covers", "curve worst D", "tilt sd / stated"
+    );
+    let mut rng = StdRng::seed_from_u64(90);
+    for base in [2.0, 4.0, 6.0, 8.0] {
+        let surface = on_sphere(base, frame.center + Vector2::new(0.004, 0.0015), 0.002);
+        // The true 3-D length: 20 000 points round the frame, each at its height.
+        let n = 20_000;
+        let at = |i: usize| {
+            let t = std::f64::consts::TAU * i as f64 / n as f64;
+            let u = Vector2::new(t.cos(), t.sin());
+            let p = frame.exit(frame.center, u).map_or(frame.center, |hit| frame.center + u * hit.t);
+            nalgebra::Vector3::new(p.x, p.y, surface(p))
+        };
+        let length: f64 = (0..n).map(|i| (at(i + 1) - at(i)).norm()).sum();
+        let (mut err, mut err2, mut covered, mut worst, mut tilts, mut stated) = (0.0, 0.0, 0, 0.0f64, Vec::new(), 0.0);
+        for _ in 0..trials {
+            let mut params = Parameters { model: ModelKind::FullTip, ..Parameters::default() };
+            params.ring_diameter = 0.040;
+            params.ring_groove_angle = groove;
+            params.frame_groove = Groove::new(groove, 0.0);
+            params.height_meters_per_count = 1e-7;
+            let mut st = NodeState::new("/tracer_calibrator".into(), params);
+            let opt = |inside| SimOptions {
+                noise: 5e-6,
+                quantum: 1e-6,
+                tip_radius: 0.0005,
+                inside,
+                groove_angle: if inside { groove } else { std::f64::consts::PI },
+                ..SimOptions::default()
+            };
+            let p = simulate(&plate.at(Vector2::new(0.0008, -0.0005)), &truth, &opt(false), &mut rng).unwrap();
+            let r = simulate(&ring, &truth, &opt(true), &mut rng).unwrap();
+            let f = simulate(&frame, &truth, &opt(true), &mut rng).unwrap();
+            let zp = simulate_heights(&p, |_| 0.0, &heights, &mut rng).unwrap();
+            let zr = simulate_heights(&r, |_| -0.0015, &heights, &mut rng).unwrap();
+            let zf = simulate_heights(&f, &surface, &heights, &mut rng).unwrap();
+            st.on_raw_scan(&scan(&p, 1, RawScan::TARGET_CALIBRATION_PLATE, &zp), false).unwrap();
+            st.on_raw_scan(&scan(&r, 2, RawScan::TARGET_RING_GAUGE, &zr), false).unwrap();
+            let out = st.on_calibrate(&CalibrateRequest { scan_id: 1, ring_scan_id: 2, ..CalibrateRequest::default() });
+            if !out.response.success {
+                continue;
+            }
+            tilts.push(st.params.axis_tilt.angles[0]);
+            stated += st.params.axis_tilt.covariance[0].sqrt();
+            let c = st.on_raw_scan(&scan(&f, 3, RawScan::TARGET_FRAME, &zf), false).unwrap().contour;
+            let e = c.circumference_3d - length;
+            err += e;
+            err2 += e * e;
+            covered += usize::from(e.abs() <= c.circumference_3d_u95);
+            worst = worst.max((c.frame_curve - base).abs());
+        }
+        let k = tilts.len().max(1) as f64;
+        let mean_tilt = tilts.iter().sum::<f64>() / k;
+        let tilt_sd = (tilts.iter().map(|t| (t - mean_tilt).powi(2)).sum::<f64>() / (k - 1.0).max(1.0)).sqrt();
+        println!(
+            "{:>6.0} {:>14.3} {:>16.2} {:>9.2} {:>11.1}% {:>16.4} {:>18.3}",
+            base,
+            (length - frame.exact_sizes()[0]) * 1e3,
+            err / k * 1e6,
+            (err2 / k - (err / k).powi(2)).max(0.0).sqrt() * 1e6,
+            covered as f64 / k * 100.0,
+            worst,
+            tilt_sd / (stated / k)
+        );
+    }
 }
 
 /// Part 5 (module docs).

@@ -53,8 +53,7 @@ fn heights_over_dds_and_a_driver_without_them() {
     let dp = ctx.domain_participant();
     let qos: QosPolicies = (&reliable(10)).into();
     let topic = dp.create_topic("rt/raw_scan".into(), RawScan::NAME.dds_type_name(), &qos, TopicKind::NoKey).unwrap();
-    let earlier =
-        dp.create_publisher(&qos).unwrap().create_datawriter_no_key::<Raw, RawAdapter>(&topic, None).unwrap();
+    let earlier = dp.create_publisher(&qos).unwrap().create_datawriter_no_key::<Raw, RawAdapter>(&topic, None).unwrap();
     let spinner = smol::spawn(peer.spinner().unwrap().spin());
 
     // A 52 x 32 mm frame on a base-6 sphere, traced by an ideally mounted tracer (the node
