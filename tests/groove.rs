@@ -18,7 +18,7 @@ use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
 use raytrace::{Circle, RoundedBox, Tracer};
 use tracer_calib::engine::angle::HarmonicOrders;
-use tracer_calib::engine::calibrate::{CalibrationError, Options, Ring, calibrate_with_ring};
+use tracer_calib::engine::calibrate::{CalibrationError, Options, Ring, calibrate_placements, calibrate_with_ring};
 use tracer_calib::engine::correct::{Corrector, resample_radii_with_gain};
 use tracer_calib::engine::geometry::Mounting;
 use tracer_calib::engine::model::tip::RingSpec;
@@ -266,6 +266,41 @@ fn a_grooved_ring_entered_as_a_plain_bore_is_refused_as_that() {
     let e = calibrate(RingSpec::grooved(DIAMETER, deg(140.0))).unwrap_err();
     let CalibrationError::RingGroove { fits, stddev, .. } = e else { panic!("{e}") };
     assert!((fits - deg(110.0)).abs() < 3.0 * stddev, "{} ± {}", fits.to_degrees(), stddev.to_degrees());
+}
+
+/// The same with two placements of the plate and the turntable's angle harmonics fitted
+/// (the fit of several placements): refused as the groove, not as the scale.
+#[test]
+fn a_grooved_ring_entered_as_a_plain_bore_is_refused_as_that_with_two_placements() {
+    let mut rng = StdRng::seed_from_u64(17);
+    let tracer = tracer(0.0005, 5e-6);
+    let at =
+        |turn: f64| RoundedBox { c: Vector2::new(0.0008, -0.0005), hw: SIDE / 2.0, hh: SIDE / 2.0, r: CORNER, turn };
+    let ring = Circle { c: Vector2::new(-0.0006, 0.0004), r: DIAMETER / 2.0 };
+    let first = tracer.trace(&at(0.0), false, &mut rng);
+    let second = tracer.trace(&at(deg(22.5)), false, &mut rng);
+    let ring_scan = tracer.trace_groove(&ring, true, deg(110.0), &mut rng);
+    let opt = Options {
+        model: ModelKind::FullTip,
+        angle_harmonics: HarmonicOrders::new(&[1, 2]).unwrap(),
+        ..Options::default()
+    };
+    let plate_spec = PlateSpec { side: SIDE, corner_radius: CORNER };
+    let calibrate = |spec: RingSpec| {
+        calibrate_placements(&[&first, &second], Some(Ring { scan: &ring_scan, spec }), &plate_spec, &opt)
+    };
+    let e = calibrate(RingSpec::plain(DIAMETER)).unwrap_err();
+    println!("two placements: {e}");
+    let CalibrationError::RingGroove { entered, fits, stddev } = e else { panic!("{e}") };
+    assert_eq!(entered, std::f64::consts::PI);
+    assert!(
+        (fits - deg(110.0)).abs() < 3.0 * stddev && stddev < deg(5.0),
+        "{} ± {}",
+        fits.to_degrees(),
+        stddev.to_degrees()
+    );
+    let cal = calibrate(RingSpec::grooved(DIAMETER, deg(110.0))).unwrap();
+    assert!((cal.tip_radius - 0.0005).abs() < 4.0 * cal.tip_radius_stddev, "{}", cal.tip_radius);
 }
 
 #[test]

@@ -678,7 +678,20 @@ pub fn calibrate_placements(
         let ring_scan = if known_scale == 1.0 { Cow::Borrowed(ring.scan) } else { Cow::Owned(scaled(ring.scan)?) };
         if plates.len() > 1 || !opt.angle_harmonics.is_empty() {
             let plates = plates.iter().map(|s| scaled(s)).collect::<Result<Vec<_>, _>>()?;
-            return fit_turntable(&plates, Some((&ring_scan, &ring.spec)), plate, opt, known_scale);
+            let fit_with = |spec: &RingSpec| fit_turntable(&plates, Some((&ring_scan, spec)), plate, opt, known_scale);
+            return match fit_with(&ring.spec) {
+                Err(CalibrationError::ScaleOff { estimate, .. }) => {
+                    // The scale the plates show with the ring's groove taken as `spec`.
+                    let scale_at = |spec: &RingSpec| match fit_with(spec) {
+                        Ok(cal) => cal.scale_check.map(|e| relative_scale(e, opt)),
+                        Err(CalibrationError::ScaleOff { estimate, .. }) => Some(relative_scale(estimate, opt)),
+                        Err(_) => None,
+                    };
+                    Err(ring_groove_instead(&ring.spec, opt, estimate, scale_at)
+                        .unwrap_or(CalibrationError::ScaleOff { estimate, k0: opt.scale }))
+                }
+                other => other,
+            };
         }
         let fit = fit_tip(&scan, &ring_scan, &ring.spec, plate, opt)?;
         let fit = Fit { scale: fit.scale * known_scale, ..fit };
@@ -688,7 +701,12 @@ pub fn calibrate_placements(
         let result = finish(&scan, &[], fit, Some((&ring_scan, &ring.spec)), opt, score);
         return match result {
             Err(CalibrationError::ScaleOff { estimate, .. }) => {
-                Err(ring_groove_instead(&scan, &ring_scan, &ring.spec, plate, opt, estimate)
+                let scale_at = |spec: &RingSpec| {
+                    let fit = fit_tip(&scan, &ring_scan, spec, plate, opt).ok()?;
+                    let grown = FullModel::from_scan(&plate.grown(fit.tip_radius), &scan);
+                    scale_score(grown.retain(|i| fit.used[i]), &fit.x, opt.plate_side_uncertainty)
+                };
+                Err(ring_groove_instead(&ring.spec, opt, estimate, scale_at)
                     .unwrap_or(CalibrationError::ScaleOff { estimate, k0: opt.scale }))
             }
             other => other,
@@ -1415,6 +1433,11 @@ fn fit_tip(
     Ok(Fit { scale, tip_radius, ring: Some((ring_center, ring_residuals, ring_used)), ..fit })
 }
 
+/// A scale estimate in force's terms as one relative to the scale in force.
+fn relative_scale(e: ScaleEstimate, opt: &Options) -> ScaleEstimate {
+    ScaleEstimate { scale: e.scale / opt.scale, stddev: e.stddev / opt.scale }
+}
+
 /// A tip model's plate showing a scale off ([`CalibrationError::ScaleOff`], `off` the
 /// estimate in force's terms) may be a ring whose groove is not the one entered: the
 /// ring's contact factor `c = 1/sin(γ/2)` ([`crate::engine::stylus`]) moves the fitted
@@ -1423,25 +1446,19 @@ fn fit_tip(
 /// and its root `k(c*) = 1` by two secant steps (a fit each); `u(c*) = u(k)/|k'|`.
 /// The refusal names the groove when `c* ≥ 1` (a groove can have it), it differs from
 /// `c₀` by more than 3 `u`, and at `c*` the scale agrees with the one in force; else
-/// `None` (the scale it is).
+/// `None` (the scale it is). `scale_of(spec)`: the scale the plate shows (relative to the
+/// one in force) fitted with the ring taken as `spec` (one placement's tip fit, or the
+/// turntable's fit of several).
 fn ring_groove_instead(
-    scan: &Scan,
-    ring_scan: &Scan,
     ring: &RingSpec,
-    plate: &PlateSpec,
     opt: &Options,
     off: ScaleEstimate,
+    scale_of: impl Fn(&RingSpec) -> Option<ScaleEstimate>,
 ) -> Option<CalibrationError> {
-    let relative = |e: ScaleEstimate| ScaleEstimate { scale: e.scale / opt.scale, stddev: e.stddev / opt.scale };
     let angle_of = |c: f64| (c >= 1.0).then(|| 2.0 * (1.0 / c).asin());
-    let scale_at = |c: f64| -> Option<ScaleEstimate> {
-        let spec = RingSpec::grooved(ring.diameter, angle_of(c)?);
-        let fit = fit_tip(scan, ring_scan, &spec, plate, opt).ok()?;
-        let grown = FullModel::from_scan(&plate.grown(fit.tip_radius), scan);
-        scale_score(grown.retain(|i| fit.used[i]), &fit.x, opt.plate_side_uncertainty)
-    };
+    let scale_at = |c: f64| -> Option<ScaleEstimate> { scale_of(&RingSpec::grooved(ring.diameter, angle_of(c)?)) };
     // The secant twice: k(c) bends a little over a tenth of c.
-    let (mut a, mut ka) = (ring.contact_factor(), relative(off).scale);
+    let (mut a, mut ka) = (ring.contact_factor(), relative_scale(off, opt).scale);
     let (mut b, mut at) = (a + 0.05, scale_at(a + 0.05)?);
     let mut slope = 0.0;
     for _ in 0..2 {
