@@ -281,7 +281,18 @@ fn base_8_frames_in_3d() {
 fn without_heights_the_3d_figures_are_the_2d_ones() {
     let mut rng = StdRng::seed_from_u64(41);
     let mut st = cell();
+    let history = std::env::temp_dir().join(format!("tracer_calib_height_{}.jsonl", std::process::id()));
+    let _ = std::fs::remove_file(&history);
+    st.params.history_file = history.display().to_string();
     calibrate(&mut st, &mut rng, (1, 2));
+    // The history record carries the tilt fitted with the calibration.
+    let record: serde_json::Value =
+        serde_json::from_str(std::fs::read_to_string(&history).unwrap().lines().last().unwrap()).unwrap();
+    let _ = std::fs::remove_file(&history);
+    let fitted = st.params.axis_tilt;
+    assert_eq!(record["axis_tilt"], serde_json::json!(fitted.angles), "{record}");
+    assert_eq!(record["axis_tilt_covariance"].as_array().map(Vec::len), Some(4));
+    assert!((fitted.angles[0] - TILT[0]).abs() < 5e-5, "{:?}", fitted.angles);
     let frame = Frame::new(6.0);
     let (fs, _, _) =
         tracer().trace_3d(&frame.shape, true, 110f64.to_radians(), |p| frame.height(p), &channel(), &mut rng);

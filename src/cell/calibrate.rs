@@ -149,6 +149,7 @@ impl NodeState {
         // The covariance's names where they say more than the five: with an angle error.
         let names_in_force =
             if response.angle_coefficients.is_empty() { Vec::new() } else { response.covariance_names.clone() };
+        let fitted_tilt = tilt.as_ref().and_then(|t| t.as_ref().ok());
         let record = Record {
             format: records::format_for(&response.angle_coefficients),
             time: records::format_utc(now.wall),
@@ -170,6 +171,9 @@ impl NodeState {
             angle_coefficients: response.angle_coefficients.clone(),
             plate_scan_ids: more_ids,
             noise_lag1: cal.noise_lag1,
+            axis_tilt: fitted_tilt.map(|t| t.angles.to_vec()).unwrap_or_default(),
+            axis_tilt_covariance: fitted_tilt.map(|t| t.covariance.to_vec()).unwrap_or_default(),
+            height_zero: fitted_tilt.map_or(0.0, |t| t.height_zero),
             previous: previous.map(Previous::from),
             ros_time: Some(records::RosTime::from_nanos(now.ros.to_nanos())),
         };

@@ -83,6 +83,16 @@ pub struct Record {
     /// measured (`calibration.noise_lag1`); absent: 0, white.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub noise_lag1: f64,
+    /// The turntable axis's tilt fitted with the calibration from the artefacts' heights
+    /// (`calibration.axis_tilt`, `[τ_x, τ_y]` rad); absent: none fitted (no heights).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub axis_tilt: Vec<f64>,
+    /// Its covariance, 2×2 row-major, rad² (`calibration.axis_tilt_covariance`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub axis_tilt_covariance: Vec<f64>,
+    /// The holder's plane's height where the axis meets it, m (`calibration.height_zero`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub height_zero: f64,
     /// The calibration this one replaced; `None` (`null`) if there was none.
     pub previous: Option<Previous>,
     /// The node's ROS time when it was applied (simulated time under `use_sim_time`;
@@ -394,6 +404,9 @@ impl Record {
             angle_coefficients: Vec::new(),
             plate_scan_ids: Vec::new(),
             noise_lag1: 0.0,
+            axis_tilt: Vec::new(),
+            axis_tilt_covariance: Vec::new(),
+            height_zero: 0.0,
             previous: None,
             ros_time: None,
         }
