@@ -395,6 +395,9 @@ fn history_table_json_and_svg_with_a_torn_last_line() {
             angle_coefficients: Vec::new(),
             plate_scan_ids: Vec::new(),
             noise_lag1: 0.0,
+            axis_tilt: Vec::new(),
+            axis_tilt_covariance: Vec::new(),
+            height_zero: 0.0,
             previous,
             ros_time: None,
         };
