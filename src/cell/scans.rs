@@ -107,17 +107,17 @@ impl NodeState {
         // tilt taken at the ball's centre (engine::height).
         let tilt = self.params.axis_tilt_in_force();
         let raw_heights = intake::heights(msg, self.params.height_meters_per_count);
-        let above = |centres: &[Point]| -> Vec<f64> {
-            centres.iter().zip(&raw_heights).map(|(c, h)| tilt.height_above(&Vector2::new(c.x, c.y), *h)).collect()
+        let above = |centres: &mut dyn Iterator<Item = Vector2<f64>>| -> Vec<f64> {
+            centres.zip(&raw_heights).map(|(c, h)| tilt.height_above(&c, *h)).collect()
         };
         let heights = if tip == 0.0 {
             corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, emit);
-            above(&points)
+            above(&mut points.iter().map(|p| Vector2::new(p.x, p.y)))
         } else {
             // The tip's centre first, then the surface it touched (engine::stylus).
             let mut path = Vec::with_capacity(n);
             corrector.correct_counts(&msg.step, &msg.counts, self.params.meters_per_count, |p| path.push(p));
-            let heights = above(&path.iter().map(|p| Point { x: p.x, y: p.y, z: 0.0 }).collect::<Vec<_>>());
+            let heights = above(&mut path.iter().copied());
             let closed = goes_round(&msg.step, steps_per_rev);
             touched_surface(&mut path, offset, traced, closed);
             path.into_iter().for_each(&mut emit);

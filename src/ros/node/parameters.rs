@@ -131,6 +131,10 @@ pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, params: &Pa
         (names::TIP_RADIUS, RosValue::Double(params.tip_radius)),
         (names::ANGLE_COEFFICIENTS, RosValue::DoubleArray(params.angle_coefficients.clone())),
         (names::COVARIANCE_NAMES, RosValue::StringArray(params.covariance_names.clone())),
+        (names::NOISE_LAG1, RosValue::Double(params.noise_lag1)),
+        (names::AXIS_TILT, RosValue::DoubleArray(params.axis_tilt.angles.to_vec())),
+        (names::AXIS_TILT_COVARIANCE, RosValue::DoubleArray(params.axis_tilt.covariance.to_vec())),
+        (names::HEIGHT_ZERO, RosValue::Double(params.axis_tilt.height_zero)),
     ]
     .map(|(name, value)| ros2_client::Parameter { name: name.to_string(), value });
     if let Err(err) = e.set_parameters(params.to_vec()) {
