@@ -308,22 +308,30 @@ def test_hmi_read_only(peer):
         client = peer.param_client("/tracer_calibrator", timeout=30)
         before = {p: file_state(p) for p in (params, history)}
         resample = peer.param(lambda: client.get_parameters(["resample_points"])).values[0].integer_value
-        hmi = subprocess.Popen(
-            [sys.executable, "-c", HMI, "30", "8"],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=dict(CYCLONE_ENV),
-        )
         lens = tn.simulate("hmi_lens", "ellipse", seed=8)
         sent = 0
-        t0 = time.monotonic()
-        while hmi.poll() is None and time.monotonic() - t0 < 90:
-            peer.send_scan(pub, tn.raw_scan(300 + sent, RawScan.TARGET_LENS, *lens), contours, timeout=30)
-            sent += 1
-            pause = time.monotonic() + 0.5
-            peer.spin_until(lambda: time.monotonic() >= pause, 5, "a pause")
-        out, err = hmi.communicate(timeout=30)
+        # The stock secure Cyclone peer now and then dies of a signal, printing nothing, as
+        # its middleware refuses an endpoint the policy denies: such a run is tried again
+        # (twice at most, said in the result); any other outcome is the test's.
+        crashes = []
+        for _ in range(3):
+            hmi = subprocess.Popen(
+                [sys.executable, "-c", HMI, "30", "8"],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+                env=dict(CYCLONE_ENV),
+            )
+            t0 = time.monotonic()
+            while hmi.poll() is None and time.monotonic() - t0 < 90:
+                peer.send_scan(pub, tn.raw_scan(300 + sent, RawScan.TARGET_LENS, *lens), contours, timeout=30)
+                sent += 1
+                pause = time.monotonic() + 0.5
+                peer.spin_until(lambda: time.monotonic() >= pause, 5, "a pause")
+            out, err = hmi.communicate(timeout=30)
+            if hmi.returncode >= 0 or any(line.startswith("{") for line in out.splitlines()):
+                break
+            crashes.append(hmi.returncode)
         after = {p: file_state(p) for p in (params, history)}
         resample_after = peer.param(lambda: client.get_parameters(["resample_points"])).values[0].integer_value
     finally:
@@ -331,7 +339,7 @@ def test_hmi_read_only(peer):
             hmi.kill()
         node.stop()
     lines = [line for line in out.splitlines() if line.startswith("{")]
-    assert lines, f"the HMI printed nothing:\n{out}\n{err}"
+    assert lines, f"the HMI printed nothing (exit status {hmi.returncode}; earlier runs died of {crashes}):\n{out}\n{err}"
     seen = json.loads(lines[-1])
     assert seen["contours"] > 0, f"the HMI got no contour: {seen}"
     assert seen["calibration"] == [30], f"the HMI got calibrations {seen['calibration']}"
@@ -345,6 +353,7 @@ def test_hmi_read_only(peer):
         f"HMI got {seen['contours']} contours, calibration of scan {seen['calibration'][0]}, "
         f"{seen['diagnostics']} diagnostics; /calibrate: {seen['calibrate']}; set_parameters: {seen['set_param']}; "
         "params and history files untouched"
+        + (f" (the stock peer died of signal(s) {crashes} first, run again)" if crashes else "")
     )
 
 
