@@ -35,18 +35,7 @@ fn deg(d: f64) -> f64 {
 }
 
 fn tracer(ball: f64, sigma: f64) -> Tracer {
-    Tracer {
-        alpha0: 2f64.to_radians(),
-        d: 0.005,
-        dl: 0.002,
-        k: 1.0,
-        angle: Vec::new(),
-        ball,
-        sigma,
-        lag1: 0.0,
-        count: 0.0,
-        steps: 400,
-    }
+    Tracer::typical(ball, sigma, 0.0)
 }
 
 /// One row: the ring's and the frames' groove, the ball, the frames' angle's spread.

@@ -44,18 +44,7 @@ struct Grooves {
 const PLAIN: Grooves = Grooves { ring: 110.0, frame: 110.0, ball: 0.0005 };
 
 fn tracer(ball: f64) -> Tracer {
-    Tracer {
-        alpha0: 2f64.to_radians(),
-        d: 0.005,
-        dl: 0.002,
-        k: 1.0,
-        angle: Vec::new(),
-        ball,
-        sigma: SIGMA,
-        lag1: 0.0,
-        count: COUNT,
-        steps: 400,
-    }
+    Tracer::typical(ball, SIGMA, COUNT)
 }
 
 fn channel() -> HeightChannel {

@@ -63,18 +63,7 @@ fn normal(rng: &mut StdRng) -> f64 {
 
 fn run(sigma: f64, lag1: f64, inputs: Inputs, trials: usize, seed: u64) -> Tally {
     let mut rng = StdRng::seed_from_u64(seed);
-    let tracer = Tracer {
-        alpha0: 2f64.to_radians(),
-        d: 0.005,
-        dl: 0.002,
-        k: 1.0,
-        angle: ANGLE.to_vec(),
-        ball: BALL,
-        sigma,
-        lag1,
-        count: 0.0,
-        steps: 400,
-    };
+    let tracer = Tracer { angle: ANGLE.to_vec(), lag1, ..Tracer::typical(BALL, sigma, 0.0) };
     let frame = RoundedBox { c: Vector2::new(0.001, -0.0005), hw: 0.026, hh: 0.016, r: 0.005, turn: 0.0 };
     let truth = frame.figures();
     let orders = HarmonicOrders::new(&[1, 2, 4]).unwrap();

@@ -57,14 +57,16 @@ impl NodeState {
         } else {
             intake::check(msg, self.params.meters_per_count).map(|()| None)
         };
+        // The heights, metres (empty without a height channel): kept with a plate or ring
+        // scan, and each point's z below.
+        let raw_heights = intake::heights(msg, self.params.height_meters_per_count);
         if let Some(scan) = checked.map_err(|e| self.reject(msg, e))? {
             let keep = if msg.target == RawScan::TARGET_RING_GAUGE { &mut self.rings } else { &mut self.plates };
             keep.retain(|p| p.scan_id != msg.scan_id);
             if keep.len() == PLATE_SCANS_KEPT {
                 keep.pop_front();
             }
-            let heights = intake::heights(msg, self.params.height_meters_per_count);
-            keep.push_back(KeptScan { scan_id: msg.scan_id, scan, heights });
+            keep.push_back(KeptScan { scan_id: msg.scan_id, scan, heights: raw_heights.clone() });
         }
         let calibration = self.params.calibration_in_force();
         let mounting = calibration.unwrap_or(Mounting::IDEAL);
@@ -106,7 +108,6 @@ impl NodeState {
         // With a height channel, each point's height above the holder's plane, the axis's
         // tilt taken at the ball's centre (engine::height).
         let tilt = self.params.axis_tilt_in_force();
-        let raw_heights = intake::heights(msg, self.params.height_meters_per_count);
         let above = |centres: &mut dyn Iterator<Item = Vector2<f64>>| -> Vec<f64> {
             centres.zip(&raw_heights).map(|(c, h)| tilt.height_above(&c, *h)).collect()
         };

@@ -92,6 +92,25 @@ pub struct Tracer {
 }
 
 impl Tracer {
+    /// The tracer of docs/model.md's truth (alpha0 2°, d 5 mm, dL 2 mm, exact scale and
+    /// angle, white noise), 400 steps a turn, with a ball of radius `ball`, noise `sigma`
+    /// and counts of `count` (0: not rounded).
+    #[allow(dead_code)] // not every test takes it
+    pub fn typical(ball: f64, sigma: f64, count: f64) -> Tracer {
+        Tracer {
+            alpha0: 2f64.to_radians(),
+            d: 0.005,
+            dl: 0.002,
+            k: 1.0,
+            angle: Vec::new(),
+            ball,
+            sigma,
+            lag1: 0.0,
+            count,
+            steps: 400,
+        }
+    }
+
     fn rail(&self, k: u32) -> (Vector2<f64>, Vector2<f64>) {
         let phi = std::f64::consts::TAU * f64::from(k) / f64::from(self.steps);
         let eps: f64 =
