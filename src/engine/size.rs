@@ -18,8 +18,10 @@
 //! **The figures** ([`Sizes`]), on a grid of [`GRID`] angles: the circumference
 //! `C = ∮ √(r² + r'²) dθ` (trapezoid, spectrally accurate on a periodic function); the box
 //! `A = max x - min x`, `B = max y - min y` (`x = r cos θ`, `y = r sin θ`, each extreme
-//! refined by a parabola through its grid neighbours); the FED, twice the largest distance
-//! from the box centre.
+//! refined by a parabola through its grid neighbours; a frame's flat sides from the raw
+//! points, `raw_extreme`); the FED, twice the largest distance from the box centre: each
+//! far crest (a frame's corner) a circle fitted to its raw points (`raw_far`), the largest
+//! of near-equal crests corrected for the bias of a maximum (`largest_of`).
 //!
 //! **Their response to a small radial change `δr(θ)`** ([`Sizes::response`]): first order,
 //! `δC = ∮ (r δr + r' δr')/√(r² + r'²) dθ`; an extreme moves with the point it is at
@@ -251,6 +253,122 @@ fn raw_extreme(
     })
 }
 
+/// A candidate for the FED's far point: a local maximum of the distance from the box
+/// centre, its value and where it is.
+#[derive(Debug, Clone, PartialEq)]
+struct FarPoint {
+    /// Its distance from the box centre (half the FED if it is the farthest).
+    value: f64,
+    /// The contour's polar angle there.
+    angle: f64,
+    /// The unit vector from the box centre towards it.
+    direction: Vector2<f64>,
+    /// From the raw points ([`raw_far`]): the value's first-order weight on each point's
+    /// radial change, `(θ_i, w_i)`; `None`: the smooth's own value at `angle`.
+    raw: Option<Vec<(f64, f64)>>,
+}
+
+/// The distance from the box centre `c` of a far point, from the raw points themselves:
+/// the circle `|P - a| = R` fitted (geometrically, Gauss-Newton from the algebraic fit) to
+/// the `2h + 1` points nearest the direction `e` seen from `c`, and its farthest point from
+/// `c`, `|a - c| + R`. A rounded corner is a circle, any smooth contour one to second order
+/// (its osculating circle); a parabola in the angle about `c` is not (its quartic term:
+/// +10 µm on a 3 mm corner). The smooth cannot give it: where a frame's corner meets its
+/// sides the curvature jumps, and the truncated harmonics overshoot there by microns
+/// (52 × 32 mm, 5 mm corners: +12.5 µm of FED at 40 harmonics, noise-free), which the
+/// noise then keeps at 40. The weights: `δ(|a - c| + R) = gᵀ δ(a, R)`, `g = ((a - c)/|a - c|,
+/// 1)`, `δ(a, R) = -(JᵀJ)⁻¹ Jᵀ δρ`, each point's residual moved by its radial change times
+/// `n_i·e_r` (`n_i` the circle's normal there). `None` with too few points near `e`, or a
+/// circle that does not hold its points (a flat: the smooth's own is good there).
+fn raw_far(points: &[Vector2<f64>], center: Vector2<f64>, e: Vector2<f64>) -> Option<(f64, Vec<(f64, f64)>)> {
+    const HALF: usize = 3;
+    let angle_of = |p: &Vector2<f64>| {
+        let q = p - center;
+        let a = super::correct::polar_angle(e.x * q.y - e.y * q.x, e.dot(&q));
+        if a > std::f64::consts::PI { a - TAU } else { a }
+    };
+    let mut near: Vec<(f64, Vector2<f64>)> = points.iter().map(|p| (angle_of(p), *p)).collect();
+    near.sort_by(|a, b| a.0.abs().total_cmp(&b.0.abs()));
+    near.truncate(2 * HALF + 1);
+    if near.len() < 2 * HALF + 1 || near.iter().any(|(a, _)| a.abs() > 0.25) {
+        return None;
+    }
+    // In trace order (their noise's correlation runs along it).
+    near.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (a, radius) = fit_circle(&near.iter().map(|n| n.1).collect::<Vec<_>>())?;
+    let to_a = a - center;
+    // The circle must bulge away from the centre (a corner, not a dent).
+    if to_a.dot(&e) <= 0.0 {
+        return None;
+    }
+    // Larger than half its distance from the centre: a broad crest, not a corner.
+    let value = to_a.norm() + radius;
+    if radius > 0.9 * value {
+        return None;
+    }
+    let g = nalgebra::Vector3::new(to_a.x, to_a.y, 0.0) / to_a.norm().max(f64::MIN_POSITIVE)
+        + nalgebra::Vector3::new(0.0, 0.0, 1.0);
+    let rows: Vec<(nalgebra::Vector3<f64>, Vector2<f64>)> = near
+        .iter()
+        .map(|(_, p)| {
+            let n = (p - a) / (p - a).norm();
+            (nalgebra::Vector3::new(-n.x, -n.y, -1.0), n)
+        })
+        .collect();
+    let jtj: nalgebra::Matrix3<f64> = rows.iter().map(|(j, _)| j * j.transpose()).sum();
+    let h = jtj.try_inverse()? * g;
+    let weights = near
+        .iter()
+        .zip(&rows)
+        .map(|((_, p), (j, n))| {
+            let theta = super::correct::polar_angle(p.y, p.x);
+            let e_r = Vector2::new(theta.cos(), theta.sin());
+            (theta, -h.dot(j) * n.dot(&e_r))
+        })
+        .collect();
+    value.is_finite().then_some((value, weights))
+}
+
+/// The circle `|P - a| = R` through `points` by least squares on `|P_i - a| - R`:
+/// Gauss-Newton from the algebraic fit `x² + y² + D x + E y + F = 0`. `None` if the points
+/// do not determine one.
+fn fit_circle(points: &[Vector2<f64>]) -> Option<(Vector2<f64>, f64)> {
+    // Centred and scaled for conditioning.
+    let mean = points.iter().sum::<Vector2<f64>>() / points.len() as f64;
+    let scale = points.iter().map(|p| (p - mean).norm()).fold(0.0, f64::max);
+    if scale <= 0.0 {
+        return None;
+    }
+    let q: Vec<Vector2<f64>> = points.iter().map(|p| (p - mean) / scale).collect();
+    let m: nalgebra::Matrix3<f64> =
+        q.iter().map(|p| nalgebra::Vector3::new(p.x, p.y, 1.0)).map(|v| v * v.transpose()).sum();
+    let b: nalgebra::Vector3<f64> = q.iter().map(|p| -nalgebra::Vector3::new(p.x, p.y, 1.0) * p.norm_squared()).sum();
+    let d = m.try_inverse()? * b;
+    let mut a = Vector2::new(-d[0] / 2.0, -d[1] / 2.0);
+    let mut r = (a.norm_squared() - d[2]).max(0.0).sqrt();
+    for _ in 0..20 {
+        let mut jtj = nalgebra::Matrix3::zeros();
+        let mut jtr = nalgebra::Vector3::zeros();
+        for p in &q {
+            let dist = (p - a).norm();
+            if dist <= 0.0 {
+                return None;
+            }
+            let n = (p - a) / dist;
+            let j = nalgebra::Vector3::new(-n.x, -n.y, -1.0);
+            jtj += j * j.transpose();
+            jtr += j * (dist - r);
+        }
+        let step = jtj.try_inverse()? * jtr;
+        a -= Vector2::new(step[0], step[1]);
+        r -= step[2];
+        if step.norm() < 1e-13 {
+            break;
+        }
+    }
+    (r.is_finite() && r > 0.0).then(|| (mean + a * scale, r * scale))
+}
+
 /// A side's coordinate of a point and the one along the side.
 type Coordinates = dyn Fn(&Vector2<f64>) -> (f64, f64);
 
@@ -267,6 +385,8 @@ pub struct Sizes {
     sides: [Extreme; 4],
     /// Angle of the FED point.
     fed_angle: f64,
+    /// The candidates for the FED's far point, farthest first ([`Sizes::of_noisy`]).
+    far: Vec<FarPoint>,
     /// The box centre.
     center: Vector2<f64>,
     /// `r` and `r'` on the grid.
@@ -311,14 +431,15 @@ impl Sizes {
         let center = Vector2::new((xmax - nxmin) / 2.0, (ymax - nymin) / 2.0);
         let dist: Vec<f64> =
             grid.iter().zip(unit).map(|((r, _), (c, s))| (Vector2::new(*c, *s) * *r - center).norm()).collect();
-        let (fed_angle, far) = refine(&dist, argmax(&dist));
+        let far = far_points(&dist, &grid, center, points, 6.0 * noise + 4.0 * ripple);
         Sizes {
             circumference,
             box_width: xmax + nxmin,
             box_height: ymax + nymin,
-            effective_diameter: 2.0 * far,
+            effective_diameter: 2.0 * far[0].value,
             sides,
-            fed_angle,
+            fed_angle: far[0].angle,
+            far,
             center,
             grid,
         }
@@ -375,7 +496,7 @@ impl Sizes {
         // Each side's response to cos kθ and sin kθ, all k at once (rotation per point).
         let sides = self.side_harmonics(k_max);
         let t_fed = self.fed_angle;
-        let e = (Vector2::new(t_fed.cos(), t_fed.sin()) * self.grid_r(t_fed) - self.center).normalize();
+        let e = self.far_direction();
         let e_r = Vector2::new(t_fed.cos(), t_fed.sin());
         let assemble = |dc: f64, side: [f64; 4], at_fed: f64| -> [f64; 4] {
             let [dxmax, dnxmin, dymax, dnymin] = side;
@@ -427,15 +548,145 @@ impl Sizes {
         let dcenter = Vector2::new(dxmax - dnxmin, dymax - dnymin) / 2.0;
         let t_fed = self.fed_angle;
         let e_r = Vector2::new(t_fed.cos(), t_fed.sin());
-        let e = (e_r * self.grid_r(t_fed) - self.center).normalize();
+        let e = self.far_direction();
         let dfed = 2.0 * (e_r * dr(t_fed) - dcenter).dot(&e);
         [dc, dxmax + dnxmin, dymax + dnymin, dfed]
     }
 
-    fn grid_r(&self, t: f64) -> f64 {
-        let h = TAU / GRID as f64;
-        self.grid[((t / h).round() as usize) % GRID].0
+    /// The unit vector from the box centre towards the FED's far point.
+    fn far_direction(&self) -> Vector2<f64> {
+        self.far[0].direction
     }
+}
+
+/// `Σ_ij a_i a_j φ^|i-j|`, the variance of `Σ a_i n_i` over unit AR(1) noise `n_i` taken
+/// in trace order: `Σ_i a_i (a_i + 2 F_i)`, `F_i = φ (F_(i-1) + a_(i-1))`.
+fn correlated_sum(a: impl Iterator<Item = f64>, phi: f64) -> f64 {
+    let (mut sum, mut forward, mut last) = (0.0, 0.0, 0.0);
+    for a in a {
+        forward = phi * (forward + last);
+        sum += a * (a + 2.0 * forward);
+        last = a;
+    }
+    sum.max(0.0)
+}
+
+/// The candidates for the FED's far point, farthest first: the local maxima of the smooth's
+/// distance `dist` from the box centre `center` on the grid, within `gap` of the largest
+/// and 0.2 rad apart (a frame's corners; a symmetric frame has four equally far), each
+/// taken from the raw `points` where they give it ([`raw_far`]), else the smooth's value
+/// (refined by a parabola). Never empty.
+fn far_points(
+    dist: &[f64],
+    grid: &[(f64, f64)],
+    center: Vector2<f64>,
+    points: &[Vector2<f64>],
+    gap: f64,
+) -> Vec<FarPoint> {
+    let n = dist.len();
+    let mut maxima: Vec<usize> =
+        (0..n).filter(|&i| dist[i] >= dist[(i + n - 1) % n] && dist[i] > dist[(i + 1) % n]).collect();
+    maxima.sort_by(|a, b| dist[*b].total_cmp(&dist[*a]));
+    if maxima.is_empty() {
+        maxima.push(argmax(dist));
+    }
+    let top = dist[maxima[0]];
+    let mut far: Vec<FarPoint> = Vec::new();
+    for i in maxima {
+        let (angle, value) = refine(dist, i);
+        let apart = |f: &FarPoint| {
+            let d = (f.angle - angle).rem_euclid(TAU);
+            d.min(TAU - d) >= 0.2
+        };
+        if !far.is_empty() && (dist[i] < top - gap || !far.iter().all(apart) || far.len() == 8) {
+            continue;
+        }
+        let e_r = Vector2::new(angle.cos(), angle.sin());
+        let direction = (e_r * grid_r_at(grid, angle) - center).try_normalize(0.0).unwrap_or(e_r);
+        let raw = if points.is_empty() { None } else { raw_far(points, center, direction) };
+        // A circle far off the smooth's crest is not this crest's (the smooth is within its
+        // noise of the points).
+        let raw = raw.filter(|(v, _)| (v - value).abs() <= gap.max(1e-6) * 4.0);
+        far.push(match raw {
+            Some((value, weights)) => FarPoint { value, angle, direction, raw: Some(weights) },
+            None => FarPoint { value, angle, direction, raw: None },
+        });
+    }
+    far.sort_by(|a, b| b.value.total_cmp(&a.value));
+    far
+}
+
+/// The FED's far distance from its candidates' values `v_j`, corrected for the bias of
+/// the largest of noisy values, and that estimate's variance. Each candidate has its own
+/// independent noise `ε_j` (variances `own`) and shares the box centre's `δc` (variances
+/// `centre` in x and y): a value is `μ_j + ε_j - e_j·δc`.
+///
+/// The largest of equals is biased up (four at one standard deviation `s`: `+1.03 s`). The
+/// bias `B(μ) = E max_j(μ_j + ε_j - e_j·δc) - max_j μ_j` is taken at `μ̂`, the values shrunk
+/// towards their mean as far as their spread is the noise's (James-Stein: `λ = 1 - (n -
+/// 1) s̄²/Σ(v_j - v̄)²`, at least 0), for the values themselves spread equals apart and
+/// would show less bias than there is. The estimate `T(v) = max_j v_j - B(μ̂(v))`; its
+/// variance is `T`'s over draws about `μ̂`. Both by draws of one fixed sequence (the same
+/// figures for the same trace). One candidate: `v`, `own + e·Σ_c e`.
+fn largest_of(far: &[FarPoint], own: &[f64], centre: [f64; 2]) -> (f64, f64) {
+    if far.len() == 1 {
+        let e = far[0].direction;
+        return (far[0].value, own[0] + e.x * e.x * centre[0] + e.y * e.y * centre[1]);
+    }
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0x00FE_D000);
+    let mut normal = move || -> f64 { StandardNormal.sample(&mut rng) };
+    let sd: Vec<f64> = own.iter().map(|v| v.max(0.0).sqrt()).collect();
+    let sc = centre.map(|v| v.max(0.0).sqrt());
+    let n = far.len();
+    // A draw of every candidate's noise: `s_j z_j - e_j·(s_x z_x, s_y z_y)`.
+    let mut draw = || -> Vec<f64> {
+        let dc = Vector2::new(sc[0] * normal(), sc[1] * normal());
+        far.iter().zip(&sd).map(|(f, s)| s * normal() - f.direction.dot(&dc)).collect()
+    };
+    const INNER: usize = 500;
+    const OUTER: usize = 300;
+    let inner: Vec<Vec<f64>> = (0..INNER).map(|_| draw()).collect();
+    let largest = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let count = n as f64;
+    let s2 = own.iter().sum::<f64>() / count;
+    let shrunk = |v: &[f64]| -> Vec<f64> {
+        let mean = v.iter().sum::<f64>() / count;
+        let spread: f64 = v.iter().map(|x| (x - mean).powi(2)).sum();
+        let lambda = if spread > 0.0 { (1.0 - 2.0 * (count - 1.0) * s2 / spread).max(0.0) } else { 0.0 };
+        v.iter().map(|x| mean + lambda * (x - mean)).collect()
+    };
+    let bias = |mu: &[f64]| -> f64 {
+        let top = largest(mu);
+        let mut with = vec![0.0; n];
+        inner
+            .iter()
+            .map(|e| {
+                with.iter_mut().zip(mu.iter().zip(e)).for_each(|(w, (m, e))| *w = m + e);
+                largest(&with) - top
+            })
+            .sum::<f64>()
+            / INNER as f64
+    };
+    let estimate = |v: &[f64]| largest(v) - bias(&shrunk(v));
+    let values: Vec<f64> = far.iter().map(|f| f.value).collect();
+    let mu = shrunk(&values);
+    let (mut sum, mut sq) = (0.0, 0.0);
+    for _ in 0..OUTER {
+        let v: Vec<f64> = mu.iter().zip(draw()).map(|(m, e)| m + e).collect();
+        let t = estimate(&v);
+        sum += t;
+        sq += t * t;
+    }
+    let mean = sum / OUTER as f64;
+    (estimate(&values), (sq / OUTER as f64 - mean * mean).max(0.0))
+}
+
+/// The grid's `r` nearest the angle `t`.
+fn grid_r_at(grid: &[(f64, f64)], t: f64) -> f64 {
+    let h = TAU / GRID as f64;
+    grid[((t.rem_euclid(TAU) / h).round() as usize) % GRID].0
 }
 
 /// How the corrected contour was made: what moves its points.
@@ -657,7 +908,7 @@ pub fn uncertainty(
     // The smooth holds the information of min(N, M) equal-angle values.
     let n = points.len().min(m).max(1);
     // The smooth's own ripple: 2K + 1 coefficients of n values.
-    let sizes = Sizes::of_noisy(&smooth, noise * ((2 * k + 1) as f64 / n as f64).sqrt(), points, noise);
+    let mut sizes = Sizes::of_noisy(&smooth, noise * ((2 * k + 1) as f64 / n as f64).sqrt(), points, noise);
     let responses = sizes.harmonic_responses(k);
     let mut var_noise = [0.0; 4];
     for (i, g) in responses.iter().enumerate() {
@@ -681,15 +932,7 @@ pub fn uncertainty(
             // (the radial offset at a fixed angle is the normal one over it), and at a
             // side the normal is the side's axis: `|cos θ|` for x, `|sin θ|` for y.
             let along = |t: f64| if k_side < 2 { t.cos() } else { t.sin() };
-            // `Σ_i a_i (a_i + 2 F_i)`, `F_i = φ (F_(i-1) + a_(i-1))`.
-            let (mut sum, mut forward, mut last) = (0.0, 0.0, 0.0);
-            for (t, w) in &side.weights {
-                let a = w * along(*t);
-                forward = phi * (forward + last);
-                sum += a * (a + 2.0 * forward);
-                last = a;
-            }
-            sum.max(0.0) * noise * noise
+            correlated_sum(side.weights.iter().map(|(t, w)| w * along(*t)), phi) * noise * noise
         } else {
             let v: f64 = harmonics[k_side]
                 .iter()
@@ -707,6 +950,45 @@ pub fn uncertainty(
             var_noise[figure] = side_var(pair[0]) + side_var(pair[1]);
         }
     }
+    // The FED: the farthest of its candidates ([`far_points`]). Each one's own noise (its
+    // raw points' or the smooth's ripple there, along its direction `e_j`), the box
+    // centre's, shared (`-e_j·δc`); the largest of noisy candidates is biased up where they
+    // are near each other (a symmetric frame's four corners: by about one standard
+    // deviation), so the FED is corrected by that bias and its variance is the largest's.
+    let density_sum: f64 =
+        (0..=k).map(|kk| if kk == 0 { 1.0 } else { 2.0 } * tn.density(TAU * kk as f64 / big_n as f64)).sum();
+    let own: Vec<f64> = sizes
+        .far
+        .iter()
+        .map(|f| match &f.raw {
+            Some(weights) => correlated_sum(weights.iter().map(|w| w.1), phi) * floor * floor,
+            None => {
+                let along = f.angle.cos() * f.direction.x + f.angle.sin() * f.direction.y;
+                along * along * density_sum * noise * noise / n as f64
+            }
+        })
+        .collect();
+    let raw_pair = |a: usize| sizes.sides[a].raw || sizes.sides[a + 1].raw;
+    let centre_var = [0, 2].map(|pair| {
+        if raw_pair(pair) {
+            (side_var(pair) + side_var(pair + 1)) / 4.0
+        } else {
+            let v: f64 = (0..harmonics[pair].len())
+                .map(|kk| {
+                    let (c, s) = (
+                        harmonics[pair][kk].0 - harmonics[pair + 1][kk].0,
+                        harmonics[pair][kk].1 - harmonics[pair + 1][kk].1,
+                    );
+                    let density = tn.density(TAU * kk as f64 / big_n as f64);
+                    (if kk == 0 { c * c * density } else { 2.0 * (c * c + s * s) * density }) / 4.0
+                })
+                .sum();
+            v * noise * noise / n as f64
+        }
+    });
+    let (far, var_far) = largest_of(&sizes.far, &own, centre_var);
+    sizes.effective_diameter = 2.0 * far;
+    var_noise[3] = 4.0 * var_far;
     // Repeated traces' radial spread, a uniform change of the radius.
     let uniform = sizes.response(|_| 1.0);
     let u_r = tn.reproducibility;
@@ -842,6 +1124,56 @@ mod tests {
     /// A raw side's reported noise (`Σ w² σ²` of the points the smooth chose) is its
     /// spread, and it is unbiased: the top of a 20 mm circle with radial noise, as a lens
     /// side at σ = 10 µm has it (6-8 points), 2000 times.
+    #[test]
+    fn a_circle_through_an_arc_is_found() {
+        let (a, r) = (Vector2::new(0.021, 0.011), 0.005);
+        let arc: Vec<Vector2<f64>> = (0..7)
+            .map(|i| a + Vector2::new((0.3 + 0.08 * i as f64).cos(), (0.3 + 0.08 * i as f64).sin()) * r)
+            .collect();
+        let (centre, radius) = fit_circle(&arc).unwrap();
+        assert!((centre - a).norm() < 1e-12 && (radius - r).abs() < 1e-12, "{centre} {radius}");
+        // Its far point from the origin, with a weight on each of the seven points.
+        let e = a.normalize();
+        let (value, weights) = raw_far(&arc, Vector2::zeros(), e).unwrap();
+        assert!((value - (a.norm() + r)).abs() < 1e-12);
+        assert_eq!(weights.len(), 7);
+    }
+
+    /// Four equally far candidates with unit noise: the plain largest is biased up by about
+    /// one standard deviation; [`largest_of`]'s estimate is not, and its variance is its
+    /// spread's.
+    #[test]
+    fn the_largest_of_equal_candidates_is_corrected_for_its_bias() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let directions =
+            [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)].map(|(x, y)| Vector2::new(x, y).normalize());
+        let trials = 200;
+        let (mut plain, mut corrected, mut sq, mut stated) = (0.0, 0.0, 0.0, 0.0);
+        for _ in 0..trials {
+            let far: Vec<FarPoint> = directions
+                .iter()
+                .map(|&direction| {
+                    let z: f64 = StandardNormal.sample(&mut rng);
+                    FarPoint { value: 10.0 + z, angle: 0.0, direction, raw: None }
+                })
+                .collect();
+            plain += far.iter().map(|f| f.value).fold(f64::MIN, f64::max) - 10.0;
+            let (v, var) = largest_of(&far, &[1.0; 4], [0.0; 2]);
+            corrected += v - 10.0;
+            sq += (v - 10.0).powi(2);
+            stated += var;
+        }
+        let n = trials as f64;
+        let (plain, corrected) = (plain / n, corrected / n);
+        let spread = (sq / n - corrected * corrected).sqrt();
+        let stated = (stated / n).sqrt();
+        assert!((0.85..1.2).contains(&plain), "the plain largest: {plain}");
+        assert!(corrected.abs() < 0.3, "corrected: {corrected}");
+        assert!((stated / spread - 1.0).abs() < 0.25, "stated {stated}, spread {spread}");
+    }
+
     #[test]
     fn a_raw_side_is_unbiased_and_its_weights_tell_its_variance() {
         use rand::SeedableRng;
