@@ -337,6 +337,73 @@ fn simulate_correct_and_read_the_oma_back() {
     assert!((r[0].as_f64().unwrap() - 0.0258).abs() < 3e-5, "{}", r[0]);
     let y = (0.015f64.powi(2) * (1.0 - (0.0008f64 / 0.025).powi(2))).sqrt() - 0.0005;
     assert!((r[100].as_f64().unwrap() - y).abs() < 3e-5, "{} vs {y}", r[100]);
+    // The file's own size records (written from the Contour) agree with what its points
+    // give, to their rounding: no warning.
+    assert_eq!(v["warnings"], serde_json::json!([]), "{v}");
+    for name in ["circumference", "box_width", "box_height", "effective_diameter"] {
+        let (got, record) = (t[name].as_f64().unwrap(), t["records"][name].as_f64().unwrap());
+        assert!((got - record).abs() < 2e-5, "{name}: {got} from the points, {record} in the file");
+    }
+}
+
+/// The radii (1/100 mm) of an `a × b` ellipse at `n` equal angles, ten a line.
+fn ellipse_records(a: f64, b: f64, n: usize) -> String {
+    let radii: Vec<String> = (0..n)
+        .map(|i| {
+            let t = std::f64::consts::TAU * i as f64 / n as f64;
+            let r = a * b / ((b * t.cos()).powi(2) + (a * t.sin()).powi(2)).sqrt();
+            format!("{}", (r * 100.0).round() as i64)
+        })
+        .collect();
+    radii.chunks(10).map(|c| format!("R={}\r\n", c.join(";"))).collect()
+}
+
+/// A lab's job as its systems write it: lens thickness data (`STHKFMT` with its own `R=`)
+/// before the traces, a right eye in a maker's own format, a left eye in format 1 with the
+/// file's CIRC, HBOX, VBOX and FED. The thickness is not taken for radii, the maker's trace
+/// is named in one warning, and the left trace's sizes agree with the file's records to
+/// their rounding; a record that does not is named.
+#[test]
+fn oma_sizes_beside_the_files_records() {
+    // A 52 x 32 mm ellipse: box 52 x 32, FED 52, circumference (Ramanujan, to 1e-8).
+    let (a, b) = (26.0f64, 16.0f64);
+    let h = ((a - b) / (a + b)).powi(2);
+    let circ = std::f64::consts::PI * (a + b) * (1.0 + 3.0 * h / (10.0 + (4.0 - 3.0 * h).sqrt()));
+    let job = |hbox: &str| {
+        format!(
+            "JOB=4711\r\nSTHKFMT=1;4;E;L\r\nR=250;260;270;280\r\nTRCFMT=6;200;E;R;F\r\nR=AAECAwQFBgc=\r\n\
+             CIRC=;{circ:.2}\r\nHBOX=;{hbox}\r\nVBOX=;32.00\r\nFED=;52.00\r\nTRCFMT=1;400;E;L;F\r\n{}",
+            ellipse_records(a, b, 400)
+        )
+    };
+    let path = temp("lab_job.oma");
+    std::fs::write(&path, job("52.00")).unwrap();
+    let o = tool(&["oma", "--input", path.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = json(&o);
+    let traces = v["traces"].as_array().unwrap();
+    assert_eq!(traces.len(), 1, "{v}");
+    let t = &traces[0];
+    assert_eq!((t["eye"].as_str(), t["n"].as_u64()), (Some("L"), Some(400)));
+    let warnings = v["warnings"].as_array().unwrap();
+    assert_eq!(warnings.len(), 1, "{v}");
+    assert!(warnings[0].as_str().unwrap().contains(":4: TRCFMT=6;200;E;R;F: format 6"), "{}", warnings[0]);
+    for (name, truth) in
+        [("circumference", circ), ("box_width", 52.0), ("box_height", 32.0), ("effective_diameter", 52.0)]
+    {
+        let got = t[name].as_f64().unwrap() * 1e3;
+        assert!((got - truth).abs() < 0.01, "{name}: {got} mm, the ellipse's {truth} mm");
+        let record = t["records"][name].as_f64().unwrap() * 1e3;
+        assert!((record - truth).abs() < 0.005, "{name}: the file's {record} mm");
+    }
+    // A box the file states 0.1 mm wider than its trace: named.
+    std::fs::write(&path, job("52.10")).unwrap();
+    let o = tool(&["oma", "--input", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("trace 1 (L eye): HBOX 52.10 mm in the file, 51.99") || e.contains("in the file, 52.00"), "{e}");
+    assert!(e.contains("mm apart, beyond the record's rounding"), "{e}");
+    assert_eq!(e.lines().filter(|l| l.contains("HBOX")).count(), 1, "{e}");
 }
 
 #[test]

@@ -148,6 +148,7 @@ fn main() {
             oma::Trace { eye: oma::Eye::Left, trace_type: oma::TraceType::Lens, radii, angles: Some(angles) },
         ],
         other: vec![("DO".into(), "B".into()), ("ZFMT".into(), "1;36;E;R;F".into())],
+        warnings: Vec::new(),
     };
     put("oma", "two_traces.oma", oma::render(&file).unwrap().as_bytes());
 

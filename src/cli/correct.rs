@@ -258,6 +258,7 @@ fn write_oma(path: &Path, eye: &str, traces: &[Traced]) -> Result<Vec<String>, S
                 .sizes
                 .map(|s| size_records(eye, s, t.third.as_ref().map(|(_, c, f)| (*c, *f))))
                 .unwrap_or_default(),
+            warnings: Vec::new(),
         };
         let target_path = if usable.len() == 1 {
             path.to_path_buf()

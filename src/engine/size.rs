@@ -1074,6 +1074,24 @@ pub fn uncertainty(
     report.sizes.figures().iter().chain(&report.u95).all(|v| v.is_finite()).then_some(report)
 }
 
+/// The figures of a contour given as its points alone (a file's trace: no tracer, no
+/// calibration), each a multiple of `quantum` metres in radius (a file's 1/100 mm): its
+/// radii resampled to `m` equal angles, the figures and their noise's U95 as
+/// [`uncertainty`] takes them (the smooth, the raw points' sides and far corners). `None`
+/// if the points do not go round (a gap over 0.2 rad) or are too few.
+pub fn of_contour(points: &[Vector2<f64>], m: usize, quantum: f64) -> Option<SizeReport> {
+    let (radii, gain) = super::correct::resample_radii_with_gain(points, m, 0.2)?;
+    let correction = Correction {
+        mounting: Mounting::new(0.0, 0.0, 0.0),
+        tip_radius: 0.0,
+        traced: Traced::Outside,
+        groove: Groove::default(),
+        angle_orders: HarmonicOrders::NONE,
+        noise: TraceNoise { quantum, ..TraceNoise::default() },
+    };
+    uncertainty(points, &radii, &gain, &correction, None)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

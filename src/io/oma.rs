@@ -13,7 +13,7 @@
 //! ```
 //!
 //! - `TRCFMT=format;N;E|U;eye;type`: format 1 = ASCII (the only one read or written here;
-//!   2, 3 and 4 are differential and binary encodings, refused with a clear error); `N`
+//!   2, 3 and 4 are differential and binary encodings, not read yet: a warning); `N`
 //!   points; `E` = equiangular, `U` = not (then `A=` records give each point's angle);
 //!   eye `R`, `L` or `B` (both); trace type ([`TraceType`]).
 //! - `R=`: the radii, whole numbers in 1/100 mm, `;`-separated, 10 a line here (a reader
@@ -23,8 +23,14 @@
 //!   of the trace's points (a tracer with a height channel), whole numbers in 1/100 mm,
 //!   signed; `N`, `E|U` and the eye those of the trace before it of that eye
 //!   ([`Trace::heights`]).
+//! - Every dataset opens with its own `...FMT` record (`TRCFMT`, `ZFMT`, a job's lens
+//!   thickness `STHKFMT`, ...), and the data records after it (`R=`, `A=`, `Z=`) are its:
+//!   a dataset that is not a trace is kept as it is, its `R=` never taken for radii. A trace
+//!   in a format not read (2-4, or a maker's own) is a warning naming its line
+//!   ([`OmaFile::warnings`]), its records kept; the rest of the file is read.
 //! - Every other record (`JOB`, `FCRV`, `CIRC`, ...) is kept as it is, not interpreted,
-//!   except `JOB`, which [`OmaFile::job`] carries.
+//!   except `JOB`, which [`OmaFile::job`] carries; chiral ones (`HBOX=right;left`) are read
+//!   per eye with [`OmaFile::chiral`].
 //!
 //! # Angle convention (ours; state it to whoever reads the file)
 //!
@@ -197,9 +203,13 @@ pub struct OmaFile {
     pub job: Option<String>,
     /// The traces, in file order (one a `TRCFMT` block).
     pub traces: Vec<Trace>,
-    /// Every other record, `(label, value)` in file order, not interpreted (e.g. `ZFMT`,
-    /// `Z`, `DO`). Written after `JOB` and before the traces.
+    /// Every other record, `(label, value)` in file order, not interpreted (e.g. `DO`,
+    /// `HBOX`, another dataset's `STHKFMT` and its `R=` records, a trace in a format not
+    /// read). Written after `JOB` and before the traces.
     pub other: Vec<(String, String)>,
+    /// What was not read, one line each naming its line (a trace in a format not read): the
+    /// rest of the file is.
+    pub warnings: Vec<String>,
 }
 
 impl OmaFile {
@@ -207,6 +217,38 @@ impl OmaFile {
     pub fn trace(&self, eye: Eye) -> Option<&Trace> {
         self.traces.iter().find(|t| t.eye == eye)
     }
+
+    /// The value of a chiral record (`LABEL=right;left`, e.g. `HBOX=52.00;52.10`) for
+    /// `eye`: its first field for `R`, its second for `L`, for `B` the first that is not
+    /// empty; `None` if the file has no such record or the field is empty.
+    pub fn chiral(&self, label: &str, eye: Eye) -> Option<&str> {
+        let (_, value) = self.other.iter().find(|(l, _)| l.eq_ignore_ascii_case(label))?;
+        let mut fields = value.split(';').map(str::trim);
+        let (right, left) = (fields.next().unwrap_or(""), fields.next().unwrap_or(""));
+        let field = match eye {
+            Eye::Right => right,
+            Eye::Left => left,
+            Eye::Both => {
+                if right.is_empty() {
+                    left
+                } else {
+                    right
+                }
+            }
+        };
+        (!field.is_empty()).then_some(field)
+    }
+}
+
+/// Whether a record's label opens a dataset of its own (the standard's `...FMT` records:
+/// `TRCFMT`, `ZFMT`, `STHKFMT`, ...): the data records after it (`R=`, `A=`, `Z=`) are its.
+fn opens_dataset(label: &str) -> bool {
+    label.len() > 3 && label.ends_with("FMT")
+}
+
+/// The data records of a dataset.
+fn is_data(label: &str) -> bool {
+    matches!(label, "R" | "A" | "Z" | "ZA")
 }
 
 /// A trace being read: its `TRCFMT` line and what has come so far.
@@ -260,6 +302,20 @@ fn parse_values(value: &str, what: &str, unit: &str, path: &str, line_no: usize)
     Ok(out)
 }
 
+/// What a trace format other than 1 is, for a message.
+fn format_kind(format: u32) -> &'static str {
+    match format {
+        2 => " (ASCII differential)",
+        3 | 4 => " (binary)",
+        _ => " (not the standard's: a maker's own)",
+    }
+}
+
+/// The format number of a `TRCFMT`/`ZFMT` value, if its first field is one.
+fn format_of(value: &str) -> Option<u32> {
+    value.split(';').next()?.trim().parse().ok()
+}
+
 /// Parse a `TRCFMT` value into a pending trace.
 fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, ParseError> {
     let fields: Vec<&str> = value.split(';').map(str::trim).collect();
@@ -273,13 +329,9 @@ fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, Pars
         .parse::<u32>()
         .map_err(|_| ParseError(format!("{path}:{line_no}: TRCFMT format '{}' is not a number", fields[0])))?;
     if format != FORMAT_ASCII {
-        let kind = match format {
-            2 => " (ASCII differential)",
-            3 | 4 => " (binary)",
-            _ => "",
-        };
         return Err(ParseError(format!(
-            "{path}:{line_no}: TRCFMT format {format}{kind} is not supported; only format 1 (ASCII absolute radii)"
+            "{path}:{line_no}: TRCFMT format {format}{} is not read (only format 1, ASCII absolute radii)",
+            format_kind(format)
         )));
     }
     let n = fields[1].parse::<usize>().map_err(|_| {
@@ -341,6 +393,11 @@ pub fn parse(text: &str, path: &str) -> Result<OmaFile, ParseError> {
         }
         Ok(())
     };
+    // A dataset not read (another `...FMT`, or a trace in a format not read): its records
+    // are kept as they are.
+    let mut foreign = false;
+    // The eyes of traces not read.
+    let mut not_read: Vec<Eye> = Vec::new();
     for (i, raw) in text.split('\n').enumerate() {
         let line_no = i + 1;
         let line = raw.trim_matches(|c: char| c.is_whitespace() || c == '\0');
@@ -353,19 +410,47 @@ pub fn parse(text: &str, path: &str) -> Result<OmaFile, ParseError> {
         };
         let label = label.trim().to_ascii_uppercase();
         let value = value.trim();
+        let skip = |what: &str| format!("{path}:{line_no}: {label}={value}: {what}; its records kept as they are");
+        if opens_dataset(&label) {
+            if let Some(p) = pending.take() {
+                out.traces.push(p.finish(path)?);
+            }
+            finish_heights(&mut out, heights.take())?;
+            let format = format_of(value);
+            foreign = match label.as_str() {
+                "TRCFMT" | "ZFMT" if format.is_some_and(|f| f != FORMAT_ASCII) => {
+                    let f = format.unwrap_or_default();
+                    out.warnings.push(skip(&format!("format {f}{} not read (only format 1)", format_kind(f))));
+                    if label == "TRCFMT" {
+                        not_read.extend(value.split(';').nth(3).and_then(Eye::from_code));
+                    }
+                    true
+                }
+                "ZFMT" => {
+                    // The heights of a trace not read are not either; of no trace at all, an error.
+                    let eye = value.split(';').nth(3).and_then(Eye::from_code);
+                    let orphan = eye.is_some_and(|e| !out.traces.iter().any(|t| t.eye == e) && not_read.contains(&e));
+                    if orphan {
+                        out.warnings.push(skip("heights of a trace not read"));
+                    }
+                    orphan
+                }
+                "TRCFMT" => false,
+                _ => true,
+            };
+        } else if foreign && is_data(&label) {
+            out.other.push((label, value.to_string()));
+            continue;
+        }
+        if foreign && opens_dataset(&label) {
+            out.other.push((label, value.to_string()));
+            continue;
+        }
         match label.as_str() {
             "TRCFMT" => {
-                if let Some(p) = pending.take() {
-                    out.traces.push(p.finish(path)?);
-                }
-                finish_heights(&mut out, heights.take())?;
                 pending = Some(parse_trcfmt(value, path, line_no)?);
             }
             "ZFMT" => {
-                if let Some(p) = pending.take() {
-                    out.traces.push(p.finish(path)?);
-                }
-                finish_heights(&mut out, heights.take())?;
                 let z = parse_trcfmt(value, path, line_no)?;
                 let Some(index) = out.traces.iter().rposition(|t| t.eye == z.trace.eye) else {
                     return Err(ParseError(format!(
@@ -622,6 +707,7 @@ mod tests {
                 Trace::equiangular(Eye::Left, TraceType::Lens, shape(400, 1.01)),
             ],
             other: vec![],
+            warnings: Vec::new(),
         };
         let text = render(&file).unwrap();
         // CRLF everywhere, no bare LF.
@@ -664,6 +750,7 @@ mod tests {
                 heights: None,
             }],
             other: vec![("DO".into(), "B".into())],
+            warnings: Vec::new(),
         };
         let text = render(&file).unwrap();
         assert!(text.starts_with("DO=B\r\nTRCFMT=1;13;U;B;P\r\nR="));
@@ -773,8 +860,14 @@ mod tests {
 
     #[test]
     fn read_errors() {
-        let e = err("JOB=1\r\nTRCFMT=4;512;E;R;F\r\nR=]\x09\x00\r\n");
-        assert!(e.starts_with("f.oma:2: TRCFMT format 4 (binary) is not supported"), "{e}");
+        let f = parse("JOB=1\r\nTRCFMT=4;512;E;R;F\r\nR=]\x09\x00\r\n", "f.oma").unwrap();
+        assert!(f.traces.is_empty());
+        assert_eq!(f.warnings.len(), 1);
+        assert!(
+            f.warnings[0].starts_with("f.oma:2: TRCFMT=4;512;E;R;F: format 4 (binary) not read"),
+            "{:?}",
+            f.warnings
+        );
         let e = err("TRCFMT=1;3;E;R;F\r\nR=1;2\r\nTRCFMT=1;3;E;L;F\r\nR=1;2;3\r\n");
         assert!(e.starts_with("f.oma:1: TRCFMT declares 3 points, the R= records that follow give 2"), "{e}");
         let e = err("TRCFMT=1;3;E;R;F\r\nR=1;2\r\nR=3;4\r\n");
@@ -807,6 +900,51 @@ mod tests {
         assert!(e.starts_with("f.oma:1: TRCFMT declares 2 points (not equiangular, U), the A= records"), "{e}");
         let e = err("TRCFMT=1;2;U;R;F\r\nR=1;2\r\nA=0;1;2\r\n");
         assert!(e.starts_with("f.oma:3: more angles"), "{e}");
+    }
+
+    /// Every dataset has its own `...FMT` record: a job's lens thickness (`STHKFMT` and its
+    /// own `R=`) before the traces is kept as it is, not taken for a trace's radii.
+    #[test]
+    fn datasets_by_their_own_fmt_record() {
+        let text = "JOB=7\r\nSTHKFMT=1;4;E;R\r\nR=2574;2659;2745;2838\r\nHBOX=50.00;\r\n\
+                    TRCFMT=1;4;E;R;F\r\nR=2500;2400;2500;2400\r\nSTHKFMT=1;2;E;L\r\nR=10;20\r\n";
+        let f = parse(text, "job.oma").unwrap();
+        assert_eq!(f.traces.len(), 1);
+        assert_eq!(f.traces[0].n(), 4);
+        assert!((f.traces[0].radii[1] - 0.024).abs() < 1e-12);
+        let labels: Vec<&str> = f.other.iter().map(|(l, _)| l.as_str()).collect();
+        assert_eq!(labels, ["STHKFMT", "R", "HBOX", "STHKFMT", "R"]);
+        assert_eq!(f.other[1].1, "2574;2659;2745;2838");
+        assert!(f.warnings.is_empty());
+        assert_eq!(f.chiral("HBOX", Eye::Right), Some("50.00"));
+        assert_eq!(f.chiral("hbox", Eye::Left), None);
+        assert_eq!(f.chiral("HBOX", Eye::Both), Some("50.00"));
+        // Written back and read again: the same traces and records.
+        let again = parse(&render(&f).unwrap(), "again.oma").unwrap();
+        assert_eq!(again.traces, f.traces);
+        assert_eq!(again.other, f.other);
+    }
+
+    /// A maker's own trace format is not read, said in one line naming it; the rest of the
+    /// file is (its other eye's trace in format 1, the heights of the one not read skipped).
+    #[test]
+    fn a_format_not_read_leaves_the_rest() {
+        let text = "TRCFMT=6;100;E;R;F\r\nR=AAECAwQ=\r\nZFMT=6;100;E;R;F\r\nZ=1\r\n\
+                    TRCFMT=1;2;E;L;F\r\nR=2000;2100\r\nZFMT=1;2;E;L;F\r\nZ=5;-5\r\n";
+        let f = parse(text, "maker.oma").unwrap();
+        assert_eq!(f.traces.len(), 1);
+        assert_eq!(f.traces[0].eye, Eye::Left);
+        assert_eq!(f.traces[0].heights.as_deref(), Some(&[5e-5, -5e-5][..]));
+        assert_eq!(f.warnings.len(), 2, "{:?}", f.warnings);
+        assert!(
+            f.warnings[0]
+                .starts_with("maker.oma:1: TRCFMT=6;100;E;R;F: format 6 (not the standard's: a maker's own) not read"),
+            "{}",
+            f.warnings[0]
+        );
+        assert!(f.warnings[1].starts_with("maker.oma:3: ZFMT=6;100;E;R;F: format 6"), "{}", f.warnings[1]);
+        assert!(f.warnings.iter().all(|w| !w.contains('\n')));
+        assert_eq!(f.other.len(), 4);
     }
 
     #[test]
@@ -848,7 +986,7 @@ mod tests {
             matches!(&missing, FileError::Unreadable { source, .. } if source.kind() == std::io::ErrorKind::NotFound)
         );
         assert!(missing.to_string().contains("missing.oma: cannot read"), "{missing}");
-        std::fs::write(dir.join("bad.oma"), "JOB=1\r\nTRCFMT=9;0;E;R;F\r\n").unwrap();
+        std::fs::write(dir.join("bad.oma"), "JOB=1\r\nTRCFMT=1;0;E;R;F\r\n").unwrap();
         assert!(matches!(read(&dir.join("bad.oma")), Err(FileError::Malformed(_))));
         // Not written: what cannot be an OMA file, and what the system refuses.
         let empty = OmaFile { traces: vec![Trace::equiangular(Eye::Left, TraceType::Frame, vec![])], ..file };
