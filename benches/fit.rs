@@ -168,6 +168,23 @@ fn bench(c: &mut Criterion) {
     c.bench_function("size/uncertainty_400 (smooth fit, C, A, B, FED, U95, radii U95)", |b| {
         b.iter(|| size::uncertainty(black_box(&contour_pts), &radii, &gain, &correction, Some(&cov)).unwrap())
     });
+    // A symmetric frame: four far corners, so the FED is the largest of four candidates
+    // corrected for its bias (`size::largest_of`, its draws).
+    let frame = tracer_calib::engine::shape::RoundedRect {
+        center: Vector2::new(0.001, -0.0005),
+        half_w: 0.026,
+        half_h: 0.016,
+        radius: 0.005,
+    };
+    let frame_pts = corrector.correct(
+        &simulate(&frame, &m, &SimOptions { noise: 10e-6, quantum: 1e-6, ..SimOptions::default() }, &mut rng)
+            .unwrap()
+            .scan,
+    );
+    let (frame_radii, frame_gain) = resample_radii_with_gain(&frame_pts, 400, default_max_gap(400)).unwrap();
+    c.bench_function("size/uncertainty_400, a symmetric frame (four far corners: the largest's bias)", |b| {
+        b.iter(|| size::uncertainty(black_box(&frame_pts), &frame_radii, &frame_gain, &correction, Some(&cov)).unwrap())
+    });
     let out = state.on_raw_scan(&raw, true).unwrap();
     c.bench_function("node/encode Contour + PolygonStamped (CDR)", |b| {
         b.iter(|| (to_cdr(black_box(&out.contour)).unwrap(), to_cdr(black_box(out.polygon.as_ref().unwrap())).unwrap()))

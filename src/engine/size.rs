@@ -288,9 +288,12 @@ fn raw_far(points: &[Vector2<f64>], center: Vector2<f64>, e: Vector2<f64>) -> Op
         if a > std::f64::consts::PI { a - TAU } else { a }
     };
     let mut near: Vec<(f64, Vector2<f64>)> = points.iter().map(|p| (angle_of(p), *p)).collect();
-    near.sort_by(|a, b| a.0.abs().total_cmp(&b.0.abs()));
+    if near.len() < 2 * HALF + 1 {
+        return None;
+    }
+    near.select_nth_unstable_by(2 * HALF, |a, b| a.0.abs().total_cmp(&b.0.abs()));
     near.truncate(2 * HALF + 1);
-    if near.len() < 2 * HALF + 1 || near.iter().any(|(a, _)| a.abs() > 0.25) {
+    if near.iter().any(|(a, _)| a.abs() > 0.25) {
         return None;
     }
     // In trace order (their noise's correlation runs along it).
@@ -640,47 +643,65 @@ fn largest_of(far: &[FarPoint], own: &[f64], centre: [f64; 2]) -> (f64, f64) {
     let sd: Vec<f64> = own.iter().map(|v| v.max(0.0).sqrt()).collect();
     let sc = centre.map(|v| v.max(0.0).sqrt());
     let n = far.len();
-    // A draw of every candidate's noise: `s_j z_j - e_j·(s_x z_x, s_y z_y)`.
-    let mut draw = || -> Vec<f64> {
+    // A draw of every candidate's noise, `s_j z_j - e_j·(s_x z_x, s_y z_y)`, into `out`.
+    let mut draw = |out: &mut [f64]| {
         let dc = Vector2::new(sc[0] * normal(), sc[1] * normal());
-        far.iter().zip(&sd).map(|(f, s)| s * normal() - f.direction.dot(&dc)).collect()
+        for ((o, f), s) in out.iter_mut().zip(far).zip(&sd) {
+            *o = s * normal() - f.direction.dot(&dc);
+        }
     };
     const INNER: usize = 500;
     const OUTER: usize = 300;
-    let inner: Vec<Vec<f64>> = (0..INNER).map(|_| draw()).collect();
+    let mut inner = vec![0.0; INNER * n];
+    inner.chunks_exact_mut(n).for_each(&mut draw);
     let largest = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let count = n as f64;
     let s2 = own.iter().sum::<f64>() / count;
-    let shrunk = |v: &[f64]| -> Vec<f64> {
+    // The values shrunk towards their mean, less the largest of them (`≤ 0`), into `out`.
+    let shrunk_below_top = |v: &[f64], out: &mut [f64]| {
         let mean = v.iter().sum::<f64>() / count;
         let spread: f64 = v.iter().map(|x| (x - mean).powi(2)).sum();
         let lambda = if spread > 0.0 { (1.0 - 2.0 * (count - 1.0) * s2 / spread).max(0.0) } else { 0.0 };
-        v.iter().map(|x| mean + lambda * (x - mean)).collect()
+        for (o, x) in out.iter_mut().zip(v) {
+            *o = lambda * (x - mean);
+        }
+        let top = largest(out);
+        out.iter_mut().for_each(|o| *o -= top);
     };
-    let bias = |mu: &[f64]| -> f64 {
-        let top = largest(mu);
-        let mut with = vec![0.0; n];
-        inner
-            .iter()
-            .map(|e| {
-                with.iter_mut().zip(mu.iter().zip(e)).for_each(|(w, (m, e))| *w = m + e);
-                largest(&with) - top
-            })
-            .sum::<f64>()
-            / INNER as f64
+    // `B` at values `d` below their top: the mean over the inner draws of `max_j (d_j + e_j)`.
+    let bias = |d: &[f64]| -> f64 {
+        let mut sum = 0.0;
+        for e in inner.chunks_exact(n) {
+            let mut best = f64::NEG_INFINITY;
+            for (d, e) in d.iter().zip(e) {
+                best = best.max(d + e);
+            }
+            sum += best;
+        }
+        sum / INNER as f64
     };
-    let estimate = |v: &[f64]| largest(v) - bias(&shrunk(v));
+    let mut d = vec![0.0; n];
+    let mut estimate = |v: &[f64]| {
+        shrunk_below_top(v, &mut d);
+        largest(v) - bias(&d)
+    };
     let values: Vec<f64> = far.iter().map(|f| f.value).collect();
-    let mu = shrunk(&values);
+    let mut mu = vec![0.0; n];
+    shrunk_below_top(&values, &mut mu);
+    let at = estimate(&values);
     let (mut sum, mut sq) = (0.0, 0.0);
+    let (mut e, mut v) = (vec![0.0; n], vec![0.0; n]);
     for _ in 0..OUTER {
-        let v: Vec<f64> = mu.iter().zip(draw()).map(|(m, e)| m + e).collect();
+        draw(&mut e);
+        for ((v, m), e) in v.iter_mut().zip(&mu).zip(&e) {
+            *v = m + e;
+        }
         let t = estimate(&v);
         sum += t;
         sq += t * t;
     }
     let mean = sum / OUTER as f64;
-    (estimate(&values), (sq / OUTER as f64 - mean * mean).max(0.0))
+    (at, (sq / OUTER as f64 - mean * mean).max(0.0))
 }
 
 /// The grid's `r` nearest the angle `t`.
