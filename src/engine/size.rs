@@ -1223,11 +1223,19 @@ mod tests {
             .collect();
         let (centre, radius) = fit_circle(&arc).unwrap();
         assert!((centre - a).norm() < 1e-12 && (radius - r).abs() < 1e-12, "{centre} {radius}");
-        // Its far point from the origin, with a weight on each of the seven points.
+        // Its far point from the origin, with a weight on each of the seven points: the
+        // first-order change of the far point when each point moves along its radius.
         let e = a.normalize();
         let (value, weights) = raw_far(&arc, Vector2::zeros(), e).unwrap();
         assert!((value - (a.norm() + r)).abs() < 1e-12);
         assert_eq!(weights.len(), 7);
+        for k in 0..7 {
+            let mut moved = arc.clone();
+            moved[k] = arc[k] + arc[k].normalize() * 1e-7;
+            let (changed, _) = raw_far(&moved, Vector2::zeros(), e).unwrap();
+            let w = weights.iter().find(|(t, _)| (t - arc[k].y.atan2(arc[k].x)).abs() < 1e-12).unwrap().1;
+            assert!(((changed - value) / 1e-7 - w).abs() < 1e-4, "point {k}: {} against {w}", (changed - value) / 1e-7);
+        }
     }
 
     /// Four equally far candidates with unit noise: the plain largest is biased up by about
