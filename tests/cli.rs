@@ -385,6 +385,47 @@ fn ellipse_records(a: f64, b: f64, n: usize) -> String {
     radii.chunks(10).map(|c| format!("R={}\r\n", c.join(";"))).collect()
 }
 
+/// A trace at unequal angles (`TRCFMT=1;N;U;...` with its `A=` records, 1/100 degree):
+/// read at its own angles, its sizes those of the shape, as the second reader finds them.
+#[test]
+fn oma_unequal_angles_trace_sizes() {
+    let (a, b, n) = (25.0f64, 15.0f64, 360usize);
+    let h = ((a - b) / (a + b)).powi(2);
+    let circ = std::f64::consts::PI * (a + b) * (1.0 + 3.0 * h / (10.0 + (4.0 - 3.0 * h).sqrt()));
+    // Angles denser on one side: 0.6° steps over half the turn, 1.4° over the other.
+    let angles: Vec<i64> =
+        (0..n).map(|i| if i < 180 { i as i64 * 60 } else { 10800 + (i as i64 - 180) * 140 }).collect();
+    let radii: Vec<String> = angles
+        .iter()
+        .map(|&u| {
+            let t = (u as f64 / 100.0).to_radians();
+            format!("{}", (a * b / ((b * t.cos()).powi(2) + (a * t.sin()).powi(2)).sqrt() * 100.0).round() as i64)
+        })
+        .collect();
+    let rows = |label: &str, v: &[String]| -> String {
+        v.chunks(10).map(|c| format!("{label}={}\r\n", c.join(";"))).collect()
+    };
+    let text = format!(
+        "JOB=U\r\nTRCFMT=1;{n};U;R;L\r\n{}{}",
+        rows("R", &radii),
+        rows("A", &angles.iter().map(|u| u.to_string()).collect::<Vec<_>>())
+    );
+    let path = temp("unequal.oma");
+    std::fs::write(&path, text).unwrap();
+    let o = tool(&["oma", "--input", path.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = json(&o);
+    let t = &v["traces"][0];
+    assert_eq!((t["equiangular"].as_bool(), t["n"].as_u64()), (Some(false), Some(360)));
+    for (name, truth) in
+        [("circumference", circ), ("box_width", 2.0 * a), ("box_height", 2.0 * b), ("effective_diameter", 2.0 * a)]
+    {
+        let got = t[name].as_f64().unwrap() * 1e3;
+        assert!((got - truth).abs() < 0.01, "{name}: {got} mm, the ellipse's {truth} mm");
+    }
+    agrees_with_the_second_reader(&path, &v);
+}
+
 /// A lab's job as its systems write it: lens thickness data (`STHKFMT` with its own `R=`)
 /// before the traces, a right eye in a maker's own format, a left eye in format 1 with the
 /// file's CIRC, HBOX, VBOX and FED. The thickness is not taken for radii, the maker's trace
