@@ -304,7 +304,8 @@ fn raw_far(points: &[Vector2<f64>], center: Vector2<f64>, e: Vector2<f64>) -> Op
     if to_a.dot(&e) <= 0.0 {
         return None;
     }
-    // Larger than half its distance from the centre: a broad crest, not a corner.
+    // Larger than 0.9 of its far point's distance from the centre: a broad crest, where the
+    // smooth's own value is good.
     let value = to_a.norm() + radius;
     if radius > 0.9 * value {
         return None;
@@ -386,9 +387,8 @@ pub struct Sizes {
     pub effective_diameter: f64,
     /// Max x, max -x, max y, max -y.
     sides: [Extreme; 4],
-    /// Angle of the FED point.
-    fed_angle: f64,
-    /// The candidates for the FED's far point, farthest first ([`Sizes::of_noisy`]).
+    /// The candidates for the FED's far point, farthest first ([`Sizes::of_noisy`]; the
+    /// first is the FED's).
     far: Vec<FarPoint>,
     /// The box centre.
     center: Vector2<f64>,
@@ -441,7 +441,6 @@ impl Sizes {
             box_height: ymax + nymin,
             effective_diameter: 2.0 * far[0].value,
             sides,
-            fed_angle: far[0].angle,
             far,
             center,
             grid,
@@ -498,7 +497,7 @@ impl Sizes {
         let cs: Vec<f64> = (0..=k_max).map(|k| -f_r[k].im + k as f64 * f_rp[k].re).collect();
         // Each side's response to cos kθ and sin kθ, all k at once (rotation per point).
         let sides = self.side_harmonics(k_max);
-        let t_fed = self.fed_angle;
+        let t_fed = self.far[0].angle;
         let e = self.far_direction();
         let e_r = Vector2::new(t_fed.cos(), t_fed.sin());
         let assemble = |dc: f64, side: [f64; 4], at_fed: f64| -> [f64; 4] {
@@ -549,7 +548,7 @@ impl Sizes {
     fn extremes_response(&self, dc: f64, dr: impl Fn(f64) -> f64) -> [f64; 4] {
         let [dxmax, dnxmin, dymax, dnymin] = self.side_responses(&dr);
         let dcenter = Vector2::new(dxmax - dnxmin, dymax - dnymin) / 2.0;
-        let t_fed = self.fed_angle;
+        let t_fed = self.far[0].angle;
         let e_r = Vector2::new(t_fed.cos(), t_fed.sin());
         let e = self.far_direction();
         let dfed = 2.0 * (e_r * dr(t_fed) - dcenter).dot(&e);
@@ -634,9 +633,15 @@ fn far_points(
 /// of one fixed sequence (the same figures for the same trace), the centre shared as it is.
 /// One candidate: `v`, `own + e·Σ_c e`.
 fn largest_of(far: &[FarPoint], own: &[f64], centre: [f64; 2]) -> (f64, f64) {
+    // Each candidate's whole variance, its own and the centre's along it (the bias below
+    // takes them as independent: the centre's share is small beside a corner's own).
+    let whole: Vec<f64> = far
+        .iter()
+        .zip(own)
+        .map(|(f, v)| v.max(0.0) + f.direction.x.powi(2) * centre[0] + f.direction.y.powi(2) * centre[1])
+        .collect();
     if far.len() == 1 {
-        let e = far[0].direction;
-        return (far[0].value, own[0] + e.x * e.x * centre[0] + e.y * e.y * centre[1]);
+        return (far[0].value, whole[0]);
     }
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
@@ -656,13 +661,6 @@ fn largest_of(far: &[FarPoint], own: &[f64], centre: [f64; 2]) -> (f64, f64) {
     let largest = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let count = n as f64;
     let s2 = own.iter().sum::<f64>() / count;
-    // Each candidate's whole variance, its own and the centre's along it (the bias below
-    // takes them as independent: the centre's share is small beside a corner's own).
-    let whole: Vec<f64> = far
-        .iter()
-        .zip(own)
-        .map(|(f, v)| v.max(0.0) + f.direction.x.powi(2) * centre[0] + f.direction.y.powi(2) * centre[1])
-        .collect();
     // The values shrunk towards their mean, less the largest of them (`≤ 0`), into `out`.
     let shrunk_below_top = |v: &[f64], out: &mut [f64]| {
         let mean = v.iter().sum::<f64>() / count;
@@ -981,6 +979,18 @@ pub fn uncertainty(
     // smooth its harmonics'.
     let harmonics = sizes.side_harmonics(k);
     let phi = tn.phi();
+    // The variance of a figure whose response to `cos kθ` and `sin kθ` is `c_k`, `s_k`
+    // (each coefficient's noise weighted by the density at its harmonic).
+    let harmonic_var = |cs: &mut dyn Iterator<Item = (f64, f64)>| -> f64 {
+        let v: f64 = cs
+            .enumerate()
+            .map(|(kk, (c, s))| {
+                let density = tn.density(TAU * kk as f64 / big_n as f64);
+                if kk == 0 { c * c * density } else { 2.0 * (c * c + s * s) * density }
+            })
+            .sum();
+        v * noise * noise / n as f64
+    };
     let side_var = |k_side: usize| -> f64 {
         let side = &sizes.sides[k_side];
         if side.raw {
@@ -990,15 +1000,7 @@ pub fn uncertainty(
             let along = |t: f64| if k_side < 2 { t.cos() } else { t.sin() };
             correlated_sum(side.weights.iter().map(|(t, w)| w * along(*t)), phi) * noise * noise
         } else {
-            let v: f64 = harmonics[k_side]
-                .iter()
-                .enumerate()
-                .map(|(kk, (c, s))| {
-                    let density = tn.density(TAU * kk as f64 / big_n as f64);
-                    if kk == 0 { c * c * density } else { 2.0 * (c * c + s * s) * density }
-                })
-                .sum();
-            v * noise * noise / n as f64
+            harmonic_var(&mut harmonics[k_side].iter().copied())
         }
     };
     for (figure, pair) in [(1, [0, 1]), (2, [2, 3])] {
@@ -1029,17 +1031,9 @@ pub fn uncertainty(
         if raw_pair(pair) {
             (side_var(pair) + side_var(pair + 1)) / 4.0
         } else {
-            let v: f64 = (0..harmonics[pair].len())
-                .map(|kk| {
-                    let (c, s) = (
-                        harmonics[pair][kk].0 - harmonics[pair + 1][kk].0,
-                        harmonics[pair][kk].1 - harmonics[pair + 1][kk].1,
-                    );
-                    let density = tn.density(TAU * kk as f64 / big_n as f64);
-                    (if kk == 0 { c * c * density } else { 2.0 * (c * c + s * s) * density }) / 4.0
-                })
-                .sum();
-            v * noise * noise / n as f64
+            // The centre's coordinate, `(max - min)/2`.
+            let half_difference = harmonics[pair].iter().zip(&harmonics[pair + 1]);
+            harmonic_var(&mut half_difference.map(|(a, b)| ((a.0 - b.0) / 2.0, (a.1 - b.1) / 2.0)))
         }
     });
     let (far, var_far) = largest_of(&sizes.far, &own, centre_var);
@@ -1195,9 +1189,6 @@ mod tests {
         }
     }
 
-    /// A raw side's reported noise (`Σ w² σ²` of the points the smooth chose) is its
-    /// spread, and it is unbiased: the top of a 20 mm circle with radial noise, as a lens
-    /// side at σ = 10 µm has it (6-8 points), 2000 times.
     #[test]
     fn the_largest_of_normals_has_clarks_moments() {
         assert!((normal_cdf(1.959_963_985) - 0.975).abs() < 1e-7);
@@ -1273,6 +1264,9 @@ mod tests {
         assert!((stated / spread - 1.0).abs() < 0.25, "stated {stated}, spread {spread}");
     }
 
+    /// A raw side's reported noise (`Σ w² σ²` of the points the smooth chose) is its
+    /// spread, and it is unbiased: the top of a 20 mm circle with radial noise, as a lens
+    /// side at σ = 10 µm has it (6-8 points), 2000 times.
     #[test]
     fn a_raw_side_is_unbiased_and_its_weights_tell_its_variance() {
         use rand::SeedableRng;
