@@ -328,12 +328,8 @@ fn parse_trcfmt(value: &str, path: &str, line_no: usize) -> Result<Pending, Pars
     let format = fields[0]
         .parse::<u32>()
         .map_err(|_| ParseError(format!("{path}:{line_no}: TRCFMT format '{}' is not a number", fields[0])))?;
-    if format != FORMAT_ASCII {
-        return Err(ParseError(format!(
-            "{path}:{line_no}: TRCFMT format {format}{} is not read (only format 1, ASCII absolute radii)",
-            format_kind(format)
-        )));
-    }
+    // Another format never comes here: `parse` keeps its dataset aside with a warning.
+    debug_assert_eq!(format, FORMAT_ASCII);
     let n = fields[1].parse::<usize>().map_err(|_| {
         ParseError(format!("{path}:{line_no}: TRCFMT point count '{}' is not a whole number", fields[1]))
     })?;
@@ -438,11 +434,8 @@ pub fn parse(text: &str, path: &str) -> Result<OmaFile, ParseError> {
                 "TRCFMT" => false,
                 _ => true,
             };
-        } else if foreign && is_data(&label) {
-            out.other.push((label, value.to_string()));
-            continue;
         }
-        if foreign && opens_dataset(&label) {
+        if foreign && (opens_dataset(&label) || is_data(&label)) {
             out.other.push((label, value.to_string()));
             continue;
         }
