@@ -3,7 +3,7 @@
 //! that cannot be recorded, leaves the calibration in force as it was on disk.
 
 use super::{InForce, NodeState, Now};
-use crate::engine::calibrate::{Calibration, Ring, calibrate_placements, named_covariance_values};
+use crate::engine::calibrate::{Calibration, CalibrationError, Ring, calibrate_placements, named_covariance_values};
 use crate::engine::correct::Corrector;
 use crate::engine::geometry::Mounting;
 use crate::engine::height::{AxisTilt, TiltError, fit_axis_tilt};
@@ -31,11 +31,12 @@ impl NodeState {
     /// [`NodeState::on_calibrate`] at `now`: the record's `time` is its system time, its
     /// `ros_time` (and the `calibration` message's stamp) its ROS time.
     pub fn on_calibrate_at(&mut self, req: &CalibrateRequest, now: Now) -> CalibrateOutcome {
-        let fail = |this: &mut Self, message: String| {
+        let fail = |this: &mut Self, error_code: u16, message: String| {
             this.stats.calibrations_failed += 1;
             this.stats.last_fit_message = message.clone();
+            this.stats.last_fit_error = error_code;
             CalibrateOutcome {
-                response: CalibrateResponse { success: false, message, ..Default::default() },
+                response: CalibrateResponse { success: false, message, error_code, ..Default::default() },
                 applied: None,
             }
         };
@@ -52,11 +53,12 @@ impl NodeState {
                 } else {
                     format!("no calibration-plate scan with scan_id {id} (kept: {})", have.join(", "))
                 };
-                return fail(self, message);
+                return fail(self, CalibrateResponse::ERROR_NO_PLATE_SCAN, message);
             };
             if plates.iter().any(|p: &&super::scans::KeptScan| p.scan_id == plate.scan_id) {
                 return fail(
                     self,
+                    CalibrateResponse::ERROR_BAD_REQUEST,
                     format!("plate_scan_ids names scan {} twice: each scan is one placement", plate.scan_id),
                 );
             }
@@ -70,6 +72,7 @@ impl NodeState {
             let Some(spec) = self.params.ring() else {
                 return fail(
                     self,
+                    CalibrateResponse::ERROR_NO_RING_SCAN,
                     format!(
                         "model {model} needs the ring gauge's diameter: set ring.diameter (m, its certificate's value)"
                     ),
@@ -86,7 +89,7 @@ impl NodeState {
                 } else {
                     format!("no ring-gauge scan with scan_id {id} (kept: {})", have.join(", "))
                 };
-                return fail(self, message);
+                return fail(self, CalibrateResponse::ERROR_NO_RING_SCAN, message);
             };
             Some((kept.scan_id, Ring { scan: &kept.scan, spec }, kept))
         } else {
@@ -107,7 +110,7 @@ impl NodeState {
         };
         let cal = match fitted {
             Ok(cal) => cal,
-            Err(e) => return fail(self, format!("calibration failed on {scans}: {e}")),
+            Err(e) => return fail(self, error_code(&e), format!("calibration failed on {scans}: {e}")),
         };
         self.stats.last_fit_rms = Some(cal.rms_residual);
         let mut response = response_for(&cal, format!("{scans}: {}", cal.summary()));
@@ -144,6 +147,7 @@ impl NodeState {
         if req.dry_run {
             response.message = format!("dry run, not applied: {}", response.message);
             self.stats.last_fit_message = response.message.clone();
+            self.stats.last_fit_error = response.error_code;
             return CalibrateOutcome { response, applied: None };
         }
         // The covariance's names where they say more than the five: with an angle error.
@@ -204,9 +208,11 @@ impl NodeState {
         // either (a restart goes back to the last recorded one).
         if let Err(e) = self.append_history(&record).and_then(|()| self.persist()) {
             response.success = false;
+            response.error_code = CalibrateResponse::ERROR_NOT_PERSISTED;
             response.message = format!("calibration applied in memory but not persisted: {e}; {}", response.message);
         }
         self.stats.last_fit_message = response.message.clone();
+        self.stats.last_fit_error = response.error_code;
         CalibrateOutcome { response, applied: Some(cal.mounting) }
     }
 }
@@ -262,5 +268,53 @@ pub fn response_for(cal: &Calibration, message: String) -> CalibrateResponse {
         covariance_names: cal.covariance_names(),
         angle_harmonics: cal.angle.orders().iter().map(|h| h as i32).collect(),
         angle_coefficients: cal.angle.coefficients().to_vec(),
+        error_code: CalibrateResponse::ERROR_NONE,
+    }
+}
+
+/// The name of a Calibrate response's `error_code` (`ERROR_NONE`, ...), as the `.srv`
+/// declares it; `ERROR_<n>` for a code it does not.
+pub fn error_name(code: u16) -> std::borrow::Cow<'static, str> {
+    const NAMES: [&str; 14] = [
+        "ERROR_NONE",
+        "ERROR_NO_PLATE_SCAN",
+        "ERROR_NO_RING_SCAN",
+        "ERROR_BAD_REQUEST",
+        "ERROR_NOT_ACTIVE",
+        "ERROR_INVALID_SETUP",
+        "ERROR_SCAN_UNUSABLE",
+        "ERROR_NO_FIT",
+        "ERROR_RESIDUALS",
+        "ERROR_LACK_OF_FIT",
+        "ERROR_PLACEMENTS",
+        "ERROR_SCALE_OFF",
+        "ERROR_RING_MISMATCH",
+        "ERROR_NOT_PERSISTED",
+    ];
+    match NAMES.get(code as usize) {
+        Some(name) => (*name).into(),
+        None => format!("ERROR_{code}").into(),
+    }
+}
+
+/// The Calibrate response's `error_code` of a fit that failed (the table in
+/// docs/troubleshooting.md says what each means and what to do).
+pub fn error_code(e: &CalibrationError) -> u16 {
+    use CalibrationError as E;
+    match e {
+        E::InvalidPlate(_) | E::Model(_) | E::InvalidScale(_) | E::InvalidTipRadius(_) => {
+            CalibrateResponse::ERROR_INVALID_SETUP
+        }
+        E::TooFewSamples { .. } | E::TooManyOutliers { .. } => CalibrateResponse::ERROR_SCAN_UNUSABLE,
+        E::NoStart | E::NotConverged { .. } | E::Singular => CalibrateResponse::ERROR_NO_FIT,
+        E::ResidualTooLarge { .. } | E::SystematicResidual { .. } => CalibrateResponse::ERROR_RESIDUALS,
+        E::Structure { .. } => CalibrateResponse::ERROR_LACK_OF_FIT,
+        E::HarmonicInseparable { .. } => CalibrateResponse::ERROR_PLACEMENTS,
+        E::TooManyPlacements(_) => CalibrateResponse::ERROR_BAD_REQUEST,
+        E::ScaleOff { .. } => CalibrateResponse::ERROR_SCALE_OFF,
+        E::Ring(_) => CalibrateResponse::ERROR_NO_RING_SCAN,
+        E::RingMismatch { .. } | E::RingGroove { .. } | E::TipRadiusImplausible { .. } => {
+            CalibrateResponse::ERROR_RING_MISMATCH
+        }
     }
 }

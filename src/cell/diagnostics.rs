@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use super::{NodeState, Now};
-use crate::interfaces::{DiagnosticArray, DiagnosticStatus, Header, KeyValue};
+use crate::interfaces::{CalibrateResponse, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
 use crate::records;
 
 impl NodeState {
@@ -18,7 +18,7 @@ impl NodeState {
     /// [`Self::diagnostics`] with the driver's status at `instant`.
     pub fn diagnostics_at(&self, now: Now, instant: std::time::Instant) -> DiagnosticArray {
         let p = &self.params;
-        let last_failed = self.stats.calibrations_failed > 0 && self.stats.last_fit_message.contains("failed");
+        let last_failed = self.stats.last_fit_error != CalibrateResponse::ERROR_NONE;
         let (level, message) = if !p.calibration_valid && last_failed {
             (
                 DiagnosticStatus::WARN,
@@ -122,6 +122,7 @@ impl NodeState {
                             s.last_fit_rms.map(|r| format!("{:.5}", r * 1e3)).unwrap_or_default(),
                         ),
                         kv("last_fit", s.last_fit_message.clone()),
+                        kv("last_fit_error", super::calibrate::error_name(s.last_fit_error).to_string()),
                         kv("scans_received", s.scans_received.to_string()),
                         kv("scans_rejected", s.scans_rejected.to_string()),
                         kv("scans_held", s.scans_held.to_string()),

@@ -73,6 +73,7 @@ impl NodeState {
         Some(CalibrateResponse {
             success: false,
             message: format!("the node is {state} (managed): /calibrate is served only when it is active ({how})"),
+            error_code: CalibrateResponse::ERROR_NOT_ACTIVE,
             ..Default::default()
         })
     }

@@ -44,7 +44,7 @@ pub mod stats;
 #[cfg(test)]
 mod tests;
 
-pub use calibrate::{CalibrateOutcome, response_for};
+pub use calibrate::{CalibrateOutcome, error_code, response_for};
 pub use in_force::InForce;
 pub use managed::{HistoryRead, LifecycleError};
 pub use scans::{Corrected, PLATE_SCANS_KEPT};

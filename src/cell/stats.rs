@@ -18,6 +18,9 @@ pub struct Stats {
     pub last_rejection: String,
     pub last_fit_rms: Option<f64>,
     pub last_fit_message: String,
+    /// The last calibrate request's `error_code` (`CalibrateResponse::ERROR_*`;
+    /// `ERROR_NONE` when it succeeded, or before any).
+    pub last_fit_error: u16,
     /// Remote publishers and subscriptions discovered with a QoS incompatible with the
     /// node's endpoint on their topic (no data flows), and the last one.
     pub qos_incompatible: u64,

@@ -6,7 +6,9 @@ use crate::engine::geometry::Mounting;
 use crate::engine::model::PlateSpec;
 use crate::engine::shape::Shape;
 use crate::engine::simulate::{SimOptions, simulate};
-use crate::interfaces::{CalibrateRequest, DiagnosticArray, DiagnosticStatus, Header, RawScan, Time};
+use crate::interfaces::{
+    CalibrateRequest, CalibrateResponse, DiagnosticArray, DiagnosticStatus, Header, RawScan, RosMsg, Time,
+};
 use crate::params::Parameters;
 use crate::params::file as params_file;
 use crate::records::Previous;
@@ -106,9 +108,13 @@ fn a_failed_calibration_keeps_the_old_one() {
     let out = st.on_calibrate(&CalibrateRequest::default());
     assert!(!out.response.success);
     assert!(out.response.message.starts_with("no calibration-plate scan received yet"), "{}", out.response.message);
+    assert_eq!(out.response.error_code, CalibrateResponse::ERROR_NO_PLATE_SCAN);
     let m = Mounting::new(0.01, 0.003, 0.001);
     st.on_raw_scan(&plate_msg(5, &m), true).unwrap();
-    assert!(st.on_calibrate(&CalibrateRequest::default()).response.success);
+    let ok = st.on_calibrate(&CalibrateRequest::default()).response;
+    assert!(ok.success);
+    assert_eq!(ok.error_code, CalibrateResponse::ERROR_NONE);
+    assert_eq!(st.stats.last_fit_error, CalibrateResponse::ERROR_NONE);
     let in_force = st.params.calibration;
     // A wrong plate size: the fit is refused, the calibration stays.
     st.params.plate.side = 0.05;
@@ -116,11 +122,41 @@ fn a_failed_calibration_keeps_the_old_one() {
         st.on_calibrate(&CalibrateRequest { scan_id: 5, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(!out.response.success);
     assert!(out.response.message.contains("does not match the plate"), "{}", out.response.message);
+    assert_eq!(out.response.error_code, CalibrateResponse::ERROR_RESIDUALS);
     assert_eq!(st.params.calibration, in_force);
+    // The calibration status says the last calibrate failed, and why, by name.
+    let diag = st.diagnostics(Now::system());
+    let status = &diag.status[0];
+    assert_eq!(status.level, DiagnosticStatus::WARN);
+    assert!(status.message.starts_with("calibrated; the last calibrate failed: "), "{}", status.message);
+    let value = |k: &str| status.values.iter().find(|kv| kv.key == k).map(|kv| kv.value.clone());
+    assert_eq!(value("last_fit_error").as_deref(), Some("ERROR_RESIDUALS"));
     let out =
         st.on_calibrate(&CalibrateRequest { scan_id: 77, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert_eq!(out.response.message, "no calibration-plate scan with scan_id 77 (kept: 5)");
-    assert_eq!(st.stats.calibrations_failed, 3);
+    assert_eq!(out.response.error_code, CalibrateResponse::ERROR_NO_PLATE_SCAN);
+    let out = st.on_calibrate(&CalibrateRequest { plate_scan_ids: vec![5, 5], ..Default::default() });
+    assert_eq!(out.response.error_code, CalibrateResponse::ERROR_BAD_REQUEST, "{}", out.response.message);
+    assert_eq!(st.stats.calibrations_failed, 4);
+}
+
+/// Every `ERROR_*` constant the `.srv` declares has its name in the diagnostics, and the
+/// codes are 0, 1, 2, ... in the order declared.
+#[test]
+fn error_codes_are_the_srvs() {
+    let text = CalibrateResponse::DEFINITION.text();
+    let declared: Vec<(String, String, String)> = crate::interfaces::definition::constants(text)
+        .unwrap()
+        .into_iter()
+        .filter(|(_, name, _)| name.starts_with("ERROR_"))
+        .collect();
+    assert!(declared.len() >= 14, "{declared:?}");
+    for (i, (ty, name, value)) in declared.iter().enumerate() {
+        assert_eq!(ty, "uint16");
+        assert_eq!(value.parse::<u16>().unwrap(), i as u16, "{name}");
+        assert_eq!(super::calibrate::error_name(i as u16), name.as_str());
+    }
+    assert_eq!(super::calibrate::error_name(999), "ERROR_999");
 }
 
 #[test]
@@ -135,6 +171,7 @@ fn dry_runs_change_nothing_and_persisting_failures_are_reported() {
     let out =
         st.on_calibrate(&CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] });
     assert!(!out.response.success);
+    assert_eq!(out.response.error_code, CalibrateResponse::ERROR_NOT_PERSISTED);
     assert!(
         out.response.message.starts_with(
             "calibration applied in memory but not persisted: cannot write /nonexistent-dir/x/params.yaml: "
@@ -458,6 +495,7 @@ fn a_managed_node_holds_scans_until_active_and_reads_its_history_when_configured
     assert_eq!((st.stats.scans_received, st.stats.scans_held, st.stats.contours_published), (1, 1, 0));
     let refused = st.calibrate_refused().unwrap();
     assert!(!refused.success && refused.message.contains("the node is unconfigured (managed)"), "{}", refused.message);
+    assert_eq!(refused.error_code, CalibrateResponse::ERROR_NOT_ACTIVE);
     let d = st.diagnostics(Now::system());
     assert_eq!(diag_value(&d, "lifecycle_state"), "unconfigured");
     assert_eq!(diag_value(&d, "scans_held"), "1");

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use super::exit;
-use crate::cell::{intake, response_for};
+use crate::cell::{error_code, intake, response_for};
 use crate::engine::calibrate::{Options, Ring, calibrate_placements};
 use crate::engine::model::ModelKind;
 use crate::engine::scan::Scan;
@@ -129,8 +129,8 @@ impl clap::ValueEnum for ModelKind {
 /// The Calibrate response (docs/CONTRACT.md): its fields, in its order, are the JSON output.
 pub type Response = CalibrateResponse;
 
-fn failure(message: impl Into<String>) -> Response {
-    Response { success: false, message: message.into(), ..Response::default() }
+fn failure(error_code: u16, message: impl Into<String>) -> Response {
+    Response { success: false, message: message.into(), error_code, ..Response::default() }
 }
 
 /// Settings from defaults, then --params, then the explicit flags.
@@ -333,14 +333,14 @@ pub fn run(args: &Args) -> i32 {
     });
     let (p, scans, ring) = match outcome {
         Ok(v) => v,
-        Err(e) => return report(args, &failure(e), model, exit::BAD_INPUT),
+        Err(e) => return report(args, &failure(Response::ERROR_BAD_REQUEST, e), model, exit::BAD_INPUT),
     };
     let opts = p.calibration_options();
     let ring = ring.as_ref().zip(p.ring()).map(|(scan, spec)| Ring { scan, spec });
     let plates: Vec<&Scan> = scans.iter().collect();
     match calibrate_placements(&plates, ring, &p.plate, &opts) {
         Ok(cal) => report(args, &response_for(&cal, cal.summary()), p.model, exit::OK),
-        Err(e) => report(args, &failure(format!("calibration failed: {e}")), p.model, exit::FIT_FAILED),
+        Err(e) => report(args, &failure(error_code(&e), format!("calibration failed: {e}")), p.model, exit::FIT_FAILED),
     }
 }
 

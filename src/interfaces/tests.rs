@@ -158,6 +158,7 @@ impl Sample for CalibrateResponse {
                 .to_vec(),
             angle_harmonics: vec![1],
             angle_coefficients: vec![8.7e-4, -1.2e-4],
+            error_code: CalibrateResponse::ERROR_NONE,
         }
     }
 }
@@ -402,6 +403,7 @@ fn calibrate_response_bytes_align_f64_after_the_header() {
         covariance_names: vec!["alpha0".into()],
         angle_harmonics: vec![1],
         angle_coefficients: vec![0.5],
+        error_code: CalibrateResponse::ERROR_RING_MISMATCH,
     };
     let mut expected = CDR_LE_HEADER.to_vec();
     expected.extend([0x01]); // [0] success
@@ -434,6 +436,7 @@ fn calibrate_response_bytes_align_f64_after_the_header() {
     expected.extend(1u32.to_le_bytes()); // [144] angle_coefficients count
     expected.extend([0, 0, 0, 0]); // [148] pad to 8
     expected.extend(0.5f64.to_le_bytes()); // [152] angle_coefficients[0]
+    expected.extend(12u16.to_le_bytes()); // [160] error_code
     assert_eq!(to_cdr(&resp).unwrap(), expected);
     assert_eq!(from_cdr::<CalibrateResponse>(&expected).unwrap(), resp);
 }

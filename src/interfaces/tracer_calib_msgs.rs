@@ -28,6 +28,7 @@ impl Default for CalibrateResponse {
             covariance_names: Vec::new(),
             angle_harmonics: Vec::new(),
             angle_coefficients: Vec::new(),
+            error_code: CalibrateResponse::ERROR_NONE,
         }
     }
 }

@@ -68,9 +68,11 @@ def test_calibrate_and_correct(peer):
         first = peer.send_scan(pub, raw_scan(1, RawScan.TARGET_LENS, *lens), contours)
         assert first.calibrated is False
 
-        # A failed calibration (no plate scan yet) says why.
+        # A failed calibration (no plate scan yet) says why, in words and as a code (the
+        # constant rosidl generated from the .srv).
         r = peer.call("/calibrate", Calibrate.Request())
         assert not r.success and "no calibration-plate scan" in r.message, r.message
+        assert r.error_code == Calibrate.Response.ERROR_NO_PLATE_SCAN == 1, r.error_code
 
         plate = simulate("plate", "plate", seed=2)
         peer.send_scan(pub, raw_scan(10, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours)
@@ -163,7 +165,7 @@ def test_parameters(peer):
         assert valid is False
 
         r = peer.call("/calibrate", Calibrate.Request(scan_id=1))
-        assert r.success, r.message
+        assert r.success and r.error_code == Calibrate.Response.ERROR_NONE, (r.message, r.error_code)
         got = peer.param(lambda: pc.get_parameters(["calibration.alpha0", "calibration.valid"])).values
         assert got[0].double_value == r.alpha0 and got[1].bool_value is True, got
         with open(persisted) as f:
@@ -659,7 +661,7 @@ def test_encoder_scale(peer):
         assert abs(r.offset - TRUTH["offset"]) < 5 * r.stddev[1], r
         got = peer.param(lambda: pc.get_parameters(["calibration.scale"])).values[0].double_value
         assert got == r.scale, got
-        # The whole covariance (issue 30), row-major over [alpha0, offset, delta_l, scale,
+        # The whole covariance, row-major over [alpha0, offset, delta_l, scale,
         # tip_radius]: the scale's variance is its stddev squared, dL and the scale move
         # together, no tip radius is fitted; the parameter holds it too.
         cov = list(r.covariance)
@@ -683,7 +685,7 @@ def test_encoder_scale(peer):
 
 
 def test_stylus_tip(peer):
-    """A tracer touching with a 0.4 mm ball tip (issue 30): with `model: full_tip` and
+    """A tracer touching with a 0.4 mm ball tip: with `model: full_tip` and
     `ring.diameter` the node fits the tip from the plate and the ring-gauge scan the
     request names, answers it in the response, holds it in `stylus.tip_radius` (and
     persists it), and corrects a lens to the surface the tip touched."""

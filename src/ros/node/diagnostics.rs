@@ -8,7 +8,7 @@ use super::{Shared, Wire};
 
 /// Free heap below which the node gives nothing back to the OS (bytes). Memory given
 /// back costs a page fault per 4 kB page when it is used again. Before rustdds was
-/// patched to release samples within its KEEP_LAST depths (issue 11), a steady stream
+/// patched to release samples within its KEEP_LAST depths, a steady stream
 /// of scans kept a few MB in flight in its caches (about 10 MB at 100 scans a second);
 /// trimming that every 5 s, as the node did, had the scans after each trim fault the
 /// released pages in again (+12.6..+14.1 % instead of +7.3..+8.2 % over the bare relay
