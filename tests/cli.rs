@@ -97,6 +97,7 @@ fn simulate_then_calibrate_json() {
             "samples_used",
             "covariance",
             "covariance_names",
+            "error_code",
         ];
         let at: Vec<usize> = keys.iter().map(|k| text.find(&format!("\"{k}\":")).expect(k)).collect();
         assert!(at.windows(2).all(|w| w[0] < w[1]), "{text}");
@@ -256,7 +257,9 @@ fn every_subcommand_has_help_with_an_example() {
     }
 }
 
-/// The demo end to end: the node over DDS (localhost only), the picture written.
+/// The demo end to end: the node over DDS (localhost only), the picture written: the
+/// README's own (`demo_calibration.svg`, committed), byte for byte, for the demo's default
+/// seed and noise.
 #[test]
 fn demo_runs() {
     let svg = temp("demo.svg");
@@ -273,6 +276,13 @@ fn demo_runs() {
     assert_eq!(history.records[0].node, "/tracer_calibrator");
     let svg_text = std::fs::read_to_string(&svg).unwrap();
     assert!(svg_text.starts_with("<?xml") || svg_text.starts_with("<svg"), "{}", &svg_text[..100]);
+    let readme_picture = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("demo_calibration.svg");
+    let committed = std::fs::read_to_string(&readme_picture).unwrap();
+    assert!(
+        svg_text == committed,
+        "the demo draws another picture than the README's {}: if the change is meant, run `bash scripts/demo.sh` and commit the file it writes",
+        readme_picture.display()
+    );
 }
 
 /// The bag and file tools on bad paths and bad files: one line naming the problem, exit 2.
