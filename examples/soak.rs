@@ -248,7 +248,7 @@ fn main() {
         println!("node RSS: {rss_start} KiB at start, {rss_end} KiB at the end of the burst");
         println!("node peak RSS (VmHWM): {} KiB", peak_rss_kib(pid));
         // What the node holds once the burst is over (its DDS caches hold at most their
-        // depths; before issue 11 they were freed only every 4-6 s).
+        // depths; before the patch they were freed only every 4-6 s).
         for wait in [5, 10, 15] {
             smol::Timer::after(Duration::from_secs(5)).await;
             println!("node RSS {wait} s after the last scan: {} KiB", rss_kib(pid));

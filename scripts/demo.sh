@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Cargo's own progress line shows what is being built: a first build compiles several hundred
-# crates (5-10 minutes on 2 cores; README.md), later ones reuse them (seconds).
+# crates (BENCHMARKS.md, "Release build from empty"), later ones reuse them (seconds).
 echo "demo.sh: building tracer_calib and tracer_calib_node (release)..." >&2
 cargo build --release --bins
 . scripts/target_dir.sh

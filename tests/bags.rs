@@ -346,7 +346,7 @@ fn check_rosbags_fixture(bag: &Bag) {
     assert_eq!(contour.radii.len() as u64, u64_of(&c["radii"]));
     assert_eq!(contour.radii[0], c["radius_0"].as_f64().unwrap());
     assert_eq!(contour.radii[100], c["radius_100"].as_f64().unwrap());
-    // The size figures appended to Contour (issue 30).
+    // The size figures appended to Contour.
     assert_eq!(contour.circumference, c["circumference"].as_f64().unwrap());
     let u95: Vec<f64> = c["size_u95"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     assert_eq!(contour.size_u95.to_vec(), u95);

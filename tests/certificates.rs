@@ -1,4 +1,4 @@
-//! The artefacts' certificates in the covariance (issue 30, GUM type B): the sensitivity
+//! The artefacts' certificates in the covariance (GUM type B): the sensitivity
 //! each fit reports for the plate's side and the ring gauge's diameter is the estimator's
 //! own (fits of the same scans with the size moved), and a Monte Carlo in which the
 //! artefact really is off by its certified uncertainty is covered by what is reported.

@@ -1,5 +1,5 @@
 //! The DDS layer holds what the QoS depths allow, whatever is published through it
-//! (issue 11; `vendor/rustdds/PATCHES.md`, "A KEEP_LAST writer releases samples").
+//! (`vendor/rustdds/PATCHES.md`, "A KEEP_LAST writer releases samples").
 //!
 //! Two rustdds participants in this process (localhost only, domain 93; `scripts/test.sh`
 //! runs the tests inside a private network namespace): a reliable KEEP_LAST 10 writer,

@@ -1,5 +1,5 @@
 //! A DataWriter's and a DataReader's USER_DATA QoS policy reaches other participants in
-//! their SEDP data (issue 20; `vendor/rustdds/PATCHES.md`, "USER_DATA").
+//! their SEDP data (`vendor/rustdds/PATCHES.md`, "USER_DATA").
 //!
 //! Two rustdds participants in this process (localhost only, domain 94; `scripts/test.sh`
 //! runs the tests inside a private network namespace). The first makes a writer and a

@@ -1,5 +1,5 @@
 //! A ros2-client service server reads each request in the layout its client used and
-//! answers in that layout (issue 20; `vendor/ros2-client/PATCHES.md`, "Each service
+//! answers in that layout (`vendor/ros2-client/PATCHES.md`, "Each service
 //! request is read, and answered, in its client's layout").
 //!
 //! Real DDS between two rustdds participants in this process (localhost only, domain

@@ -1,4 +1,4 @@
-//! Size figures and their 95 % uncertainty by Monte Carlo (issue 30): a lens traced from
+//! Size figures and their 95 % uncertainty by Monte Carlo: a lens traced from
 //! outside and a frame from inside, by a tracer calibrated from its own noisy plate (and
 //! ring gauge) scans each trial; the reported U95 of circumference, A, B and FED covers the
 //! truth in about 95 % of the trials (90-99 % asserted), and the circumference is unbiased.

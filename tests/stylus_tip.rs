@@ -1,4 +1,4 @@
-//! The stylus tip end to end on simulated scans (issue 30): a tracer touching with a
+//! The stylus tip end to end on simulated scans: a tracer touching with a
 //! ball of radius ρ, its tip fitted from a plate and a ring gauge (`full_tip`,
 //! `full_scale_tip`), a known tip in force for the other models, frames and lenses
 //! corrected to the surface the tip touched, and the scans that do not fit refused.

@@ -1,4 +1,4 @@
-//! The size figures' Monte Carlo (issue 30), shared by `tests/sizes.rs` (400 trials a row)
+//! The size figures' Monte Carlo, shared by `tests/sizes.rs` (400 trials a row)
 //! and the accuracy example's part 5 (2000): a tracer calibrated from its own noisy plate
 //! (and ring gauge) scans each trial traces a lens or a frame; how often the reported U95
 //! covers the exact figures, and their mean error.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Delay, and so reorder, the packets of NFQUEUE queue 0 (issue 29: this kernel has no
+"""Delay, and so reorder, the packets of NFQUEUE queue 0 (this kernel has no
 netem): each is held for a delay drawn uniformly from [DELAY - JITTER, DELAY + JITTER] ms,
 then accepted; packets closer together than the jitter's spread leave in another order
 than they came. test_lossy.py queues to it the UDP datagrams lo sends in a scenario's

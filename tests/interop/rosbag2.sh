@@ -33,7 +33,7 @@
 #
 # KEY: the sha256 of the tarballs' sha256s, the venv's lock file (requirements-jazzy.lock),
 # requirements-rosbag2.txt, the Debian packages' versions and the recipe (RECIPE below). A fresh
-# build takes 9-12 minutes on 2 cores (`nice -n 10`, -j2, or $ROS_SETUP_JOBS); a rerun with
+# build takes minutes (BENCHMARKS.md; `nice -n 10`, -j2, or $ROS_SETUP_JOBS); a rerun with
 # all of those unchanged reuses it (a fraction of a second); `--force` rebuilds. The build runs
 # in a temporary directory beside the cache and is moved into place when complete: an
 # interrupted build leaves no half cache. Then it writes

@@ -50,13 +50,13 @@
 # scripts/test.sh builds with the cargo feature `security` (a node built without it
 # fails these tests: it cannot be secure).
 # (2d, Jazzy; zenoh or zenoh_NAME) tests/interop/zenoh.sh builds rmw_zenoh_cpp and its
-# router rmw_zenohd (cached outside the clone; 8-14 min and ~0.26 GB of crates the first
-# time, 0.1 s after), and test_zenoh.py runs the node on Zenoh (RMW_IMPLEMENTATION=
+# router rmw_zenohd (cached outside the clone: built the first time, BENCHMARKS.md; reused
+# after), and test_zenoh.py runs the node on Zenoh (RMW_IMPLEMENTATION=
 # rmw_zenoh_cpp) with stock rclpy peers on rmw_zenoh_cpp and the stock ros2 CLI through the
 # router, in a private network namespace.
 # (2e, Jazzy; rosbag2 or rosbag2_NAME, e.g. rosbag2_record_mcap) tests/interop/rosbag2.sh
 # builds the stock `ros2 bag` (rosbag2 from ../shared/ros2-src/, cached outside the clone;
-# 9-12 min the first time, well under a second after), and test_rosbag2.py runs `ros2 bag
+# built the first time, BENCHMARKS.md; reused after), and test_rosbag2.py runs `ros2 bag
 # record` (MCAP, sqlite3, service events), `info` and `play --clock` against the node and
 # `tracer_calib calibrate`/`correct` on what it recorded, peers on Fast DDS, in a private
 # network namespace.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A new driver's first scan reaches the node at once (issue 20, item 5).
+"""A new driver's first scan reaches the node at once.
 
 A tracer driver that starts next to a running node sees the node's raw_scan subscription
 within milliseconds (its publisher's subscription count turns 1) and publishes. The node

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Nothing lost, nothing late on a lossy network (issue 29).
+"""Nothing lost, nothing late on a lossy network.
 
 Each scenario runs in a network namespace of its own (`unshare --net`, made here, inside the
 private namespace run.sh gives the script), whose loopback drops a share of the UDP
@@ -614,7 +614,7 @@ def test_lossy(envs, rmw, loss, variant=""):
     print(f"  {label}: tracer_calib_node: {describe(node)}", flush=True)
     lost_node = node["scans"] - node["contours"]
     lost_stock = node["scans"] if stock is None else stock["scans"] - stock["contours"]
-    # Zenoh with TCP's backoff capped: every scan and call through (issue 29, item 4).
+    # Zenoh with TCP's backoff capped: every scan and call through.
     allowed = 0 if loss <= 10 or variant == "rtomax1s" else lost_stock
     assert lost_node <= allowed, f"the node lost {lost_node} contours, the stock node {lost_stock}"
     assert None not in node["calls"] + node["param_calls"], (

@@ -1,4 +1,4 @@
-"""Calibration records (issue 12) against a real ROS 2 peer: the history file, the latched
+"""Calibration records against a real ROS 2 peer: the history file, the latched
 `calibration` topic, max age and drift on /diagnostics, the `history` CLI, a history
 location that cannot be written.
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""tracer_calib_node and the offline tool against the real `ros2 bag` (rosbag2 0.26.5, Jazzy;
-issue 32): what a cell's engineer records, inspects and plays back with the stock tool.
+"""tracer_calib_node and the offline tool against the real `ros2 bag` (rosbag2 0.26.5,
+Jazzy): what a cell's engineer records, inspects and plays back with the stock tool.
 
 Run by tests/interop/run.sh inside a private network namespace, with the Jazzy peer
 environment (target/ros/jazzy/env.sh) and target/ros/jazzy/rosbag2_env.sh (the stock rosbag2

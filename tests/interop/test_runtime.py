@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""tracer_calib_node's runtime contract with stock rclpy peers (issue 21): simulated time,
+"""tracer_calib_node's runtime contract with stock rclpy peers: simulated time,
 parameter descriptors, and the `-p` rules as rcl reads them.
 
 Run by tests/interop/run.sh inside a private network namespace, with the distribution's

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Type hashes and type descriptions (REP-2016) of tracer_calib_node, seen by a stock rclpy
-node (issue 20, item 2):
+node:
 
 - endpoint_hashes: every endpoint of the node (its topics, /calibrate, the parameter
   services, ~/get_type_description, /rosout, /parameter_events, /clock, ros_discovery_info,

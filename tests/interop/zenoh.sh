@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A stock rmw_zenoh peer: zenoh-c, zenoh-cpp, rmw_zenoh_cpp 0.2.10 and its router rmw_zenohd
 # built from source for the Jazzy wheel venv, and an environment file that puts an rclpy
-# process on rmw_zenoh_cpp (issue 23).
+# process on rmw_zenoh_cpp.
 #
 #   tests/interop/zenoh.sh [--force] jazzy     (after tests/interop/setup.sh jazzy)
 #
@@ -27,7 +27,7 @@
 #       shim/librmw_fastrtps_cpp.so                        the RMW under rmw_fastrtps_cpp's SONAME
 #       key                                                what it was built from (KEY below)
 #
-# A fresh machine builds it (~8 min on 2 cores, 3.5 GB of build tree removed afterwards),
+# A fresh machine builds it (BENCHMARKS.md; 3.5 GB of build tree removed afterwards),
 # a rerun reuses it; it is rebuilt when a tarball, the venv's pinned wheels (the lock file)
 # or this recipe change (`--force`: always). The key also records the cargo that built it,
 # but a rerun does not compare it (that would start rustup: not "well under a second").
