@@ -57,6 +57,16 @@ impl<B: Backend> Lifecycle<B> {
                 .map_err(mk)?;
         let bond = match bond {
             Some(bond) => {
+                // A secure cell whose permissions predate the bond refuses it: say which
+                // topic, and the two ways out.
+                let mk = |e: ros2_client::CreateError| {
+                    format!(
+                        "{}; nav2's bond on {bond} (bond_heartbeat_period > 0) needs a publish and \
+                         subscribe grant for it in the enclave's permissions \
+                         (config/sros2_cell_policy.xml), or bond_heartbeat_period:=0 for no bond",
+                        B::cannot_create(B::LIFECYCLE_ENTITY, e)
+                    )
+                };
                 let type_name = BondStatus::NAME.message_type_name();
                 let out = B::topic(node, bond, type_name.clone(), &reliable(5)).map_err(mk)?;
                 let into = B::topic(node, bond, type_name, &reliable(100)).map_err(mk)?;
