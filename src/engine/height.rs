@@ -43,7 +43,10 @@
 //! ```
 //!
 //! taken on the same grid as the circumference in the plane ([`super::size::Sizes`]), so
-//! that a flat frame's `L₃` is its `C` to the last bit.
+//! that a flat frame's `L₃` is its `C` to the last bit: the plane's circumference comes
+//! from a finer smooth with its noise's lengthening taken off
+//! ([`super::size::noise_lengthening`]), and `L₃` takes the same change, times `∂L₃/∂L₂`
+//! (below), over its grid's own `∮ √(r² + r'²) dθ`.
 //!
 //! **Its uncertainty** ([`Frame3d::circumference_u95`]). Three independent parts, to first
 //! order: the plane's (a radial change `δr` moves `L₃` by `∮ (r δr + r' δr')/s₃` where
@@ -296,7 +299,15 @@ impl Frame3d {
             tangent.push(dp);
             along_plane.push(plane / s3);
         }
-        let circumference = arc.iter().sum::<f64>() * h;
+        // The plane's circumference as the size module took it (finer, its noise's
+        // lengthening off) against this grid's: the same change in 3-D, times ∂L₃/∂L₂.
+        let on_grid = grid.iter().map(|(r, rp)| (r * r + rp * rp).sqrt()).sum::<f64>() * h;
+        let shift = if on_grid > 0.0 {
+            (sizes.circumference - on_grid) * along_plane.iter().sum::<f64>() * h / on_grid
+        } else {
+            0.0
+        };
+        let circumference = arc.iter().sum::<f64>() * h + shift;
         circumference.is_finite().then_some(Frame3d {
             sphere,
             circumference,
