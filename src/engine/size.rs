@@ -1040,8 +1040,9 @@ pub fn uncertainty(
     // The circumference from a finer smooth, its noise's lengthening taken off.
     let dof = points.len().saturating_sub(2 * k + 1).max(1);
     // The radii interpolated between samples carry less of the samples' noise the higher its
-    // frequency: neighbours weighted `1 - f`, `f` pass `g + (1 - g) cos ω` of its density at
-    // `ω`, `g = (1 - f)² + f²` a radius' gain (its mean over the radii).
+    // frequency: two neighbours weighted `1 - f`, `f` pass `g + (1 - g) cos ω` of its density
+    // at `ω`, `g = (1 - f)² + f²`; the cubic's four weights are taken as that, with `g` the
+    // radii's mean gain (`Σ w²`).
     let gain = if radii_gain.is_empty() { 1.0 } else { radii_gain.iter().sum::<f64>() / radii_gain.len() as f64 };
     let passed = |kk: usize| {
         let omega = TAU * kk as f64 / big_n as f64;
