@@ -16,35 +16,21 @@
 //! network namespace, as `scripts/test.sh` runs `cargo test`.
 #![cfg(feature = "zenoh")]
 
-use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 use futures::{FutureExt, StreamExt, future};
-use ros2_client::zenoh::{Context, ContextOptions};
 use ros2_client::{Name, NodeName, NodeOptions};
 use tracer_calib::interfaces::{Contour, PolygonStamped, RawScan, RosMsg};
-use tracer_calib::rmw::dds::TypesInUse;
 use zenoh::Wait;
 
 mod common;
-use common::{NodeProcess, reliable, within};
+use common::on_zenoh::{lens_scan, listening_context, node_connecting_to};
+use common::{reliable, within};
 
 const PORT: u16 = 7462;
 const DOMAIN: u16 = 0;
-
-/// A lens-like scan: 400 samples, a circle of 20 000 counts.
-fn scan(scan_id: u32) -> RawScan {
-    RawScan {
-        scan_id,
-        target: 3,
-        steps_per_revolution: 400,
-        step: (0..400).collect(),
-        counts: vec![20_000; 400],
-        ..RawScan::default()
-    }
-}
 
 /// Lyrical's liveliness tokens for a node `/lyrical_edger` (session `zid`) and its
 /// subscription on `/contour_polygon`: `@ros2_lv/<domain>/<zid>/<nid>/<id>/<kind>/<enclave>/
@@ -62,23 +48,8 @@ fn lyrical_tokens(zid: &str, polygon_hash: &str) -> [String; 2] {
 
 #[test]
 fn a_lyrical_peers_tokens_with_their_optional_chunk_are_seen() {
-    let mut config = zenoh::Config::default();
-    config.insert_json5("mode", "\"peer\"").unwrap();
-    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{PORT}\"]")).unwrap();
-    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
-    let types = TypesInUse::default();
-    let ctx = Context::with_options(
-        ContextOptions::new().domain_id(DOMAIN).zenoh_config(config).type_hashes(types.hashing_resolver()),
-    )
-    .expect("the test's Zenoh session");
-    let _node = NodeProcess(
-        Command::new(env!("CARGO_BIN_EXE_tracer_calib_node"))
-            .env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp")
-            .env("ZENOH_ROUTER_CHECK_ATTEMPTS", "-1")
-            .env("ZENOH_CONFIG_OVERRIDE", format!("connect/endpoints=[\"tcp/127.0.0.1:{PORT}\"]"))
-            .spawn()
-            .expect("the node starts"),
-    );
+    let ctx = listening_context(PORT, DOMAIN);
+    let _node = node_connecting_to(PORT);
     let peer = ctx
         .new_node(NodeName::new("/", "lyrical_tokens_test").unwrap(), NodeOptions::new().enable_rosout(false))
         .unwrap();
@@ -114,7 +85,7 @@ fn a_lyrical_peers_tokens_with_their_optional_chunk_are_seen() {
             next_id += 1;
             within(20, what, async {
                 loop {
-                    scans.publish(scan(id)).unwrap();
+                    scans.publish(lens_scan(id)).unwrap();
                     let wait = FutureExt::map(smol::Timer::after(Duration::from_millis(300)), |_| None);
                     let got =
                         future::select(Box::pin(contours.next().map(Some)), Box::pin(wait)).await.factor_first().0;

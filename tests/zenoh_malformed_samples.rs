@@ -10,34 +10,20 @@
 //! as `scripts/test.sh` runs `cargo test`.
 #![cfg(feature = "zenoh")]
 
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 use futures::{FutureExt, StreamExt, future};
-use ros2_client::zenoh::{Context, ContextOptions};
 use ros2_client::{Name, NodeName, NodeOptions};
 use tracer_calib::interfaces::cdr::to_cdr;
 use tracer_calib::interfaces::{Contour, DiagnosticArray, RawScan, RosMsg};
-use tracer_calib::rmw::dds::TypesInUse;
 use zenoh::Wait;
 
 mod common;
-use common::{NodeProcess, reliable, value, within};
+use common::on_zenoh::{lens_scan, listening_context, node_connecting_to};
+use common::{reliable, value, within};
 
 const PORT: u16 = 7461;
 const DOMAIN: u16 = 0;
-
-/// A lens-like scan: 400 samples, a circle of 20 000 counts.
-fn scan(scan_id: u32) -> RawScan {
-    RawScan {
-        scan_id,
-        target: 3,
-        steps_per_revolution: 400,
-        step: (0..400).collect(),
-        counts: vec![20_000; 400],
-        ..RawScan::default()
-    }
-}
 
 /// An rmw_zenoh attachment: sequence number and timestamp (i64 LE), then the GID with its
 /// length as a one-byte varint.
@@ -52,23 +38,8 @@ fn attachment(seq: i64) -> Vec<u8> {
 
 #[test]
 fn malformed_samples_are_counted_and_dropped_and_the_node_keeps_serving() {
-    let mut config = zenoh::Config::default();
-    config.insert_json5("mode", "\"peer\"").unwrap();
-    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{PORT}\"]")).unwrap();
-    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
-    let types = TypesInUse::default();
-    let ctx = Context::with_options(
-        ContextOptions::new().domain_id(DOMAIN).zenoh_config(config).type_hashes(types.hashing_resolver()),
-    )
-    .expect("the test's Zenoh session");
-    let _node = NodeProcess(
-        Command::new(env!("CARGO_BIN_EXE_tracer_calib_node"))
-            .env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp")
-            .env("ZENOH_ROUTER_CHECK_ATTEMPTS", "-1")
-            .env("ZENOH_CONFIG_OVERRIDE", format!("connect/endpoints=[\"tcp/127.0.0.1:{PORT}\"]"))
-            .spawn()
-            .expect("the node starts"),
-    );
+    let ctx = listening_context(PORT, DOMAIN);
+    let _node = node_connecting_to(PORT);
     let peer = ctx
         .new_node(NodeName::new("/", "malformed_samples_test").unwrap(), NodeOptions::new().enable_rosout(false))
         .unwrap();
@@ -91,7 +62,7 @@ fn malformed_samples_are_counted_and_dropped_and_the_node_keeps_serving() {
         // subscriber to reach this session).
         let first = within(20, "a first contour", async {
             loop {
-                scans.publish(scan(1)).unwrap();
+                scans.publish(lens_scan(1)).unwrap();
                 let next = FutureExt::map(smol::Timer::after(Duration::from_millis(300)), |_| None);
                 let got = future::select(Box::pin(contours.next().map(Some)), Box::pin(next)).await.factor_first().0;
                 if let Some(Some(Ok((c, _)))) = got {
@@ -105,7 +76,7 @@ fn malformed_samples_are_counted_and_dropped_and_the_node_keeps_serving() {
         // A payload that is no RawScan, with a good attachment; a good payload with a
         // 5-byte attachment.
         raw.put(vec![0u8, 1, 0, 0, 9, 9, 9]).attachment(attachment(1)).wait().unwrap();
-        let good = to_cdr(&scan(2)).unwrap();
+        let good = to_cdr(&lens_scan(2)).unwrap();
         raw.put(good).attachment(vec![1u8, 2, 3, 4, 5]).wait().unwrap();
 
         // Two calibrate queries the node cannot read: a payload of no request, and a good
@@ -143,7 +114,7 @@ fn malformed_samples_are_counted_and_dropped_and_the_node_keeps_serving() {
         }
 
         // And the node serves the next good scan.
-        scans.publish(scan(3)).unwrap();
+        scans.publish(lens_scan(3)).unwrap();
         let next = within(10, "a contour after the bad samples", async {
             loop {
                 if let Some(Ok((c, _))) = contours.next().await

@@ -9,6 +9,9 @@ use futures::{FutureExt, future};
 use ros2_client::{QosProfile, qos::*};
 use tracer_calib::interfaces::DiagnosticArray;
 
+#[cfg(feature = "zenoh")]
+pub mod on_zenoh;
+
 /// `f`, or a panic naming `what` after `secs` seconds.
 pub async fn within<T>(secs: u64, what: &str, f: impl std::future::Future<Output = T>) -> T {
     let timeout = FutureExt::map(smol::Timer::after(Duration::from_secs(secs)), |_| None);
