@@ -301,7 +301,7 @@ impl Frame3d {
         }
         // The plane's circumference as the size module took it (finer, its noise's
         // lengthening off) against this grid's: the same change in 3-D, times ∂L₃/∂L₂.
-        let on_grid = grid.iter().map(|(r, rp)| (r * r + rp * rp).sqrt()).sum::<f64>() * h;
+        let on_grid = super::size::grid_length(grid);
         let shift = if on_grid > 0.0 {
             (sizes.circumference - on_grid) * along_plane.iter().sum::<f64>() * h / on_grid
         } else {

@@ -135,16 +135,47 @@ fn circumference(
 ) -> Option<(f64, f64)> {
     let fine = Smooth::fit(radii, CIRCUMFERENCE_HARMONICS_FACTOR * k)?;
     let kc = fine.harmonics();
-    let sizes = Sizes::of(&fine);
+    let grid = fine.on_grid();
     let weights: Vec<f64> = (0..=kc).map(|j| if j == 0 { 1.0 } else { 2.0 } * density(j)).collect();
-    let var: f64 =
-        sizes.harmonic_responses(kc).iter().enumerate().map(|(i, g)| weights[i.div_ceil(2)] * g[0] * g[0]).sum::<f64>()
-            * per_sample;
+    let var: f64 = circumference_harmonic_responses(&grid, kc)
+        .iter()
+        .zip(&weights)
+        .enumerate()
+        .map(|(j, ((c, s), w))| w * if j == 0 { c * c } else { c * c + s * s })
+        .sum::<f64>()
+        * per_sample;
     let (s0, s2) = weights.iter().enumerate().fold((0.0, 0.0), |(s0, s2), (j, w)| (s0 + w, s2 + w * (j * j) as f64));
-    let lengthening = noise_lengthening(sizes.grid(), s0 * per_sample, s2 * per_sample);
+    let lengthening = noise_lengthening(&grid, s0 * per_sample, s2 * per_sample);
     let var_lengthening = lengthening * lengthening * 2.0 / dof as f64;
-    let c = sizes.circumference - lengthening;
+    let c = grid_length(&grid) - lengthening;
     (c.is_finite() && var.is_finite()).then_some((c, var + var_lengthening))
+}
+
+/// `∮ √(r² + r'²) dθ` of the curve with `r`, `r'` on `grid` (trapezoid, spectrally accurate
+/// on a periodic function).
+pub fn grid_length(grid: &[(f64, f64)]) -> f64 {
+    grid.iter().map(|(r, rp)| (r * r + rp * rp).sqrt()).sum::<f64>() * TAU / grid.len().max(1) as f64
+}
+
+/// The circumference's first-order response to `cos kθ` and `sin kθ` for `k = 0..=K` of the
+/// curve with `r`, `r'` on `grid` ([`Sizes::response`]): `∮ (r cos kθ - r' k sin kθ)/L` and
+/// `∮ (r sin kθ + r' k cos kθ)/L`, from the DFTs `F` of `r/L` and `r'/L` on the grid:
+/// `Re F(r/L)_k + k Im F(r'/L)_k` and `-Im F(r/L)_k + k Re F(r'/L)_k` (`K < GRID/2`).
+fn circumference_harmonic_responses(grid: &[(f64, f64)], k_max: usize) -> Vec<(f64, f64)> {
+    let h = TAU / GRID as f64;
+    let k_max = k_max.min(GRID / 2 - 1);
+    let inv_l: Vec<f64> = grid.iter().map(|(r, rp)| 1.0 / (r * r + rp * rp).sqrt()).collect();
+    let rl: Vec<f64> = grid.iter().zip(&inv_l).map(|((r, _), il)| r * il).collect();
+    let rpl: Vec<f64> = grid.iter().zip(&inv_l).map(|((_, rp), il)| rp * il).collect();
+    let (Some(f_r), Some(f_rp)) = (forward_dft(&rl), forward_dft(&rpl)) else {
+        return Vec::new(); // not reached: the plan's own lengths
+    };
+    (0..=k_max)
+        .map(|k| {
+            let kf = k as f64;
+            ((f_r[k].re + kf * f_rp[k].im) * h, (-f_r[k].im + kf * f_rp[k].re) * h)
+        })
+        .collect()
 }
 
 fn argmax(v: &[f64]) -> usize {
@@ -471,7 +502,7 @@ impl Sizes {
         let h = TAU / GRID as f64;
         let unit = grid_unit();
         let grid = smooth.on_grid();
-        let circumference = grid.iter().map(|(r, dr)| (r * r + dr * dr).sqrt()).sum::<f64>() * h;
+        let circumference = grid_length(&grid);
         let x: Vec<f64> = grid.iter().zip(unit).map(|((r, _), (c, _))| r * c).collect();
         let y: Vec<f64> = grid.iter().zip(unit).map(|((r, _), (_, s))| r * s).collect();
         let neg = |v: &[f64]| v.iter().map(|a| -a).collect::<Vec<_>>();
@@ -543,20 +574,13 @@ impl Sizes {
     }
 
     /// [`Self::response`] to `cos kθ` and `sin kθ` for `k = 0..=K` (`k = 0`: the constant).
-    /// The circumference's, `∮ (r cos kθ - r' k sin kθ)/L` and `∮ (r sin kθ + r' k cos kθ)/L`,
-    /// from the DFTs `F` of `r/L` and `r'/L` on the grid: `Re F(r/L)_k + k Im F(r'/L)_k` and
-    /// `-Im F(r/L)_k + k Re F(r'/L)_k` (`K < GRID/2`).
+    /// The circumference's by [`circumference_harmonic_responses`].
     fn harmonic_responses(&self, k_max: usize) -> Vec<[f64; 4]> {
-        let h = TAU / GRID as f64;
         let k_max = k_max.min(GRID / 2 - 1);
-        let inv_l: Vec<f64> = self.grid.iter().map(|(r, rp)| 1.0 / (r * r + rp * rp).sqrt()).collect();
-        let rl: Vec<f64> = self.grid.iter().zip(&inv_l).map(|((r, _), il)| r * il).collect();
-        let rpl: Vec<f64> = self.grid.iter().zip(&inv_l).map(|((_, rp), il)| rp * il).collect();
-        let (Some(f_r), Some(f_rp)) = (forward_dft(&rl), forward_dft(&rpl)) else {
-            return Vec::new(); // not reached: the plan's own lengths
-        };
-        let cc: Vec<f64> = (0..=k_max).map(|k| f_r[k].re + k as f64 * f_rp[k].im).collect();
-        let cs: Vec<f64> = (0..=k_max).map(|k| -f_r[k].im + k as f64 * f_rp[k].re).collect();
+        let dc = circumference_harmonic_responses(&self.grid, k_max);
+        if dc.is_empty() {
+            return Vec::new();
+        }
         // Each side's response to cos kθ and sin kθ, all k at once (rotation per point).
         let sides = self.side_harmonics(k_max);
         let t_fed = self.far[0].angle;
@@ -570,9 +594,9 @@ impl Sizes {
         let mut out = Vec::with_capacity(2 * k_max + 1);
         for k in 0..=k_max {
             let kf = k as f64;
-            out.push(assemble(cc[k] * h, [0, 1, 2, 3].map(|j| sides[j][k].0), (kf * t_fed).cos()));
+            out.push(assemble(dc[k].0, [0, 1, 2, 3].map(|j| sides[j][k].0), (kf * t_fed).cos()));
             if k > 0 {
-                out.push(assemble(cs[k] * h, [0, 1, 2, 3].map(|j| sides[j][k].1), (kf * t_fed).sin()));
+                out.push(assemble(dc[k].1, [0, 1, 2, 3].map(|j| sides[j][k].1), (kf * t_fed).sin()));
             }
         }
         out
