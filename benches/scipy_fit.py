@@ -11,12 +11,12 @@ centre, plate size) comes on the command line with the same defaults as
 
 The two models are numpy ports of ours, vectorised over the samples:
 
-- full (src/engine/model/full.rs): x = [alpha0, d, dL, cx, cy], every raw sample,
+- full (crates/tracer_calib_engine/src/model/full.rs): x = [alpha0, d, dL, cx, cy], every raw sample,
   rho = t + dL with t the exit distance of the rail ray d v + t u from the rounded
   square (flats, and corner arcs of radius r), and the analytic Jacobian
   d rho/d alpha0 = -N.(t v - d u)/(N.u), d rho/d d = -N.v/(N.u), d rho/d dL = 1,
   d rho/d c = N/(N.u).
-- paper (src/engine/model/paper.rs): x = [alpha0, d], residuals
+- paper (crates/tracer_calib_engine/src/model/paper.rs): x = [alpha0, d], residuals
   (g(a_k) - g(a_{k+1})) - (s_k - s_{k+1}) over neighbouring pairs of opposite sums
   s_k = rho_k + rho_{k+N/2}, g = S/|cos a| + 2 d tan a (x-sides) or
   S/|sin a| - 2 d cot a (y-sides); the sums are selected as ours does (both samples on
@@ -64,7 +64,7 @@ def read_scan(path, meters_per_count):
 
 
 class FullModel:
-    """src/engine/model/full.rs, vectorised."""
+    """crates/tracer_calib_engine/src/model/full.rs, vectorised."""
 
     def __init__(self, steps, rho, n, side, radius):
         phi = 2.0 * math.pi * steps.astype(np.float64) / n
@@ -164,7 +164,7 @@ class FullModel:
 
 
 class PaperModel:
-    """src/engine/model/paper.rs, vectorised."""
+    """crates/tracer_calib_engine/src/model/paper.rs, vectorised."""
 
     def __init__(self, steps, rho, n, side, axis_of):
         assert n % 2 == 0

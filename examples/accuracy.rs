@@ -36,8 +36,9 @@
 //!    length's mean error, spread and U95 coverage, the frame curve's worst error, and the
 //!    axis tilt's spread against what the calibration states.
 
-#[path = "../tests/common/size_coverage.rs"]
-#[allow(dead_code)] // shared with tests/sizes.rs and tests/stylus_tip.rs
+#[path = "../crates/tracer_calib_engine/tests/common/size_coverage.rs"]
+#[allow(dead_code)]
+// shared with crates/tracer_calib_engine/tests/sizes.rs and crates/tracer_calib_engine/tests/stylus_tip.rs
 mod size_coverage;
 
 use nalgebra::Vector2;

@@ -22,7 +22,7 @@
 pub(crate) mod c_number;
 pub mod cell;
 pub mod cli;
-pub mod engine;
+pub use tracer_calib_engine as engine;
 pub mod interfaces;
 pub mod io;
 pub mod names;

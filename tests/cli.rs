@@ -793,7 +793,7 @@ fn the_tip_models_take_a_ring_gauge() {
     let truth = [2.0 * (w + h) - 8.0 * r + std::f64::consts::TAU * r, w, h];
     let u95: Vec<f64> = line["size_u95"].as_array().unwrap().iter().map(|u| u.as_f64().unwrap()).collect();
     // One trace: within twice its U95 (a normal error misses that once in 15 000; the
-    // 95 % coverage itself is tests/sizes.rs's Monte Carlo).
+    // 95 % coverage itself is crates/tracer_calib_engine/tests/sizes.rs's Monte Carlo).
     for (f, name) in ["circumference", "box_width", "box_height"].iter().enumerate() {
         let got = line[name].as_f64().unwrap();
         assert!(u95[f] > 0.0 && (got - truth[f]).abs() <= 2.0 * u95[f], "{name}: {got} for {} ± {}", truth[f], u95[f]);

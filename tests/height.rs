@@ -9,7 +9,7 @@
 //! 0.1 D. A tracer without a height channel: the 3-D figures are the 2-D ones. Figures
 //! printed (BENCHMARKS.md).
 
-#[path = "common/raytrace.rs"]
+#[path = "../crates/tracer_calib_engine/tests/common/raytrace.rs"]
 mod raytrace;
 
 use nalgebra::{DMatrix, Vector2, Vector3};

@@ -54,7 +54,7 @@ pub struct Args {
     /// Fitting model: 'full' (every sample, the default), 'paper' (the seed paper's
     /// reduced model), 'full_scale' (full, and the encoder scale), 'full_tip' (full, and
     /// the stylus tip's radius from a ring-gauge scan) or 'full_scale_tip' (both).
-    #[arg(long)]
+    #[arg(long, value_parser = model_parser())]
     pub model: Option<ModelKind>,
     /// The ring-gauge scan of the tip models: a CSV file as --input, or a bag (its
     /// latest ring-gauge scan, or --ring-scan-id). Default: the --input bag.
@@ -117,13 +117,12 @@ pub struct Args {
     pub json: bool,
 }
 
-impl clap::ValueEnum for ModelKind {
-    fn value_variants<'a>() -> &'a [Self] {
-        &ModelKind::ALL
-    }
-    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
-        Some(clap::builder::PossibleValue::new(self.as_str()))
-    }
+/// `--model`'s parser: one of [`ModelKind::ALL`] by name, the names listed in `--help`
+/// and in the error. (The engine's crate knows no clap; the names are its `as_str`.)
+fn model_parser() -> impl clap::builder::TypedValueParser<Value = ModelKind> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(ModelKind::ALL.map(ModelKind::as_str))
+        .map(|name| name.parse::<ModelKind>().expect("a name of ModelKind::ALL parses"))
 }
 
 /// The Calibrate response (docs/CONTRACT.md): its fields, in its order, are the JSON output.

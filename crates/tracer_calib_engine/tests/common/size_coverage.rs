@@ -6,15 +6,15 @@
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use tracer_calib::engine::calibrate::{CalibrationError, Options, Ring, calibrate_with_ring};
-use tracer_calib::engine::correct::{correct, resample_radii, resample_radii_with_gain};
-use tracer_calib::engine::geometry::Mounting;
-use tracer_calib::engine::model::tip::RingSpec;
-use tracer_calib::engine::model::{ModelKind, PlateSpec};
-use tracer_calib::engine::shape::{Ellipse, Shape};
-use tracer_calib::engine::simulate::{SimOptions, simulate};
-use tracer_calib::engine::size::{Correction, uncertainty};
-use tracer_calib::engine::stylus::{Traced, touched_surface};
+use tracer_calib_engine::calibrate::{CalibrationError, Options, Ring, calibrate_with_ring};
+use tracer_calib_engine::correct::{correct, resample_radii, resample_radii_with_gain};
+use tracer_calib_engine::geometry::Mounting;
+use tracer_calib_engine::model::tip::RingSpec;
+use tracer_calib_engine::model::{ModelKind, PlateSpec};
+use tracer_calib_engine::shape::{Ellipse, Shape};
+use tracer_calib_engine::simulate::{SimOptions, simulate};
+use tracer_calib_engine::size::{Correction, uncertainty};
+use tracer_calib_engine::stylus::{Traced, touched_surface};
 
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
 const RING: RingSpec = RingSpec::plain(0.040);

@@ -1,4 +1,6 @@
-//! The calibration engine: pure computation, no I/O, no ROS types.
+//! The calibration engine of `tracer_calib`: pure computation, no I/O, no ROS types (the
+//! crate depends on no middleware and no I/O library; the root package's
+//! `tests/engine_crate.rs` checks it). `tracer_calib` re-exports it as `tracer_calib::engine`.
 //!
 //! The pipeline, one module a stage:
 //!

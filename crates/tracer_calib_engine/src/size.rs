@@ -836,7 +836,7 @@ pub struct Correction {
     pub tip_radius: f64,
     pub traced: Traced,
     /// The groove the tip sat in when it traced from inside (a frame's rim: the contour is
-    /// its bottom, [`crate::engine::stylus`]); ignored from outside.
+    /// its bottom, [`crate::stylus`]); ignored from outside.
     pub groove: Groove,
     /// The orders of the angle error the correction applied (their coefficients' rows
     /// follow the five in the covariance, [`super::calibrate::covariance_names`]).
@@ -905,7 +905,7 @@ impl Correction {
     }
 
     /// How far the tip's centre sat from the contour: `ρ`, or `ρ/sin(γ/2)` in a groove
-    /// ([`crate::engine::stylus::contact_offset`]).
+    /// ([`crate::stylus::contact_offset`]).
     pub fn contact_offset(&self) -> f64 {
         self.tip_radius * self.contact_factor()
     }
@@ -1264,8 +1264,7 @@ mod tests {
         assert!((circle.effective_diameter - 0.04).abs() < 1e-12);
         let e = Sizes::of(&Smooth::fit(&ellipse_radii(0.025, 0.015, 400), 40).unwrap());
         // Ramanujan's second approximation, exact to 1e-10 relative here.
-        let [c, ..] =
-            crate::engine::shape::Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 }.exact_sizes();
+        let [c, ..] = crate::shape::Ellipse { center: Vector2::zeros(), a: 0.025, b: 0.015, angle: 0.0 }.exact_sizes();
         assert!((e.circumference - c).abs() < 1e-9, "{} vs {c}", e.circumference);
         assert!((e.box_width - 0.05).abs() < 1e-9 && (e.box_height - 0.03).abs() < 1e-9, "{e:?}");
         assert!((e.effective_diameter - 0.05).abs() < 1e-9);

@@ -441,8 +441,8 @@ pub fn default_max_gap(steps_per_rev: u32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::geometry::probe_point;
-    use crate::engine::shape::{Ellipse, Shape};
+    use crate::geometry::probe_point;
+    use crate::shape::{Ellipse, Shape};
     use approx::assert_relative_eq;
 
     /// The reference: libm's `atan2`, shifted from (-π, π] to [0, 2π].

@@ -17,7 +17,7 @@
 //! y_k = s_k - s_{k+1} = g(a_k) - g(a_{k+1}),      a_k = alpha0 + 2π k/N
 //! ```
 //!
-//! which is fitted for `[alpha0, d]` by [`crate::engine::lm`] (eq. 7). Then (eq. 8)
+//! which is fitted for `[alpha0, d]` by [`crate::lm`] (eq. 7). Then (eq. 8)
 //!
 //! ```text
 //! dL = mean_k (s_k - g(a_k)) / 2
@@ -40,10 +40,10 @@ use nalgebra::{DMatrix, SMatrix, SVector, Vector2};
 
 use super::PlateSpec;
 use super::full;
-use crate::engine::geometry::step_angle;
-use crate::engine::lm::{NormalEquations, Problem};
-use crate::engine::scan::Scan;
-use crate::engine::shape::Part;
+use crate::geometry::step_angle;
+use crate::lm::{NormalEquations, Problem};
+use crate::scan::Scan;
+use crate::shape::Part;
 
 /// `[alpha0, d]`.
 pub type Params = SVector<f64, 2>;
@@ -141,7 +141,7 @@ impl PaperModel {
                 continue;
             }
             let a = m.alpha0 + step_angle(s.step, n);
-            let (u, v) = crate::engine::geometry::rail_frame(a);
+            let (u, v) = crate::geometry::rail_frame(a);
             let Some(hit) = plate.at(c).exit_local(v * m.offset - c, u) else { continue };
             let q = v * m.offset + u * hit.t - c;
             axis_of[i] = match hit.part {
@@ -284,8 +284,8 @@ impl Problem<nalgebra::Const<2>> for PaperModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::geometry::Mounting;
-    use crate::engine::lm::{differentiate_numerically, jacobian, residuals};
+    use crate::geometry::Mounting;
+    use crate::lm::{differentiate_numerically, jacobian, residuals};
     use approx::assert_relative_eq;
 
     #[test]

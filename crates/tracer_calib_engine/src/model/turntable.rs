@@ -1,4 +1,4 @@
-//! The turntable model: the angle encoder's harmonics ([`crate::engine::angle`]) and
+//! The turntable model: the angle encoder's harmonics ([`crate::angle`]) and
 //! several placements of the plate, with any of the other models' parameters.
 //!
 //! A placement is one scan of the plate, set down anew: its own centre `c_p` and its own
@@ -37,10 +37,10 @@ use nalgebra::{DMatrix, DVector, Vector2};
 use super::full::{self, FullModel, TableSample};
 use super::tip::{self, RingSpec, TipModel};
 use super::{InputDerivatives, PlateSpec};
-use crate::engine::angle::HarmonicOrders;
-use crate::engine::geometry::rotate;
-use crate::engine::lm::Problem;
-use crate::engine::scan::Scan;
+use crate::angle::HarmonicOrders;
+use crate::geometry::rotate;
+use crate::lm::Problem;
+use crate::scan::Scan;
 
 /// Where each parameter sits in the turntable model's vector (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -135,8 +135,7 @@ impl Placement {
     fn new(scan: &Scan, orders: HarmonicOrders) -> Self {
         let n = scan.steps_per_rev();
         let samples = scan.samples().iter().map(|s| TableSample::new(s.step, n, s.rho)).collect();
-        let basis =
-            scan.samples().iter().flat_map(|s| orders.basis(crate::engine::geometry::step_angle(s.step, n))).collect();
+        let basis = scan.samples().iter().flat_map(|s| orders.basis(crate::geometry::step_angle(s.step, n))).collect();
         Placement { samples, basis }
     }
 
@@ -392,9 +391,9 @@ pub fn start(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::geometry::Mounting;
-    use crate::engine::lm::{differentiate_numerically, jacobian, normal_equations, residuals};
-    use crate::engine::scan::Sample;
+    use crate::geometry::Mounting;
+    use crate::lm::{differentiate_numerically, jacobian, normal_equations, residuals};
+    use crate::scan::Sample;
 
     const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
 

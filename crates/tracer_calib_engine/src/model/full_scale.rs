@@ -3,7 +3,7 @@
 //!
 //! An encoder whose scale is off (a wrong `meters_per_count`, a rail grown with heat)
 //! reads `rho` where the true length along the rail is `k rho`
-//! ([`crate::engine::geometry`]: `P = (k rho - dL) u + d v`). With `q_n = t_n + dL` the
+//! ([`crate::geometry`]: `P = (k rho - dL) u + d v`). With `q_n = t_n + dL` the
 //! length the rail ray needs to leave the plate ([`FullModel::for_each_prediction`]),
 //! the encoder should read
 //!
@@ -31,7 +31,7 @@
 use nalgebra::SVector;
 
 use super::full::{self, FullModel};
-use crate::engine::lm::Problem;
+use crate::lm::Problem;
 
 /// Parameter vector of the encoder-scale model.
 pub type Params = SVector<f64, 6>;
@@ -101,9 +101,9 @@ impl Problem<nalgebra::Const<6>> for FullScaleModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::PlateSpec;
-    use crate::engine::lm::{differentiate_numerically, jacobian, residuals};
-    use crate::engine::model::full::TableSample;
+    use crate::PlateSpec;
+    use crate::lm::{differentiate_numerically, jacobian, residuals};
+    use crate::model::full::TableSample;
 
     /// A noise-free scan of a tracer whose encoder reads 0.25 % long.
     fn model_and_truth() -> (FullModel, Params) {

@@ -465,7 +465,7 @@ pub enum CalibrationError {
     /// A tip model's ring and plate disagree as a ring whose groove is not the one entered
     /// would make them: the plate's scale agrees with the one in force when the ring's
     /// groove has included angle `fits` ± `stddev` (rad), not `entered`
-    /// ([`crate::engine::stylus`]).
+    /// ([`crate::stylus`]).
     RingGroove {
         entered: f64,
         fits: f64,
@@ -532,7 +532,7 @@ impl fmt::Display for CalibrationError {
                 fits.to_degrees(),
                 stddev.to_degrees(),
                 entered.to_degrees(),
-                if *entered == crate::engine::stylus::PLAIN_BORE { " (a plain bore)" } else { "" },
+                if *entered == crate::stylus::PLAIN_BORE { " (a plain bore)" } else { "" },
             ),
             Self::InvalidScale(k) => write!(f, "the encoder scale in force must be a positive number, got {k}"),
             Self::HarmonicInseparable { order, inflation, placements } => {
@@ -1440,7 +1440,7 @@ fn relative_scale(e: ScaleEstimate, opt: &Options) -> ScaleEstimate {
 
 /// A tip model's plate showing a scale off ([`CalibrationError::ScaleOff`], `off` the
 /// estimate in force's terms) may be a ring whose groove is not the one entered: the
-/// ring's contact factor `c = 1/sin(γ/2)` ([`crate::engine::stylus`]) moves the fitted
+/// ring's contact factor `c = 1/sin(γ/2)` ([`crate::stylus`]) moves the fitted
 /// tip, and the plate, grown by it, looks scaled. The scale the plate shows as a function
 /// of `c`, `k(c)`, is found at the entered `c₀` (given) and `c₀ + 0.05` (one more fit),
 /// and its root `k(c*) = 1` by two secant steps (a fit each); `u(c*) = u(k)/|k'|`.

@@ -1,5 +1,5 @@
 //! A tracer simulated from its physics, written apart from the engine: no function of
-//! `tracer_calib::engine` computes a length here (the engine's own simulator,
+//! `tracer_calib_engine` computes a length here (the engine's own simulator,
 //! `engine::simulate`, shares the engine's geometry and shapes; this one shares nothing
 //! but the convention of docs/model.md and the `Scan` it hands over).
 //!
@@ -23,7 +23,7 @@
 use nalgebra::Vector2;
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
-use tracer_calib::engine::scan::Scan;
+use tracer_calib_engine::scan::Scan;
 
 /// A closed convex shape by its signed distance (negative inside).
 pub trait Sdf {

@@ -5,13 +5,13 @@
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use tracer_calib::engine::angle::HarmonicOrders;
-use tracer_calib::engine::calibrate::{Calibration, CalibrationError, Options, calibrate_placements};
-use tracer_calib::engine::correct::Corrector;
-use tracer_calib::engine::geometry::Mounting;
-use tracer_calib::engine::model::{ModelKind, PlateSpec};
-use tracer_calib::engine::scan::Scan;
-use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib_engine::angle::HarmonicOrders;
+use tracer_calib_engine::calibrate::{Calibration, CalibrationError, Options, calibrate_placements};
+use tracer_calib_engine::correct::Corrector;
+use tracer_calib_engine::geometry::Mounting;
+use tracer_calib_engine::model::{ModelKind, PlateSpec};
+use tracer_calib_engine::scan::Scan;
+use tracer_calib_engine::simulate::{SimOptions, simulate};
 
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
 
@@ -149,9 +149,9 @@ fn fitted_harmonics_sit_within_their_uncertainty() {
 
 #[test]
 fn the_tip_models_fit_harmonics_with_a_ring_gauge_too() {
-    use tracer_calib::engine::calibrate::Ring;
-    use tracer_calib::engine::model::tip::RingSpec;
-    use tracer_calib::engine::shape::Ellipse;
+    use tracer_calib_engine::calibrate::Ring;
+    use tracer_calib_engine::model::tip::RingSpec;
+    use tracer_calib_engine::shape::Ellipse;
     let mut rng = StdRng::seed_from_u64(3);
     let sim = SimOptions { tip_radius: 0.0005, ..tracer(0.0) };
     let (a, b) = two_placements(&sim, &mut rng);
@@ -177,8 +177,8 @@ fn the_tip_models_fit_harmonics_with_a_ring_gauge_too() {
 }
 
 /// A 52×32 mm frame with 8 mm corners, traced from inside.
-fn frame() -> tracer_calib::engine::shape::RoundedRect {
-    tracer_calib::engine::shape::RoundedRect {
+fn frame() -> tracer_calib_engine::shape::RoundedRect {
+    tracer_calib_engine::shape::RoundedRect {
         center: Vector2::new(0.001, -0.0005),
         half_w: 0.026,
         half_h: 0.016,
@@ -189,9 +189,9 @@ fn frame() -> tracer_calib::engine::shape::RoundedRect {
 /// The frame's `[C, A, B, FED]` and their U95 as a tracer with `cal` measures them, from
 /// one trace with noise `sigma`.
 fn frame_sizes(cal: &Calibration, sigma: f64, rng: &mut StdRng) -> ([f64; 4], [f64; 4]) {
-    use tracer_calib::engine::correct::resample_radii_with_gain;
-    use tracer_calib::engine::size::{Correction, uncertainty};
-    use tracer_calib::engine::stylus::Traced;
+    use tracer_calib_engine::correct::resample_radii_with_gain;
+    use tracer_calib_engine::size::{Correction, uncertainty};
+    use tracer_calib_engine::stylus::Traced;
     let sim = SimOptions { inside: true, ..tracer(sigma) };
     let scan = simulate(&frame(), &TRUTH, &sim, rng).unwrap().scan;
     let points = Corrector::with_angle(cal.mounting, &cal.angle, 400).correct(&scan);
@@ -223,7 +223,7 @@ fn a_frame_measures_true_with_the_angle_modelled() {
     let mut truth = modelled.clone();
     truth.mounting = TRUTH;
     let coefficients = [deg(0.05), deg(-0.01), 0.0, deg(0.02), 0.0, 0.0].to_vec();
-    truth.angle = tracer_calib::engine::angle::AngleError::new(modelled.angle.orders(), coefficients).unwrap();
+    truth.angle = tracer_calib_engine::angle::AngleError::new(modelled.angle.orders(), coefficients).unwrap();
     let (chain, _) = frame_sizes(&truth, 0.0, &mut rng);
     let (with, _) = frame_sizes(&modelled, 0.0, &mut rng);
     let (without, u_without) = frame_sizes(&ignored, 0.0, &mut rng);

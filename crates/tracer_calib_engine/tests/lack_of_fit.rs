@@ -5,10 +5,10 @@
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use tracer_calib::engine::calibrate::{CalibrationError, Options, calibrate};
-use tracer_calib::engine::geometry::Mounting;
-use tracer_calib::engine::model::{ModelKind, PlateSpec};
-use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib_engine::calibrate::{CalibrationError, Options, calibrate};
+use tracer_calib_engine::geometry::Mounting;
+use tracer_calib_engine::model::{ModelKind, PlateSpec};
+use tracer_calib_engine::simulate::{SimOptions, simulate};
 
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
 const TRIALS: u64 = 200;

@@ -382,7 +382,7 @@ fn fourier_row(theta: f64, row: &mut DVector<f64>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::smooth::Smooth;
+    use crate::smooth::Smooth;
 
     #[test]
     fn tilt_of_two_flat_artefacts() {

@@ -7,7 +7,7 @@
 //! `S + 2ρ` with corners `r + ρ`), inward for what is traced from inside (a ring gauge
 //! of diameter `D`: a circle of radius `D/2 - ρ`; of a ring with a V-groove of included
 //! angle `γ`, `D` its groove bottom's diameter, `D/2 - ρ/sin(γ/2)`,
-//! [`crate::engine::stylus`]). From the plate alone `ρ` is nearly
+//! [`crate::stylus`]). From the plate alone `ρ` is nearly
 //! the encoder zero `dL` (correlation -0.95: both lengthen every sample); the ring moves
 //! the other way, so the two scans together pin both.
 //!
@@ -32,10 +32,10 @@ use nalgebra::{SVector, Vector2};
 
 use super::InputDerivatives;
 use super::full::{self, FullModel, TableSample};
-use crate::engine::geometry::rotate;
-use crate::engine::lm::Problem;
-use crate::engine::scan::Scan;
-use crate::engine::stylus::{PLAIN_BORE, groove_factor, valid_groove_angle};
+use crate::geometry::rotate;
+use crate::lm::Problem;
+use crate::scan::Scan;
+use crate::stylus::{PLAIN_BORE, groove_factor, valid_groove_angle};
 
 /// Parameter vector of `full_tip`.
 pub type Params = SVector<f64, 8>;
@@ -326,8 +326,8 @@ impl Problem<nalgebra::Const<9>> for TipScaleModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::PlateSpec;
-    use crate::engine::lm::{differentiate_numerically, jacobian, residuals};
+    use crate::PlateSpec;
+    use crate::lm::{differentiate_numerically, jacobian, residuals};
 
     const RING: RingSpec = RingSpec::plain(0.040);
 

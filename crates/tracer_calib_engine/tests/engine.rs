@@ -4,13 +4,13 @@
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use tracer_calib::engine::calibrate::{CalibrationError, Options, calibrate};
-use tracer_calib::engine::correct::{correct, default_max_gap, resample_radii};
-use tracer_calib::engine::geometry::Mounting;
-use tracer_calib::engine::model::{ModelKind, PlateSpec};
-use tracer_calib::engine::scan::Scan;
-use tracer_calib::engine::shape::{Ellipse, Shape};
-use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib_engine::calibrate::{CalibrationError, Options, calibrate};
+use tracer_calib_engine::correct::{correct, default_max_gap, resample_radii};
+use tracer_calib_engine::geometry::Mounting;
+use tracer_calib_engine::model::{ModelKind, PlateSpec};
+use tracer_calib_engine::scan::Scan;
+use tracer_calib_engine::shape::{Ellipse, Shape};
+use tracer_calib_engine::simulate::{SimOptions, simulate};
 
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
 

@@ -134,7 +134,7 @@ impl Scan {
 
     /// Check encoder counts as [`Self::from_counts`] does, without building the scan:
     /// for a caller that corrects the samples straight from the arrays
-    /// ([`crate::engine::Corrector::correct_counts`]).
+    /// ([`crate::Corrector::correct_counts`]).
     pub fn check_counts(
         steps_per_rev: u32,
         steps: &[u32],

@@ -6,13 +6,13 @@
 use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use tracer_calib::engine::calibrate::{CalibrationError, Options, calibrate};
-use tracer_calib::engine::correct::correct;
-use tracer_calib::engine::geometry::Mounting;
-use tracer_calib::engine::model::{ModelKind, PlateSpec};
-use tracer_calib::engine::scan::Scan;
-use tracer_calib::engine::shape::Ellipse;
-use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib_engine::calibrate::{CalibrationError, Options, calibrate};
+use tracer_calib_engine::correct::correct;
+use tracer_calib_engine::geometry::Mounting;
+use tracer_calib_engine::model::{ModelKind, PlateSpec};
+use tracer_calib_engine::scan::Scan;
+use tracer_calib_engine::shape::Ellipse;
+use tracer_calib_engine::simulate::{SimOptions, simulate};
 
 const PLATE: PlateSpec = PlateSpec { side: 0.045, corner_radius: 0.003 };
 const CENTER: Vector2<f64> = Vector2::new(0.0008, -0.0005);

@@ -3,7 +3,7 @@
 //! Parameters `x = [alpha0, d, dL, cx, cy]`. For sample `n` at step angle
 //! `φ_n = 2π k_n / N` the rail angle is `a_n = alpha0 + φ_n`; the rail ray
 //! `d v + t u` leaves the plate (centred at `c`) at distance `t_n`
-//! ([`crate::engine::shape::RoundedRect::exit_local`]), and the encoder should read
+//! ([`crate::shape::RoundedRect::exit_local`]), and the encoder should read
 //!
 //! ```text
 //! rho_n(x) = t_n + dL                         r_n = rho_n(x) - rho_n(measured)
@@ -25,15 +25,15 @@
 //!
 //! valid for any smooth convex contour; it needs no case analysis beyond `N`.
 //! The rail directions are a table of `(cos φ_n, sin φ_n)` rotated by `alpha0`
-//! ([`crate::engine::geometry::rotate`]): one `sin_cos` per evaluation, not per sample.
+//! ([`crate::geometry::rotate`]): one `sin_cos` per evaluation, not per sample.
 
 use nalgebra::{SVector, Vector2};
 
 use super::{InputDerivatives, PlateSpec};
-use crate::engine::geometry::{Mounting, rotate, step_angle};
-use crate::engine::lm::Problem;
-use crate::engine::scan::Scan;
-use crate::engine::shape::{Hit, RoundedRect};
+use crate::geometry::{Mounting, rotate, step_angle};
+use crate::lm::Problem;
+use crate::scan::Scan;
+use crate::shape::{Hit, RoundedRect};
 
 /// Parameter vector of the full model.
 pub type Params = SVector<f64, 5>;
@@ -162,7 +162,7 @@ impl FullModel {
 
     /// `∂q/∂S` of every sample at `x` with the plate grown by `g`: how the lengths move
     /// with the plate's side `S` (its certificate's uncertainty enters the covariance
-    /// through it, [`crate::engine::calibrate`](mod@crate::engine::calibrate)); `None` where the model cannot be
+    /// through it, [`crate::calibrate`](mod@crate::calibrate)); `None` where the model cannot be
     /// evaluated.
     pub fn side_sensitivity(&self, x: &Params, g: f64) -> Option<Vec<f64>> {
         let mut out = Vec::with_capacity(self.samples.len());
@@ -281,7 +281,7 @@ pub fn plate_rho(plate: &PlateSpec, m: &Mounting, center: Vector2<f64>, step: u3
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::lm::{differentiate_numerically, jacobian, residuals};
+    use crate::lm::{differentiate_numerically, jacobian, residuals};
     use approx::assert_relative_eq;
 
     fn model_and_truth() -> (FullModel, Params) {

@@ -3,12 +3,12 @@
 
 use nalgebra::Vector2;
 use proptest::prelude::*;
-use tracer_calib::engine::calibrate::{Options, calibrate};
-use tracer_calib::engine::correct::{correct, default_max_gap, resample_radii};
-use tracer_calib::engine::geometry::Mounting;
-use tracer_calib::engine::model::{ModelKind, PlateSpec};
-use tracer_calib::engine::scan::Scan;
-use tracer_calib::engine::simulate::{SimOptions, simulate};
+use tracer_calib_engine::calibrate::{Options, calibrate};
+use tracer_calib_engine::correct::{correct, default_max_gap, resample_radii};
+use tracer_calib_engine::geometry::Mounting;
+use tracer_calib_engine::model::{ModelKind, PlateSpec};
+use tracer_calib_engine::scan::Scan;
+use tracer_calib_engine::simulate::{SimOptions, simulate};
 
 fn any_f64() -> impl Strategy<Value = f64> {
     prop_oneof![

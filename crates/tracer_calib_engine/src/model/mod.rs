@@ -13,7 +13,7 @@
 //! - [`tip`]: `full_tip` and `full_scale_tip`, a plate scan and a ring-gauge scan
 //!   fitted together for the stylus tip's radius `ρ` too.
 //!
-//! Each is a [`crate::engine::lm::Problem`].
+//! Each is a [`crate::lm::Problem`].
 
 pub mod full;
 pub mod full_scale;
@@ -84,7 +84,7 @@ pub enum PlateError {
 /// How one sample's length `q` moves with each input a fit takes as known: the
 /// artefacts' certified sizes, and the tip radius and encoder scale in force when the
 /// model does not fit them. Each brings a type B part to the covariance
-/// ([`crate::engine::calibrate`](mod@crate::engine::calibrate), GUM 5.1).
+/// ([`crate::calibrate`](mod@crate::calibrate), GUM 5.1).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct InputDerivatives {
     /// `∂q/∂S`, the plate's side (corner radius kept): `(|N_x| + |N_y|)/(2 N·u)`.

@@ -47,7 +47,7 @@ pub struct SimOptions {
     pub inside: bool,
     /// Traced from inside, the shape is the bottom of a V-groove of this included angle
     /// (rad; π a plain bore): the tip's centre sits `tip_radius / sin(angle/2)` from it
-    /// ([`crate::engine::stylus`]).
+    /// ([`crate::stylus`]).
     pub groove_angle: f64,
     /// The turntable's angle error round the turn, `ε(θ) = Σ c_h cos hθ + s_h sin hθ`
     /// (radians) added to the rail angle at `θ = 2π step / N`: up to three harmonics,
@@ -71,7 +71,7 @@ impl Default for SimOptions {
             spike_height: 0.5e-3,
             tip_radius: 0.0,
             inside: false,
-            groove_angle: crate::engine::stylus::PLAIN_BORE,
+            groove_angle: crate::stylus::PLAIN_BORE,
             angle_harmonics: [(0, 0.0, 0.0); 3],
             noise_lag1: 0.0,
         }

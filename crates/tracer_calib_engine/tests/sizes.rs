@@ -11,14 +11,14 @@ use nalgebra::Vector2;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use size_coverage::{Coverage, run};
-use tracer_calib::engine::angle::HarmonicOrders;
-use tracer_calib::engine::correct::{correct, resample_radii};
-use tracer_calib::engine::geometry::Mounting;
-use tracer_calib::engine::model::ModelKind;
-use tracer_calib::engine::shape::{Ellipse, RoundedRect};
-use tracer_calib::engine::simulate::{SimOptions, simulate};
-use tracer_calib::engine::size::{Correction, HARMONICS, Sizes, Smooth};
-use tracer_calib::engine::stylus::{Traced, touched_surface};
+use tracer_calib_engine::angle::HarmonicOrders;
+use tracer_calib_engine::correct::{correct, resample_radii};
+use tracer_calib_engine::geometry::Mounting;
+use tracer_calib_engine::model::ModelKind;
+use tracer_calib_engine::shape::{Ellipse, RoundedRect};
+use tracer_calib_engine::simulate::{SimOptions, simulate};
+use tracer_calib_engine::size::{Correction, HARMONICS, Sizes, Smooth};
+use tracer_calib_engine::stylus::{Traced, touched_surface};
 
 fn check(name: &str, c: &Coverage, sigma: f64) {
     let share = c.covered.map(|k| k as f64 / c.n as f64);
