@@ -570,12 +570,17 @@ impl Parameters {
             names::AXIS_TILT => next.axis_tilt.angles = fixed(doubles(value)?, "two angles, [tau_x, tau_y]")?,
             names::AXIS_TILT_COVARIANCE => {
                 let c: [f64; 4] = fixed(doubles(value)?, "four values, the angles' 2 x 2 covariance row-major")?;
-                if c[0] < 0.0 || c[3] < 0.0 || c[1] != c[2] || c[1] * c[1] > c[0] * c[3] * (1.0 + 1e-9) {
+                // Symmetric to 1e-9 of the variances' scale, and taken symmetric: an earlier node
+                // wrote covariances whose off-diagonal entries differed in the last bits (and
+                // then refused its own file at the next start).
+                let asymmetric = (c[1] - c[2]).abs() > 1e-9 * (c[0] * c[3]).sqrt();
+                let off = 0.5 * (c[1] + c[2]);
+                if c[0] < 0.0 || c[3] < 0.0 || asymmetric || off * off > c[0] * c[3] * (1.0 + 1e-9) {
                     return Err(ParamError::Invalid(
                         "not a covariance: symmetric, no negative variance, |correlation| <= 1".into(),
                     ));
                 }
-                next.axis_tilt.covariance = c
+                next.axis_tilt.covariance = [c[0], off, off, c[3]]
             }
             names::HEIGHT_ZERO => next.axis_tilt.height_zero = double(value)?,
             names::ANGLE_HARMONICS => {
@@ -718,6 +723,26 @@ mod tests {
         assert!(p.angle_in_force().coefficients().is_empty());
         p.set("calibration.angle_harmonics", &IntegerArray(Vec::new())).unwrap();
         assert!(p.covariance_in_force().is_some_and(|c| c.nrows() == 11));
+    }
+
+    /// A tilt covariance whose off-diagonal entries differ in their last bits (as an
+    /// earlier node wrote them into its params file after a calibration with heights, then
+    /// refused the file at its next start) is taken, made symmetric; one that is not a
+    /// covariance is refused.
+    #[test]
+    fn a_tilt_covariance_asymmetric_in_its_last_bits_is_taken_symmetric() {
+        let mut p = Parameters::default();
+        let written =
+            vec![1.26014155241632e-10, 3.3870327367540585e-14, 3.3870327367540617e-14, 1.2599283303907513e-10];
+        p.set("calibration.axis_tilt_covariance", &ParamValue::DoubleArray(written)).unwrap();
+        let c = p.axis_tilt.covariance;
+        assert_eq!(c[1].to_bits(), c[2].to_bits());
+        assert!((c[1] - 3.38703273675406e-14).abs() < 1e-27, "{c:?}");
+        for bad in [[1e-10, 1e-12, 2e-12, 1e-10], [1e-10, 2e-10, 2e-10, 1e-10], [-1e-10, 0.0, 0.0, 1e-10]] {
+            let e = p.set("calibration.axis_tilt_covariance", &ParamValue::DoubleArray(bad.to_vec())).unwrap_err();
+            assert!(e.to_string().contains("not a covariance"), "{bad:?}: {e}");
+        }
+        assert_eq!(p.axis_tilt.covariance, c, "a refused value leaves the one in force");
     }
 
     #[test]
