@@ -196,115 +196,158 @@ async fn within<T>(secs: u64, what: &str, fut: impl std::future::Future<Output =
 }
 
 fn demo(args: &Args) -> Result<(), String> {
-    let mut cell = Cell {
-        truth: Mounting::new(1.7f64.to_radians(), 4.2e-3, 1.3e-3),
-        plate: PlateSpec::default(),
-        plate_center: Vector2::new(0.6e-3, -0.4e-3),
-        tip: 0.4e-3,
-        ring_diameter: 40e-3,
-        rng: StdRng::seed_from_u64(args.seed),
-        noise: args.noise,
-        height_rng: StdRng::seed_from_u64(args.seed ^ 0x4845_4947_4854),
-    };
-    let t = cell.truth;
-    println!(
-        "Simulated tracer: alpha0 = {:.3}°, d = {:.3} mm, dL = {:.3} mm, a ball tip of radius {:.2} mm; 400 steps a turn, encoder noise {:.3} mm, 1 µm counts.",
-        t.alpha0.to_degrees(),
-        t.offset * 1e3,
-        t.delta_l * 1e3,
-        cell.tip * 1e3,
-        args.noise * 1e3
-    );
-    let node_bin = match &args.node {
-        Some(p) => p.clone(),
-        None => std::env::current_exe().map_err(|e| e.to_string())?.with_file_name("tracer_calib_node"),
-    };
-    if !node_bin.exists() {
-        return Err(format!("{} not found: build it first (cargo build --release --bins)", node_bin.display()));
+    let mut cell = Cell::new(args.seed, args.noise);
+    cell.describe();
+    let node = NodeRun::start(args, &cell)?;
+    let edger = Edger::join(args.domain_id)?;
+    let traces = Traces::take(&mut cell)?;
+    let got = smol::block_on(edger.exchange(&cell, &traces, node.started))?;
+    report_accuracy(&traces, &got);
+    report_sizes(&traces, &got);
+    node.stop(edger);
+    fit_every_model(&cell, &traces, got.tip_radius, &args.plot)
+}
+
+impl Cell {
+    /// The demo's tracer: its mounting errors, plate, tip and ring gauge; noise from `seed`.
+    fn new(seed: u64, noise: f64) -> Cell {
+        Cell {
+            truth: Mounting::new(1.7f64.to_radians(), 4.2e-3, 1.3e-3),
+            plate: PlateSpec::default(),
+            plate_center: Vector2::new(0.6e-3, -0.4e-3),
+            tip: 0.4e-3,
+            ring_diameter: 40e-3,
+            rng: StdRng::seed_from_u64(seed),
+            noise,
+            height_rng: StdRng::seed_from_u64(seed ^ 0x4845_4947_4854),
+        }
     }
-    let state_dir = StateDir::new()?;
-    let params_path = state_dir.0.join("tracer_calibrator.yaml");
-    let started = Instant::now();
-    let node = Command::new(&node_bin)
-        .args(["--ros-args", "-p"])
-        .arg(format!("params_file:={}", params_path.display()))
-        .args(["-p", "model:=full_tip", "-p"])
-        .arg(format!("ring.diameter:={}", cell.ring_diameter))
-        // The demo tells what happens; the node's INFO records would say it twice.
-        .args(["--log-level", "warn"])
-        .env("ROS_DOMAIN_ID", args.domain_id.to_string())
-        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        .stdin(Stdio::null())
-        .spawn()
-        .map_err(|e| format!("cannot start {}: {e}", node_bin.display()))?;
-    let node = NodeProcess(node);
-    println!(
-        "Started {} (pid {}) on DDS domain {}, localhost only.",
-        node_bin.file_name().unwrap_or_default().to_string_lossy(),
-        node.0.id(),
-        args.domain_id
-    );
 
-    // This process is the edging cell: a ROS 2 participant on 127.0.0.1 only.
-    let participant = rustdds::DomainParticipantBuilder::new(args.domain_id)
-        .with_only_networks([std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)])
-        .build()
-        .map_err(|e| format!("cannot create a DDS participant: {e:?}"))?;
-    let (ctx, _) = crate::rmw::dds::context(participant)?;
-    let mut peer = ctx
-        .new_node(NodeName::new("/", "edging_cell_demo").unwrap(), NodeOptions::new().enable_rosout(false))
-        .map_err(|e| format!("{e:?}"))?;
-    let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
-    let raw_t = peer
-        .create_topic(&Name::new("/", "raw_scan").unwrap(), RawScan::NAME.message_type_name(), &qos())
-        .map_err(mk)?;
-    let contour_t = peer
-        .create_topic(&Name::new("/", "contour").unwrap(), Contour::NAME.message_type_name(), &qos())
-        .map_err(mk)?;
-    let publisher = peer.create_publisher::<RawScan>(&raw_t, None).map_err(mk)?;
-    let contours = peer.create_subscription::<Contour>(&contour_t, None).map_err(mk)?;
-    let client = peer
-        .create_client::<CalibrateRequest, <Calibrate as RosService>::Response>(
-            ServiceMapping::Enhanced,
-            &Name::new("/", "calibrate").unwrap(),
-            &Calibrate::type_name(),
-            qos(),
-            qos(),
-        )
-        .map_err(mk)?;
-    let spinner = smol::spawn(peer.spinner().map_err(mk)?.spin());
+    fn describe(&self) {
+        let t = self.truth;
+        println!(
+            "Simulated tracer: alpha0 = {:.3}°, d = {:.3} mm, dL = {:.3} mm, a ball tip of radius {:.2} mm; 400 steps a turn, encoder noise {:.3} mm, 1 µm counts.",
+            t.alpha0.to_degrees(),
+            t.offset * 1e3,
+            t.delta_l * 1e3,
+            self.tip * 1e3,
+            self.noise * 1e3
+        );
+    }
+}
 
-    let plate_shape = cell.plate.at(cell.plate_center);
-    let lens = Ellipse { center: Vector2::new(0.5e-3, -0.3e-3), a: 25e-3, b: 15e-3, angle: 0.1 };
-    let frame = RoundedRect { center: Vector2::new(-0.4e-3, 0.2e-3), half_w: 26e-3, half_h: 16e-3, radius: 8e-3 };
-    let ring = Ellipse {
-        center: Vector2::new(-0.3e-3, 0.5e-3),
-        a: cell.ring_diameter / 2.0,
-        b: cell.ring_diameter / 2.0,
-        angle: 0.0,
-    };
-    let lens_before = cell.scan(&lens, 0, false)?;
-    let plate_scan = cell.scan(&plate_shape, 2, false)?;
-    let ring_scan = cell.scan(&ring, 0, true)?;
-    let lens_after = cell.scan(&lens, 0, false)?;
-    let frame_after = cell.scan(&frame, 0, true)?;
-    // The tracer reads heights too: the plate on the holder's datum, the ring 1.5 mm below,
-    // the frame's groove on a base-6 sphere whose apex is at its centre, 2 mm above.
-    let frame_surface = on_sphere(DEMO_BASE, frame.center, 2e-3);
-    let plate_heights = cell.heights(&plate_scan, |_| 0.0)?;
-    let ring_heights = cell.heights(&ring_scan, |_| -1.5e-3)?;
-    let frame_heights = cell.heights(&frame_after, &frame_surface)?;
-    let frame_3d = length_3d(&frame, frame.center, &frame_surface);
+/// The node's process, its state directory and when it was started.
+struct NodeRun {
+    process: NodeProcess,
+    params_path: PathBuf,
+    started: Instant,
+    _state_dir: StateDir,
+}
 
-    let outcome = smol::block_on(async {
-        let mut stream = std::pin::pin!(contours.async_stream());
-        within(15, "answer from the node's /calibrate service", client.wait_for_service(&peer)).await?;
+impl NodeRun {
+    /// `tracer_calib_node` (beside this program, or `--node`) on the demo's domain,
+    /// localhost only, with a params file of its own, fitting `full_tip`.
+    fn start(args: &Args, cell: &Cell) -> Result<NodeRun, String> {
+        let node_bin = match &args.node {
+            Some(p) => p.clone(),
+            None => std::env::current_exe().map_err(|e| e.to_string())?.with_file_name("tracer_calib_node"),
+        };
+        if !node_bin.exists() {
+            return Err(format!("{} not found: build it first (cargo build --release --bins)", node_bin.display()));
+        }
+        let state_dir = StateDir::new()?;
+        let params_path = state_dir.0.join("tracer_calibrator.yaml");
+        let started = Instant::now();
+        let node = Command::new(&node_bin)
+            .args(["--ros-args", "-p"])
+            .arg(format!("params_file:={}", params_path.display()))
+            .args(["-p", "model:=full_tip", "-p"])
+            .arg(format!("ring.diameter:={}", cell.ring_diameter))
+            // The demo tells what happens; the node's INFO records would say it twice.
+            .args(["--log-level", "warn"])
+            .env("ROS_DOMAIN_ID", args.domain_id.to_string())
+            .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+            .stdin(Stdio::null())
+            .spawn()
+            .map_err(|e| format!("cannot start {}: {e}", node_bin.display()))?;
+        let process = NodeProcess(node);
+        println!(
+            "Started {} (pid {}) on DDS domain {}, localhost only.",
+            node_bin.file_name().unwrap_or_default().to_string_lossy(),
+            process.0.id(),
+            args.domain_id
+        );
+        Ok(NodeRun { process, params_path, started, _state_dir: state_dir })
+    }
+
+    /// Step 5: where the node kept what it did; the edger leaves the graph, then the node
+    /// is stopped by SIGTERM, timed.
+    fn stop(self, edger: Edger) {
+        println!("5. The node persisted its parameters to {}", self.params_path.display());
+        println!(
+            "   and recorded the calibration in {} (tracer_calib history --input FILE)",
+            crate::records::file::default_path(&self.params_path.display().to_string())
+        );
+        drop(edger);
+        let stop = Instant::now();
+        drop(self.process);
+        println!("   and stopped on SIGTERM in {:.0} ms.", stop.elapsed().as_secs_f64() * 1e3);
+    }
+}
+
+/// This process as the edging cell: a ROS 2 participant on 127.0.0.1 only, publishing raw
+/// scans, taking contours, calling `/calibrate`.
+struct Edger {
+    node: ros2_client::dds::Node,
+    scans: ros2_client::dds::Publisher<RawScan>,
+    contours: ros2_client::dds::Subscription<Contour>,
+    calibrate: ros2_client::dds::Client<CalibrateRequest, <Calibrate as RosService>::Response>,
+    _spinner: smol::Task<Result<(), ros2_client::CreateError>>,
+}
+
+impl Edger {
+    fn join(domain_id: u16) -> Result<Edger, String> {
+        let participant = rustdds::DomainParticipantBuilder::new(domain_id)
+            .with_only_networks([std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)])
+            .build()
+            .map_err(|e| format!("cannot create a DDS participant: {e:?}"))?;
+        let (ctx, _) = crate::rmw::dds::context(participant)?;
+        let mut node = ctx
+            .new_node(NodeName::new("/", "edging_cell_demo").unwrap(), NodeOptions::new().enable_rosout(false))
+            .map_err(|e| format!("{e:?}"))?;
+        let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
+        let raw_t = node
+            .create_topic(&Name::new("/", "raw_scan").unwrap(), RawScan::NAME.message_type_name(), &qos())
+            .map_err(mk)?;
+        let contour_t = node
+            .create_topic(&Name::new("/", "contour").unwrap(), Contour::NAME.message_type_name(), &qos())
+            .map_err(mk)?;
+        let scans = node.create_publisher::<RawScan>(&raw_t, None).map_err(mk)?;
+        let contours = node.create_subscription::<Contour>(&contour_t, None).map_err(mk)?;
+        let calibrate = node
+            .create_client::<CalibrateRequest, <Calibrate as RosService>::Response>(
+                ServiceMapping::Enhanced,
+                &Name::new("/", "calibrate").unwrap(),
+                &Calibrate::type_name(),
+                qos(),
+                qos(),
+            )
+            .map_err(mk)?;
+        let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
+        Ok(Edger { node, scans, contours, calibrate, _spinner: spinner })
+    }
+
+    /// Steps 1-3 and the scans after: a lens scan before calibration, the plate and the
+    /// ring gauge, `/calibrate` (its fit against the truth printed), then a lens and a frame.
+    async fn exchange(&self, cell: &Cell, traces: &Traces, started: Instant) -> Result<Contours, String> {
+        let mut stream = std::pin::pin!(self.contours.async_stream());
+        within(15, "answer from the node's /calibrate service", self.calibrate.wait_for_service(&self.node)).await?;
         println!("Connected to /calibrate after {:.1} s.", started.elapsed().as_secs_f64());
         // Publish a scan until its contour comes back (the first may go out before the
         // node's subscription has matched ours).
         let mut exchange = async |msg: RawScan| -> Result<Contour, String> {
             for _attempt in 0..10 {
-                publisher.async_publish(msg.clone()).await.map_err(|e| format!("cannot publish: {e:?}"))?;
+                self.scans.async_publish(msg.clone()).await.map_err(|e| format!("cannot publish: {e:?}"))?;
                 let wait = async {
                     while let Some(item) = stream.next().await {
                         if let Ok((c, _)) = item
@@ -321,37 +364,30 @@ fn demo(args: &Args) -> Result<(), String> {
             }
             Err(format!("no contour for scan {} from the node", msg.scan_id))
         };
-        let before = exchange(raw_msg(1, RawScan::TARGET_LENS, &lens_before)).await?;
+        let before = exchange(raw_msg(1, RawScan::TARGET_LENS, &traces.lens_before)).await?;
         println!();
         println!(
             "1. Lens scan before calibration: contour calibrated = {}, RMS error {:.3} mm.",
             before.calibrated,
-            rms_error(&before, &lens_before.truth) * 1e3
+            rms_error(&before, &traces.lens_before.truth) * 1e3
         );
-        exchange(raw_msg_3d(2, RawScan::TARGET_CALIBRATION_PLATE, &plate_scan, &plate_heights)).await?;
-        exchange(raw_msg_3d(3, RawScan::TARGET_RING_GAUGE, &ring_scan, &ring_heights)).await?;
+        exchange(raw_msg_3d(2, RawScan::TARGET_CALIBRATION_PLATE, &traces.plate, &traces.plate_heights)).await?;
+        exchange(raw_msg_3d(3, RawScan::TARGET_RING_GAUGE, &traces.ring, &traces.ring_heights)).await?;
         println!(
             "2. Calibration plate traced (scan 2, two dust spikes on it), then the ring gauge, Ø {:.0} mm (scan 3).",
             cell.ring_diameter * 1e3
         );
-        let response = within(
-            10,
-            "calibrate response",
-            client.async_call_service(CalibrateRequest {
-                scan_id: 0,
-                dry_run: false,
-                ring_scan_id: 0,
-                plate_scan_ids: vec![],
-            }),
-        )
-        .await?
-        .map_err(|e| format!("calibrate call failed: {e:?}"))?;
+        let request = CalibrateRequest { scan_id: 0, dry_run: false, ring_scan_id: 0, plate_scan_ids: vec![] };
+        let response = within(10, "calibrate response", self.calibrate.async_call_service(request))
+            .await?
+            .map_err(|e| format!("calibrate call failed: {e:?}"))?;
         if !response.success {
             return Err(format!("calibrate failed: {}", response.message));
         }
         println!("3. ros2 service call /calibrate tracer_calib_msgs/srv/Calibrate \"{{}}\" (model full_tip):");
         println!("   {}", response.message);
         println!("{:>14} {:>12} {:>22}", "", "truth", "fit ± standard unc.");
+        let t = cell.truth;
         for (name, truth, fit, sd, scale, unit) in [
             ("alpha0", t.alpha0, response.alpha0, response.stddev[0], 180.0 / std::f64::consts::PI, "°"),
             ("offset d", t.offset, response.offset, response.stddev[1], 1e3, " mm"),
@@ -360,26 +396,98 @@ fn demo(args: &Args) -> Result<(), String> {
         ] {
             println!("{name:>14} {:>10.4}{unit:<3} {:>10.4} ± {:.4}{unit}", truth * scale, fit * scale, sd * scale);
         }
-        let lens_c = exchange(raw_msg(4, RawScan::TARGET_LENS, &lens_after)).await?;
-        let frame_c = exchange(raw_msg_3d(5, RawScan::TARGET_FRAME, &frame_after, &frame_heights)).await?;
-        Ok::<_, String>((before, lens_c, frame_c, response.tip_radius))
-    });
-    let (before, lens_c, frame_c, tip) = outcome?;
+        let lens = exchange(raw_msg(4, RawScan::TARGET_LENS, &traces.lens_after)).await?;
+        let frame = exchange(raw_msg_3d(5, RawScan::TARGET_FRAME, &traces.frame, &traces.frame_heights)).await?;
+        Ok(Contours { before, lens, frame, tip_radius: response.tip_radius })
+    }
+}
+
+/// What the demo's tracer traces: the shapes, their simulated scans and heights.
+struct Traces {
+    lens_shape: Ellipse,
+    frame_shape: RoundedRect,
+    lens_before: SimScan,
+    plate: SimScan,
+    ring: SimScan,
+    lens_after: SimScan,
+    frame: SimScan,
+    plate_heights: Vec<f64>,
+    ring_heights: Vec<f64>,
+    frame_heights: Vec<f64>,
+    /// The frame's groove length in 3-D, exact.
+    frame_3d: f64,
+}
+
+impl Traces {
+    fn take(cell: &mut Cell) -> Result<Traces, String> {
+        let plate_shape = cell.plate.at(cell.plate_center);
+        let lens = Ellipse { center: Vector2::new(0.5e-3, -0.3e-3), a: 25e-3, b: 15e-3, angle: 0.1 };
+        let frame = RoundedRect { center: Vector2::new(-0.4e-3, 0.2e-3), half_w: 26e-3, half_h: 16e-3, radius: 8e-3 };
+        let ring = Ellipse {
+            center: Vector2::new(-0.3e-3, 0.5e-3),
+            a: cell.ring_diameter / 2.0,
+            b: cell.ring_diameter / 2.0,
+            angle: 0.0,
+        };
+        let lens_before = cell.scan(&lens, 0, false)?;
+        let plate_scan = cell.scan(&plate_shape, 2, false)?;
+        let ring_scan = cell.scan(&ring, 0, true)?;
+        let lens_after = cell.scan(&lens, 0, false)?;
+        let frame_after = cell.scan(&frame, 0, true)?;
+        // The tracer reads heights too: the plate on the holder's datum, the ring 1.5 mm
+        // below, the frame's groove on a base-6 sphere whose apex is at its centre, 2 mm above.
+        let frame_surface = on_sphere(DEMO_BASE, frame.center, 2e-3);
+        let plate_heights = cell.heights(&plate_scan, |_| 0.0)?;
+        let ring_heights = cell.heights(&ring_scan, |_| -1.5e-3)?;
+        let frame_heights = cell.heights(&frame_after, &frame_surface)?;
+        let frame_3d = length_3d(&frame, frame.center, &frame_surface);
+        Ok(Traces {
+            lens_shape: lens,
+            frame_shape: frame,
+            lens_before,
+            plate: plate_scan,
+            ring: ring_scan,
+            lens_after,
+            frame: frame_after,
+            plate_heights,
+            ring_heights,
+            frame_heights,
+            frame_3d,
+        })
+    }
+}
+
+/// The contours the node sent back, and the tip radius it fitted.
+struct Contours {
+    before: Contour,
+    lens: Contour,
+    frame: Contour,
+    tip_radius: f64,
+}
+
+/// Step 4: the corrected scans against where the tip really was.
+fn report_accuracy(traces: &Traces, got: &Contours) {
     println!("4. Scans after calibration, RMS distance to the surface the tip touched:");
     println!("{:>38} {:>12} {:>14} {:>18}", "", "raw [mm]", "corrected [mm]", "radii max [mm]");
-    let raw_frame = correct(&frame_after.scan, &Mounting::IDEAL);
-    let raw_frame_rms = (raw_frame.iter().zip(&frame_after.truth).map(|(p, q)| (p - q).norm_squared()).sum::<f64>()
+    let raw_frame = correct(&traces.frame.scan, &Mounting::IDEAL);
+    let raw_frame_rms = (raw_frame.iter().zip(&traces.frame.truth).map(|(p, q)| (p - q).norm_squared()).sum::<f64>()
         / raw_frame.len() as f64)
         .sqrt();
     for (name, raw_rms, contour, truth, shape) in [
         (
             "lens, ellipse 50 x 30 mm",
-            rms_error(&before, &lens_before.truth),
-            &lens_c,
-            &lens_after.truth,
-            &lens as &dyn Shape,
+            rms_error(&got.before, &traces.lens_before.truth),
+            &got.lens,
+            &traces.lens_after.truth,
+            &traces.lens_shape as &dyn Shape,
         ),
-        ("frame, rounded rectangle 52 x 32 mm", raw_frame_rms, &frame_c, &frame_after.truth, &frame as &dyn Shape),
+        (
+            "frame, rounded rectangle 52 x 32 mm",
+            raw_frame_rms,
+            &got.frame,
+            &traces.frame.truth,
+            &traces.frame_shape as &dyn Shape,
+        ),
     ] {
         println!(
             "{:>38} {:>12.4} {:>14.4} {:>18.4}",
@@ -391,14 +499,20 @@ fn demo(args: &Args) -> Result<(), String> {
     }
     println!("   (raw: the tip's centre, uncorrected; corrected errors are the encoder noise; radii: the 400");
     println!("   equal-angle radii of Contour.radii)");
-    // The size figures the node put in each Contour, against the shapes' exact ones.
+}
+
+/// The size figures the node put in each Contour, against the shapes' exact ones, and the
+/// frame's groove in 3-D.
+fn report_sizes(traces: &Traces, got: &Contours) {
     println!("   Size figures in each Contour (mm, ± U95), and the shapes' exact ones:");
-    for (name, c, truth) in [("lens", &lens_c, lens.exact_sizes()), ("frame", &frame_c, frame.exact_sizes())] {
-        let got = [c.circumference, c.box_width, c.box_height, c.effective_diameter];
+    for (name, c, truth) in
+        [("lens", &got.lens, traces.lens_shape.exact_sizes()), ("frame", &got.frame, traces.frame_shape.exact_sizes())]
+    {
+        let figures = [c.circumference, c.box_width, c.box_height, c.effective_diameter];
         let shown: Vec<String> = ["circumference", "A", "B", "FED"]
             .iter()
             .enumerate()
-            .map(|(i, n)| format!("{n} {:.3} ± {:.3} ({:.3})", got[i] * 1e3, c.size_u95[i] * 1e3, truth[i] * 1e3))
+            .map(|(i, n)| format!("{n} {:.3} ± {:.3} ({:.3})", figures[i] * 1e3, c.size_u95[i] * 1e3, truth[i] * 1e3))
             .collect();
         println!("   {name:>6}: {}", shown.join(", "));
     }
@@ -406,42 +520,35 @@ fn demo(args: &Args) -> Result<(), String> {
         "   The frame's groove on a base-{DEMO_BASE} sphere, from the tracer's heights (the holder tilted {:.2}° against the axis, removed):",
         DEMO_TILT.to_degrees()
     );
+    let frame = &got.frame;
     println!(
         "   circumference in the plane {:.3} mm, along the groove in 3-D {:.3} ± {:.3} mm ({:.3}), frame curve {:.2} D ({DEMO_BASE:.2})",
-        frame_c.circumference * 1e3,
-        frame_c.circumference_3d * 1e3,
-        frame_c.circumference_3d_u95 * 1e3,
-        frame_3d * 1e3,
-        frame_c.frame_curve
+        frame.circumference * 1e3,
+        frame.circumference_3d * 1e3,
+        frame.circumference_3d_u95 * 1e3,
+        traces.frame_3d * 1e3,
+        frame.frame_curve
     );
-    println!("5. The node persisted its parameters to {}", params_path.display());
-    println!(
-        "   and recorded the calibration in {} (tracer_calib history --input FILE)",
-        crate::records::file::default_path(&params_path.display().to_string())
-    );
+}
 
-    drop(spinner);
-    let stop = Instant::now();
-    drop(node);
-    println!("   and stopped on SIGTERM in {:.0} ms.", stop.elapsed().as_secs_f64() * 1e3);
-
-    // The same scans with every model, offline: the tip models with the ring gauge, the
-    // others told the tip radius the node fitted.
+/// The same plate scan with every model, offline: the tip models with the ring gauge, the
+/// others told the tip radius the node fitted; the picture of the `full_tip` fit.
+fn fit_every_model(cell: &Cell, traces: &Traces, tip: f64, plot: &std::path::Path) -> Result<(), String> {
     println!();
     println!("The plate scan fitted offline with every model (the others told the fitted tip radius):");
-    let ring_gauge = Ring { scan: &ring_scan.scan, spec: RingSpec::plain(cell.ring_diameter) };
+    let ring_gauge = Ring { scan: &traces.ring.scan, spec: RingSpec::plain(cell.ring_diameter) };
     let mut tip_cal = None;
     for model in ModelKind::ALL {
         let opt = Options { model, tip_radius: if model.fits_tip() { 0.0 } else { tip }, ..Options::default() };
         let cal =
-            calibrate_with_ring(&plate_scan.scan, Some(ring_gauge), &cell.plate, &opt).map_err(|e| e.to_string())?;
+            calibrate_with_ring(&traces.plate.scan, Some(ring_gauge), &cell.plate, &opt).map_err(|e| e.to_string())?;
         println!("   {}", cal.summary());
         if model == ModelKind::FullTip {
             tip_cal = Some(cal);
         }
     }
     let cal = tip_cal.expect("the full_tip model ran");
-    super::plot::write_calibration_plot(&args.plot, &plate_scan.scan, &cell.plate, &cal)?;
-    println!("Picture of the fit: {}", args.plot.display());
+    super::plot::write_calibration_plot(plot, &traces.plate.scan, &cell.plate, &cal)?;
+    println!("Picture of the fit: {}", plot.display());
     Ok(())
 }
