@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use ros2_client::dds::{Node, Publisher};
 use ros2_client::{NodeName, NodeOptions, QosProfile, qos::*};
 
 use super::exit;
@@ -93,10 +94,189 @@ pub fn run(args: &Args) -> i32 {
     }
 }
 
-/// One message to publish.
+/// One message of the bag, for the topic at an index of [`Timeline::topics`].
 enum Out {
     Raw(RawScan),
     Contour(Contour),
+}
+
+/// The message type of a topic replayed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Raw,
+    Contour,
+}
+
+/// What the bag gives to replay: its RawScan and Contour topics (those asked for), and
+/// their messages in log-time order.
+struct Timeline {
+    topics: Vec<(String, Kind)>,
+    /// (log time, topic index, message)
+    messages: Vec<(u64, usize, Out)>,
+}
+
+impl Timeline {
+    /// The bag's RawScan and Contour topics (only `--topic`'s, if given: each must be one).
+    fn read(args: &Args) -> Result<Timeline, String> {
+        let bag = Bag::open(&args.input).map_err(|e| e.to_string())?;
+        let wanted = |name: &str| args.topics.is_empty() || args.topics.iter().any(|t| t == name);
+        let mut topics = Vec::new();
+        let mut messages = Vec::new();
+        for t in bag.topics() {
+            if !wanted(&t.name) {
+                continue;
+            }
+            let idx = topics.len();
+            if t.type_name == RawScan::NAME.ros_name() {
+                for (time, m) in bag.read::<RawScan>(&t.name).map_err(|e| e.to_string())? {
+                    messages.push((time, idx, Out::Raw(m)));
+                }
+                topics.push((t.name.clone(), Kind::Raw));
+            } else if t.type_name == Contour::NAME.ros_name() {
+                for (time, m) in bag.read::<Contour>(&t.name).map_err(|e| e.to_string())? {
+                    messages.push((time, idx, Out::Contour(m)));
+                }
+                topics.push((t.name.clone(), Kind::Contour));
+            }
+        }
+        if let Some(t) = args.topics.iter().find(|t| !topics.iter().any(|(n, _)| n == *t)) {
+            return Err(format!("{}: no RawScan or Contour topic {t}", args.input.display()));
+        }
+        if messages.is_empty() {
+            return Err(format!("{}: no RawScan or Contour messages to replay", args.input.display()));
+        }
+        messages.sort_by_key(|(t, _, _)| *t);
+        Ok(Timeline { topics, messages })
+    }
+
+    fn first_ns(&self) -> u64 {
+        self.messages[0].0
+    }
+
+    fn last_ns(&self) -> u64 {
+        self.messages.last().expect("a message").0
+    }
+}
+
+/// The publisher of one topic, of its type.
+enum TopicPublisher {
+    Raw(Publisher<RawScan>),
+    Contour(Publisher<Contour>),
+}
+
+impl TopicPublisher {
+    fn subscription_count(&self, node: &Node) -> usize {
+        match self {
+            TopicPublisher::Raw(p) => p.get_subscription_count(node),
+            TopicPublisher::Contour(p) => p.get_subscription_count(node),
+        }
+    }
+
+    fn publish(&self, msg: &Out) -> Result<(), String> {
+        match (self, msg) {
+            (TopicPublisher::Raw(p), Out::Raw(m)) => p.publish(m.clone()).map_err(|e| format!("{e:?}")),
+            (TopicPublisher::Contour(p), Out::Contour(m)) => p.publish(m.clone()).map_err(|e| format!("{e:?}")),
+            _ => unreachable!("a topic's messages are of its type"),
+        }
+    }
+}
+
+fn create_error(e: ros2_client::CreateError) -> String {
+    format!("cannot create a DDS entity: {e:?}")
+}
+
+/// A publisher for each topic, of the type its messages are (reliable, volatile, keep last 100).
+fn publishers(node: &mut Node, timeline: &Timeline) -> Result<Vec<TopicPublisher>, String> {
+    let qos = QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 100 });
+    let mut publishers = Vec::new();
+    for (name, kind) in &timeline.topics {
+        let n = ros2_client::Name::parse(name).map_err(|e| format!("invalid topic or service name '{name}': {e}"))?;
+        publishers.push(match kind {
+            Kind::Raw => {
+                let topic = node.create_topic(&n, RawScan::NAME.message_type_name(), &qos).map_err(create_error)?;
+                TopicPublisher::Raw(node.create_publisher::<RawScan>(&topic, None).map_err(create_error)?)
+            }
+            Kind::Contour => {
+                let topic = node.create_topic(&n, Contour::NAME.message_type_name(), &qos).map_err(create_error)?;
+                TopicPublisher::Contour(node.create_publisher::<Contour>(&topic, None).map_err(create_error)?)
+            }
+        });
+    }
+    Ok(publishers)
+}
+
+/// `/clock` from `play_clock`, `hz` times a second, on a thread of its own until `done`;
+/// as rosbag2's player publishes it: rclcpp's ClockQoS (best effort, keep last 1).
+fn start_clock(
+    node: &mut Node,
+    hz: f64,
+    play_clock: Arc<Mutex<PlayClock>>,
+    done: Arc<AtomicBool>,
+) -> Result<std::thread::JoinHandle<()>, String> {
+    let name = ros2_client::Name::new("/", "clock").expect("a valid name");
+    let topic = node
+        .create_topic(&name, Clock::NAME.message_type_name(), &QosProfile::subscription_default())
+        .map_err(create_error)?;
+    let publisher = node.create_publisher::<Clock>(&topic, None).map_err(create_error)?;
+    Ok(std::thread::spawn(move || {
+        while !done.load(Ordering::Relaxed) {
+            let ns = play_clock.lock().expect("clock lock").now_ns();
+            let msg = Clock { clock: Time::from_nanos(i64::try_from(ns).unwrap_or(i64::MAX)) };
+            if let Err(e) = publisher.publish(msg) {
+                eprintln!("tracer_calib replay: cannot publish /clock: {e:?}");
+            }
+            std::thread::sleep(Duration::from_secs_f64(1.0 / hz));
+        }
+    }))
+}
+
+/// Wait until every topic has a subscriber, `wait` seconds at most; warn if not.
+fn wait_for_subscribers(node: &Node, publishers: &[TopicPublisher], wait: f64) {
+    let deadline = Instant::now() + Duration::from_secs_f64(wait.max(0.0));
+    loop {
+        if publishers.iter().all(|p| p.subscription_count(node) > 0) {
+            return;
+        }
+        if Instant::now() >= deadline {
+            eprintln!(
+                "tracer_calib replay: warning: not every topic has a subscriber after {wait} s; publishing anyway"
+            );
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Publish the timeline `args.loops` times at `args.rate` (0: as fast as possible), the
+/// play clock following; the count of messages sent.
+fn play(
+    args: &Args,
+    timeline: &Timeline,
+    publishers: &[TopicPublisher],
+    play_clock: &Mutex<PlayClock>,
+) -> Result<u64, String> {
+    let first = timeline.first_ns();
+    let mut sent = 0u64;
+    for _ in 0..args.loops {
+        let start = Instant::now();
+        play_clock.lock().expect("clock lock").set(first, args.rate > 0.0);
+        for (time, idx, msg) in &timeline.messages {
+            if args.rate == 0.0 {
+                play_clock.lock().expect("clock lock").set(*time, false);
+            } else {
+                let due = Duration::from_nanos(((time - first) as f64 / args.rate) as u64);
+                if let Some(wait) = due.checked_sub(start.elapsed()) {
+                    std::thread::sleep(wait);
+                }
+            }
+            publishers[*idx].publish(msg).map_err(|e| format!("cannot publish on {}: {e}", timeline.topics[*idx].0))?;
+            sent += 1;
+        }
+    }
+    Ok(sent)
 }
 
 fn replay(args: &Args) -> Result<String, String> {
@@ -106,37 +286,7 @@ fn replay(args: &Args) -> Result<String, String> {
     if let Some(hz) = args.clock.filter(|hz| !(*hz > 0.0 && hz.is_finite())) {
         return Err(format!("--clock must be a rate in Hz > 0, got {hz}"));
     }
-    let bag = Bag::open(&args.input).map_err(|e| e.to_string())?;
-    let wanted = |name: &str| args.topics.is_empty() || args.topics.iter().any(|t| t == name);
-    // (log time, topic index, message)
-    let mut timeline: Vec<(u64, usize, Out)> = Vec::new();
-    let mut topics: Vec<(String, &'static str)> = Vec::new();
-    for t in bag.topics() {
-        if !wanted(&t.name) {
-            continue;
-        }
-        let idx = topics.len();
-        if t.type_name == RawScan::NAME.ros_name() {
-            for (time, m) in bag.read::<RawScan>(&t.name).map_err(|e| e.to_string())? {
-                timeline.push((time, idx, Out::Raw(m)));
-            }
-            topics.push((t.name.clone(), "raw"));
-        } else if t.type_name == Contour::NAME.ros_name() {
-            for (time, m) in bag.read::<Contour>(&t.name).map_err(|e| e.to_string())? {
-                timeline.push((time, idx, Out::Contour(m)));
-            }
-            topics.push((t.name.clone(), "contour"));
-        }
-    }
-    for t in &args.topics {
-        if !topics.iter().any(|(n, _)| n == t) {
-            return Err(format!("{}: no RawScan or Contour topic {t}", args.input.display()));
-        }
-    }
-    if timeline.is_empty() {
-        return Err(format!("{}: no RawScan or Contour messages to replay", args.input.display()));
-    }
-    timeline.sort_by_key(|(t, _, _)| *t);
+    let timeline = Timeline::read(args)?;
 
     let env = RosEnv::from_env().map_err(|e| e.to_string())?;
     if env.middleware == crate::rmw::Middleware::Zenoh {
@@ -149,105 +299,23 @@ fn replay(args: &Args) -> Result<String, String> {
     let mut node = ctx
         .new_node(NodeName::new("/", "tracer_calib_replay").unwrap(), NodeOptions::new().enable_rosout(false))
         .map_err(|e| format!("{e:?}"))?;
-    let qos = QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 100 });
-    let mk = |e: ros2_client::CreateError| format!("cannot create a DDS entity: {e:?}");
-    let mut raw_pubs = Vec::new();
-    let mut contour_pubs = Vec::new();
-    for (name, kind) in &topics {
-        let n = ros2_client::Name::parse(name).map_err(|e| format!("invalid topic or service name '{name}': {e}"))?;
-        if *kind == "raw" {
-            let topic = node.create_topic(&n, RawScan::NAME.message_type_name(), &qos).map_err(mk)?;
-            raw_pubs.push(Some(node.create_publisher::<RawScan>(&topic, None).map_err(mk)?));
-            contour_pubs.push(None);
-        } else {
-            let topic = node.create_topic(&n, Contour::NAME.message_type_name(), &qos).map_err(mk)?;
-            contour_pubs.push(Some(node.create_publisher::<Contour>(&topic, None).map_err(mk)?));
-            raw_pubs.push(None);
-        }
-    }
-    // /clock as rosbag2's player publishes it: rclcpp's ClockQoS (best effort, keep last 1).
-    let clock_pub = match args.clock {
-        Some(_) => {
-            let name = ros2_client::Name::new("/", "clock").expect("a valid name");
-            let topic = node
-                .create_topic(&name, Clock::NAME.message_type_name(), &QosProfile::subscription_default())
-                .map_err(mk)?;
-            Some(node.create_publisher::<Clock>(&topic, None).map_err(mk)?)
-        }
+    let publishers = publishers(&mut node, &timeline)?;
+    let play_clock = Arc::new(Mutex::new(PlayClock {
+        bag_ns: timeline.first_ns(),
+        at: Instant::now(),
+        rate: args.rate,
+        running: false,
+    }));
+    let done = Arc::new(AtomicBool::new(false));
+    let clock_thread = match args.clock {
+        Some(hz) => Some(start_clock(&mut node, hz, play_clock.clone(), done.clone())?),
         None => None,
     };
-    let spinner = smol::spawn(node.spinner().map_err(mk)?.spin());
-    let first = timeline[0].0;
-    let play_clock =
-        Arc::new(Mutex::new(PlayClock { bag_ns: first, at: Instant::now(), rate: args.rate, running: false }));
-    let done = Arc::new(AtomicBool::new(false));
-    let clock_thread = match (clock_pub, args.clock) {
-        (Some(publisher), Some(hz)) => {
-            let (play_clock, done) = (play_clock.clone(), done.clone());
-            Some(std::thread::spawn(move || {
-                while !done.load(Ordering::Relaxed) {
-                    let ns = play_clock.lock().expect("clock lock").now_ns();
-                    let msg = Clock { clock: Time::from_nanos(i64::try_from(ns).unwrap_or(i64::MAX)) };
-                    if let Err(e) = publisher.publish(msg) {
-                        eprintln!("tracer_calib replay: cannot publish /clock: {e:?}");
-                    }
-                    std::thread::sleep(Duration::from_secs_f64(1.0 / hz));
-                }
-            }))
-        }
-        _ => None,
-    };
+    let spinner = smol::spawn(node.spinner().map_err(create_error)?.spin());
 
-    let deadline = Instant::now() + Duration::from_secs_f64(args.wait.max(0.0));
-    let matched = loop {
-        let all = (0..topics.len()).all(|i| {
-            raw_pubs[i].as_ref().map_or(0, |p| p.get_subscription_count(&node)) > 0
-                || contour_pubs[i].as_ref().map_or(0, |p| p.get_subscription_count(&node)) > 0
-        });
-        if all || Instant::now() >= deadline {
-            break all;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    if !matched {
-        eprintln!(
-            "tracer_calib replay: warning: not every topic has a subscriber after {} s; publishing anyway",
-            args.wait
-        );
-    }
-    let mut sent = 0u64;
-    for _ in 0..args.loops {
-        let start = Instant::now();
-        play_clock.lock().expect("clock lock").set(first, args.rate > 0.0);
-        for (time, idx, msg) in &timeline {
-            if args.rate == 0.0 {
-                play_clock.lock().expect("clock lock").set(*time, false);
-            }
-            if args.rate > 0.0 {
-                let due = Duration::from_nanos(((time - first) as f64 / args.rate) as u64);
-                if let Some(wait) = due.checked_sub(start.elapsed()) {
-                    std::thread::sleep(wait);
-                }
-            }
-            let result = match msg {
-                Out::Raw(m) => {
-                    raw_pubs[*idx].as_ref().expect("raw publisher").publish(m.clone()).map_err(|e| format!("{e:?}"))
-                }
-                Out::Contour(m) => contour_pubs[*idx]
-                    .as_ref()
-                    .expect("contour publisher")
-                    .publish(m.clone())
-                    .map_err(|e| format!("{e:?}")),
-            };
-            result.map_err(|e| format!("cannot publish on {}: {e}", topics[*idx].0))?;
-            sent += 1;
-        }
-    }
-    let last = timeline.last().expect("a message").0;
-    play_clock.lock().expect("clock lock").set(last, false);
+    wait_for_subscribers(&node, &publishers, args.wait);
+    let sent = play(args, &timeline, &publishers, &play_clock)?;
+    play_clock.lock().expect("clock lock").set(timeline.last_ns(), false);
     std::thread::sleep(Duration::from_secs_f64(args.linger.max(0.0)));
     done.store(true, Ordering::Relaxed);
     if let Some(t) = clock_thread {
@@ -256,7 +324,7 @@ fn replay(args: &Args) -> Result<String, String> {
     drop(spinner);
     Ok(format!(
         "published {sent} messages on {}{} from {}",
-        topics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", "),
+        timeline.topics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", "),
         if args.clock.is_some() { ", and /clock" } else { "" },
         args.input.display()
     ))
