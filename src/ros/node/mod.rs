@@ -36,6 +36,7 @@ mod lifecycle;
 mod parameters;
 mod rate_limit;
 mod scans;
+mod shared;
 mod type_description;
 mod wire;
 #[cfg(feature = "zenoh")]
@@ -49,9 +50,7 @@ use std::time::{Duration, Instant};
 use futures::{StreamExt, stream::FuturesUnordered};
 use log::{error, info, warn};
 
-use ros2_client::dds::NodeClock;
-
-use crate::cell::{NodeState, Now};
+use crate::cell::NodeState;
 use crate::params::file as params_file;
 use crate::rmw::Middleware;
 use backend::Backend;
@@ -61,63 +60,11 @@ use endpoints::Endpoints;
 use entities::Entities;
 use graph::QosReports;
 pub use rate_limit::RateLimit;
+use shared::{RosClock, Shared, now_on};
 use wire::Wire;
 
 /// The node's default name (docs/CONTRACT.md).
 pub const DEFAULT_NODE_NAME: &str = "tracer_calibrator";
-
-/// What the loops share besides the entities.
-struct Shared {
-    /// The cell's state: every handler runs under this lock.
-    state: Arc<Mutex<NodeState>>,
-    /// The calibration in force changed (a parameter set, a `/calibrate` that applied):
-    /// the [`calibration`] loop publishes it.
-    calibration_changed: smol::channel::Sender<()>,
-    /// Its receiving end, the [`calibration`] loop's.
-    calibration_changes: smol::channel::Receiver<()>,
-    /// Whether anyone subscribes to the polygons (kept by [`graph`], read by [`scans`]).
-    polygon_wanted: AtomicBool,
-    /// Remote endpoints with an incompatible QoS, reported once each.
-    qos_reports: Mutex<QosReports>,
-    /// The node's clock (simulated under `use_sim_time`), once the node exists.
-    clock: Arc<OnceLock<RosClock>>,
-    /// A managed node's end of nav2's bond, while it keeps one ([`bond`]).
-    bond: Mutex<Option<crate::cell::bond::Bond>>,
-}
-
-/// The node's ROS clock, from its middleware's node: the last `/clock` under
-/// `use_sim_time`, else the system time.
-enum RosClock {
-    Dds(NodeClock),
-    #[cfg(feature = "zenoh")]
-    Zenoh(ros2_client::zenoh::NodeClock),
-}
-
-impl RosClock {
-    fn now(&self) -> ros2_client::ROSTime {
-        match self {
-            RosClock::Dds(c) => c.now(),
-            #[cfg(feature = "zenoh")]
-            RosClock::Zenoh(c) => c.now(),
-        }
-    }
-}
-
-impl Shared {
-    /// Now, on the system clock and on the node's ROS clock.
-    fn now(&self) -> Now {
-        now_on(&self.clock)
-    }
-}
-
-/// Now, on the system clock and on `clock` (the system clock too until it is set).
-fn now_on(clock: &OnceLock<RosClock>) -> Now {
-    let now = Now::system();
-    match clock.get() {
-        Some(clock) => Now { ros: clock.now().into(), ..now },
-        None => now,
-    }
-}
 
 /// The cell's state at start-up: the parameters, and what the history file says of the
 /// calibration in force. A managed node starts unconfigured: it reads the history when
