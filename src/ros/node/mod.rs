@@ -33,18 +33,20 @@ mod endpoints;
 mod entities;
 mod graph;
 mod lifecycle;
+#[cfg(test)]
+mod memory;
 mod parameters;
 mod rate_limit;
 mod scans;
 mod shared;
+#[cfg(test)]
+mod tests;
 mod type_description;
 mod wire;
 #[cfg(feature = "zenoh")]
 mod zenoh;
 
 use std::pin::Pin;
-use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 use futures::{StreamExt, stream::FuturesUnordered};
@@ -58,7 +60,6 @@ pub use config::Config;
 use dds::Dds;
 use endpoints::Endpoints;
 use entities::Entities;
-use graph::QosReports;
 pub use rate_limit::RateLimit;
 use shared::{RosClock, Shared, now_on};
 use wire::Wire;
@@ -121,17 +122,7 @@ pub fn run(config: Config, shutdown: impl std::future::Future<Output = ()>) -> R
     initial.extra_params = qos.to_list();
     initial.persist_problem = persist_problem;
     initial.driver.topic = endpoints.raw_scan.0.to_string();
-    let state = Arc::new(Mutex::new(initial));
-    let (calibration_changed, calibration_changes) = smol::channel::unbounded::<()>();
-    let shared = Shared {
-        qos_reports: Mutex::new(QosReports::new(state.clone())),
-        state,
-        calibration_changed,
-        calibration_changes,
-        polygon_wanted: AtomicBool::new(false),
-        clock: Arc::new(OnceLock::new()),
-        bond: Mutex::new(None),
-    };
+    let shared = Shared::new(initial);
     let bond = bond_period.map(|period| (identity.name.as_str(), period));
     let options = parameters::options(&params, &qos, &shared);
     match middleware {

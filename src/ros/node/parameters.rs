@@ -5,7 +5,10 @@
 use log::{error, info};
 use ros2_client::{NodeOptions, NumericRange, ParameterDescriptor, ParameterValue as RosValue};
 
-use super::Shared;
+use std::sync::{Mutex, OnceLock};
+
+use super::{RosClock, Shared};
+use crate::cell::NodeState;
 use crate::engine::geometry::Mounting;
 use crate::params::spec::{Bound, Spec};
 use crate::params::{ParamValue, Parameters, names, spec};
@@ -83,38 +86,57 @@ pub(super) fn options(params: &Parameters, qos: &QosOverrides, shared: &Shared) 
     let action_changed = shared.calibration_changed.clone();
     let action_clock = shared.clock.clone();
     options
-        .parameter_validator(Box::new(move |name, value| {
-            if !Parameters::is_known(name) {
-                return Ok(());
-            }
-            let v = from_ros(value).ok_or_else(|| format!("{name}: unsupported value type"))?;
-            let mut trial = validator_state.lock().expect("state lock").params.clone();
-            trial.set(name, &v).map_err(|e| format!("{name}: {e}"))
-        }))
+        .parameter_validator(Box::new(move |name, value| validate(&validator_state, name, value)))
         .parameter_set_action(Box::new(move |name, value| {
-            if !Parameters::is_known(name) {
-                return Ok(());
-            }
-            let v = from_ros(value).ok_or_else(|| format!("{name}: unsupported value type"))?;
-            let mut st = action_state.lock().expect("state lock");
-            if st.params.get(name).as_ref() == Some(&v) {
-                return Ok(());
-            }
-            let before = st.params.clone();
-            st.params.set(name, &v).map_err(|e| format!("{name}: {e}"))?;
-            if let Err(e) = st.persist() {
-                st.params = before;
-                return Err(format!("{name}: not changed: {e}"));
-            }
-            if names::CALIBRATION_IN_FORCE.contains(&name) {
-                st.calibration_set_by_parameters(super::now_on(&action_clock));
-            }
-            if name.starts_with("calibration.") || names::CALIBRATION_IN_FORCE.contains(&name) {
-                let _ = action_changed.try_send(());
-            }
-            info!("parameter {name} = {v}");
-            Ok(())
+            apply(&action_state, &action_changed, &action_clock, name, value)
         }))
+}
+
+/// The parameter validator: a change of one of the node's parameters checked by the same
+/// rules as the params file (others, `qos_overrides.*`, pass: ros2-client refuses the
+/// read-only ones from their descriptors).
+pub(super) fn validate(state: &Mutex<NodeState>, name: &str, value: &RosValue) -> Result<(), String> {
+    if !Parameters::is_known(name) {
+        return Ok(());
+    }
+    let v = from_ros(value).ok_or_else(|| format!("{name}: unsupported value type"))?;
+    let mut trial = state.lock().expect("state lock").params.clone();
+    trial.set(name, &v).map_err(|e| format!("{name}: {e}"))
+}
+
+/// The parameter set action: a validated change applied to the cell's state and persisted,
+/// only when the value really changes (so the start-up round of set actions writes
+/// nothing); a failed write fails the set and leaves the value in force. A change of the
+/// calibration in force is stamped on the node's clock and `changed` is told.
+pub(super) fn apply(
+    state: &Mutex<NodeState>,
+    changed: &smol::channel::Sender<()>,
+    clock: &OnceLock<RosClock>,
+    name: &str,
+    value: &RosValue,
+) -> Result<(), String> {
+    if !Parameters::is_known(name) {
+        return Ok(());
+    }
+    let v = from_ros(value).ok_or_else(|| format!("{name}: unsupported value type"))?;
+    let mut st = state.lock().expect("state lock");
+    if st.params.get(name).as_ref() == Some(&v) {
+        return Ok(());
+    }
+    let before = st.params.clone();
+    st.params.set(name, &v).map_err(|e| format!("{name}: {e}"))?;
+    if let Err(e) = st.persist() {
+        st.params = before;
+        return Err(format!("{name}: not changed: {e}"));
+    }
+    if names::CALIBRATION_IN_FORCE.contains(&name) {
+        st.calibration_set_by_parameters(super::now_on(clock));
+    }
+    if name.starts_with("calibration.") || names::CALIBRATION_IN_FORCE.contains(&name) {
+        let _ = changed.try_send(());
+    }
+    info!("parameter {name} = {v}");
+    Ok(())
 }
 
 /// Mirror a calibration `/calibrate` applied into the ROS parameters (already persisted:

@@ -49,6 +49,22 @@ impl RosClock {
 }
 
 impl Shared {
+    /// The shared state of a node starting from `initial`: no calibration change pending, no
+    /// polygon subscriber, no clock yet, no bond.
+    pub(super) fn new(initial: NodeState) -> Shared {
+        let state = Arc::new(Mutex::new(initial));
+        let (calibration_changed, calibration_changes) = smol::channel::unbounded::<()>();
+        Shared {
+            qos_reports: Mutex::new(QosReports::new(state.clone())),
+            state,
+            calibration_changed,
+            calibration_changes,
+            polygon_wanted: AtomicBool::new(false),
+            clock: Arc::new(OnceLock::new()),
+            bond: Mutex::new(None),
+        }
+    }
+
     /// Now, on the system clock and on the node's ROS clock.
     pub(super) fn now(&self) -> Now {
         now_on(&self.clock)

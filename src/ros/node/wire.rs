@@ -2,7 +2,8 @@
 //! write to, and nothing of how it travels. [`super::entities::Entities`] implements it
 //! once, over either middleware ([`super::backend`]); the loops ([`super::scans`],
 //! [`super::calibrate`], [`super::calibration`], [`super::diagnostics`],
-//! [`super::type_description`]) are written once, against this trait.
+//! [`super::type_description`]) are written once, against this trait. In the tests, an
+//! in-memory wire (`memory.rs`) runs them in-process.
 //!
 //! Errors are the middleware's, as text: the loops only count and log them.
 

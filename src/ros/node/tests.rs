@@ -1,0 +1,209 @@
+//! The node's loops in-process, through the in-memory [`MemoryWire`]: scans in and
+//! contours out, `/calibrate` (the parameters mirrored by the node's own validator and set
+//! action, the calibration latched), introspection, diagnostics and type descriptions,
+//! each in milliseconds. What only a middleware shows (wire compatibility, discovery,
+//! QoS, security, loss) the interop suites test against stock peers.
+
+use std::time::Duration;
+
+use nalgebra::Vector2;
+use rand::SeedableRng;
+use smol::channel::Receiver;
+
+use super::memory::MemoryWire;
+use super::shared::Shared;
+use super::{calibrate, calibration, diagnostics, scans, type_description};
+use crate::cell::NodeState;
+use crate::engine::geometry::Mounting;
+use crate::engine::model::PlateSpec;
+use crate::engine::shape::{Ellipse, Shape};
+use crate::engine::simulate::{HeightOptions, SimOptions, SimScan, simulate, simulate_heights};
+use crate::interfaces::{
+    CalibrateRequest, CalibrateResponse, GetTypeDescriptionRequest, Header, RawScan, ServiceEventInfo,
+};
+use crate::params::{Introspection, Parameters};
+
+/// The tracer these tests trace with.
+const TRUTH: Mounting = Mounting { alpha0: 0.02, offset: 0.004, delta_l: 0.001, scale: 1.0 };
+
+fn sim(shape: &impl Shape, seed: u64) -> SimScan {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    simulate(shape, &TRUTH, &SimOptions { noise: 2e-6, ..SimOptions::default() }, &mut rng).unwrap()
+}
+
+fn msg(scan_id: u32, target: u8, sim: &SimScan) -> RawScan {
+    RawScan {
+        header: Header::default(),
+        scan_id,
+        target,
+        steps_per_revolution: 400,
+        step: sim.scan.samples().iter().map(|s| s.step).collect(),
+        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
+        height_counts: Vec::new(),
+    }
+}
+
+fn plate(scan_id: u32) -> RawScan {
+    msg(scan_id, RawScan::TARGET_CALIBRATION_PLATE, &sim(&PlateSpec::default().at(Vector2::new(5e-4, -3e-4)), 1))
+}
+
+fn lens(scan_id: u32) -> RawScan {
+    let ellipse = Ellipse { center: Vector2::new(3e-4, 2e-4), a: 0.025, b: 0.015, angle: 0.1 };
+    msg(scan_id, RawScan::TARGET_LENS, &sim(&ellipse, 2))
+}
+
+fn node(params: Parameters) -> Shared {
+    Shared::new(NodeState::new("/tracer_calibrator".into(), params))
+}
+
+/// The next message on `rx`, within 5 s.
+async fn next<T>(rx: &Receiver<T>, what: &str) -> T {
+    let timeout = async {
+        smol::Timer::after(Duration::from_secs(5)).await;
+        panic!("no {what} within 5 s")
+    };
+    futures::future::select(std::pin::pin!(rx.recv()), std::pin::pin!(timeout))
+        .await
+        .factor_first()
+        .0
+        .unwrap_or_else(|_| panic!("the {what} channel closed"))
+}
+
+/// Run `test` while the node's loops run (until `test` ends).
+fn with_loops(shared: &Shared, wire: &MemoryWire, test: impl Future<Output = ()>) {
+    smol::block_on(async {
+        let loops = async {
+            futures::join!(
+                scans::run(wire, shared),
+                calibrate::run(wire, shared),
+                calibration::run(wire, shared, shared.calibration_changes.clone()),
+                diagnostics::run(wire, shared),
+                type_description::run(wire),
+            )
+        };
+        futures::future::select(std::pin::pin!(loops), std::pin::pin!(test)).await;
+    });
+}
+
+#[test]
+fn scans_in_contours_out_and_bad_ones_counted() {
+    let shared = node(Parameters::default());
+    let (wire, out) = MemoryWire::new(&shared);
+    smol::block_on(async {
+        let test = async {
+            wire.send_scan(Ok(lens(1)));
+            let c = next(&out.contours, "contour").await;
+            assert_eq!((c.scan_id, c.calibrated, c.points.len()), (1, false, 400));
+            assert!(out.polygons.is_empty(), "a polygon only when someone listens");
+            // One that did not decode, one malformed: counted, and the loop goes on.
+            wire.send_scan(Err("CDR: buffer too short".into()));
+            wire.send_scan(Ok(RawScan { steps_per_revolution: 0, ..lens(2) }));
+            shared.polygon_wanted.store(true, std::sync::atomic::Ordering::Relaxed);
+            wire.send_scan(Ok(lens(3)));
+            let c = next(&out.contours, "contour").await;
+            assert_eq!(c.scan_id, 3);
+            assert_eq!(next(&out.polygons, "polygon").await.polygon.points.len(), 400);
+            let st = shared.state.lock().unwrap();
+            assert_eq!((st.stats.scans_received, st.stats.scans_rejected), (4, 2), "{:?}", st.stats);
+            drop(st);
+            wire.close();
+        };
+        futures::join!(scans::run(&wire, &shared), test);
+    });
+}
+
+#[test]
+fn calibrate_applies_mirrors_latches_and_corrects() {
+    let shared = node(Parameters { introspection: Introspection::Contents, ..Parameters::default() });
+    let (wire, out) = MemoryWire::new(&shared);
+    with_loops(&shared, &wire, async {
+        let first = next(&out.calibrations, "calibration at start-up").await;
+        assert!(!first.valid);
+        // Nothing to fit yet: refused, by code.
+        wire.call_calibrate(1, CalibrateRequest::default());
+        let (id, r) = next(&out.calibrate_answers, "calibrate answer").await;
+        assert_eq!((id.sequence_number, r.success, r.error_code), (1, false, CalibrateResponse::ERROR_NO_PLATE_SCAN));
+        wire.send_scan(Ok(plate(10)));
+        next(&out.contours, "the plate's contour").await;
+        let id = wire.call_calibrate(2, CalibrateRequest::default());
+        let (answered, r) = next(&out.calibrate_answers, "calibrate answer").await;
+        assert_eq!(answered, id);
+        assert!(r.success && r.error_code == CalibrateResponse::ERROR_NONE, "{}", r.message);
+        assert!((r.offset - TRUTH.offset).abs() < 2e-5, "{}", r.message);
+        // Latched, and mirrored into the parameters as one set the validator took.
+        let cal = next(&out.calibrations, "the new calibration").await;
+        assert!(cal.valid && cal.scan_id == 10 && cal.offset == r.offset, "{cal:?}");
+        let events = wire.parameter_events.lock().unwrap().clone();
+        assert_eq!(events.len(), 1, "one calibration, one parameter event");
+        assert!(events[0].iter().any(|p| p.name == "calibration.offset"));
+        assert_eq!(shared.state.lock().unwrap().params.calibration.offset, r.offset);
+        // Introspection: each request received and each response sent, with contents.
+        let kinds: Vec<u8> =
+            std::iter::from_fn(|| out.calibrate_events.try_recv().ok()).map(|e| e.info.event_type).collect();
+        let (rx, tx) = (ServiceEventInfo::REQUEST_RECEIVED, ServiceEventInfo::RESPONSE_SENT);
+        assert_eq!(kinds, [rx, tx, rx, tx], "request received, response sent, twice");
+        // A scan now comes back corrected, traced to scan 10.
+        wire.send_scan(Ok(lens(11)));
+        let c = next(&out.contours, "a lens contour").await;
+        assert!(c.calibrated && c.calibration_scan_id == 10);
+        // A failed calibration leaves the one in force.
+        wire.call_calibrate(3, CalibrateRequest { scan_id: 99, ..CalibrateRequest::default() });
+        let (_, r) = next(&out.calibrate_answers, "calibrate answer").await;
+        assert_eq!((r.success, r.error_code), (false, CalibrateResponse::ERROR_NO_PLATE_SCAN), "{}", r.message);
+        assert_eq!(shared.state.lock().unwrap().params.calibration.offset, cal.offset);
+        assert_eq!(wire.parameter_events.lock().unwrap().len(), 1);
+        // An unreadable request is counted, not answered.
+        wire.send_unreadable_calibrate("a layout no client uses");
+        wire.call_calibrate(4, CalibrateRequest { scan_id: 99, ..CalibrateRequest::default() });
+        let (id, _) = next(&out.calibrate_answers, "calibrate answer").await;
+        assert_eq!(id.sequence_number, 4);
+        assert_eq!(shared.state.lock().unwrap().stats.requests_unreadable, 1);
+    });
+}
+
+/// A plate traced with heights: the axis tilt fitted, mirrored into the parameters through
+/// their validator (a covariance asymmetric in its last bits was refused there once).
+#[test]
+fn a_calibration_with_heights_is_mirrored_whole() {
+    let shared = node(Parameters::default());
+    let (wire, out) = MemoryWire::new(&shared);
+    let s = sim(&PlateSpec::default().at(Vector2::new(5e-4, -3e-4)), 5);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(6);
+    let opt = HeightOptions { zero: 0.0, tilt: [1.7e-3, 0.0], noise: 5e-6, quantum: 1e-6 };
+    let heights = simulate_heights(&s, |_| 0.0, &opt, &mut rng).unwrap();
+    let scan = RawScan {
+        height_counts: heights.iter().map(|h| (h / 1e-6).round() as i32).collect(),
+        ..msg(20, RawScan::TARGET_CALIBRATION_PLATE, &s)
+    };
+    with_loops(&shared, &wire, async {
+        wire.send_scan(Ok(scan));
+        next(&out.contours, "the plate's contour").await;
+        wire.call_calibrate(1, CalibrateRequest::default());
+        let (_, r) = next(&out.calibrate_answers, "calibrate answer").await;
+        assert!(r.success, "{}", r.message);
+        let events = wire.parameter_events.lock().unwrap().clone();
+        assert_eq!(events.len(), 1, "the calibration mirrored into the parameters");
+        let tilt = shared.state.lock().unwrap().params.axis_tilt;
+        assert!((tilt.angles[0] - 1.7e-3).abs() < 2e-4, "{tilt:?}");
+        assert_eq!(tilt.covariance[1], tilt.covariance[2]);
+    });
+}
+
+#[test]
+fn diagnostics_and_type_descriptions_are_served() {
+    let shared = node(Parameters::default());
+    let (wire, out) = MemoryWire::new(&shared);
+    with_loops(&shared, &wire, async {
+        let d = next(&out.diagnostics, "diagnostics").await;
+        let keys: Vec<&str> = d.status.iter().flat_map(|s| s.values.iter().map(|kv| kv.key.as_str())).collect();
+        assert!(keys.contains(&"scans_received"), "{keys:?}");
+        let name = "tracer_calib_msgs/msg/RawScan";
+        let type_hash = crate::interfaces::type_hash::type_hash(name).unwrap();
+        let request = GetTypeDescriptionRequest { type_name: name.into(), type_hash, ..Default::default() };
+        let id = wire.call_type_description(1, request);
+        let (answered, response) = next(&out.type_description_answers, "type description").await;
+        assert_eq!(answered, id);
+        assert!(response.successful, "{}", response.failure_reason);
+        assert_eq!(response.type_description.type_description.type_name, "tracer_calib_msgs/msg/RawScan");
+    });
+}
