@@ -2,7 +2,9 @@
 //! the loops' request and scan streams, what the loops publish and answer comes out on
 //! channels, and a parameter set runs the node's own validator and set action
 //! ([`super::parameters::validate`], [`super::parameters::apply`]), all or none, as
-//! ros2-client's parameter server does, each set recorded as one parameter event.
+//! ros2-client's parameter server does, each set recorded as one parameter event. A
+//! managed node's lifecycle services, transition events and bond likewise
+//! ([`MemoryLifecycle`]).
 //!
 //! Nothing of a middleware is here: discovery, QoS, serialization and loss are what the
 //! interop suites test against stock peers.
@@ -13,13 +15,15 @@ use futures::Stream;
 use ros2_client::{Gid, RmwRequestId};
 use smol::channel::{Receiver, Sender, unbounded};
 
+use super::lifecycle::{Call, LifecycleWire, Reply};
 use super::parameters;
 use super::shared::{RosClock, Shared};
 use super::wire::Wire;
 use crate::cell::NodeState;
 use crate::interfaces::{
-    CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray, GetTypeDescriptionRequest,
-    GetTypeDescriptionResponse, PolygonStamped, RawScan, tracer_calib_msgs as msgs,
+    BondStatus, CalibrateEvent, CalibrateRequest, CalibrateResponse, Contour, DiagnosticArray,
+    GetTypeDescriptionRequest, GetTypeDescriptionResponse, PolygonStamped, RawScan, TransitionEvent,
+    tracer_calib_msgs as msgs,
 };
 use crate::ros::logging::RosoutRecord;
 
@@ -237,5 +241,69 @@ impl Wire for MemoryWire {
 
     fn use_sim_time(&self) -> bool {
         self.use_sim_time
+    }
+}
+
+/// A managed node's lifecycle services, transition events and bond, in memory.
+pub(super) struct MemoryLifecycle {
+    calls: Inbound<Result<(RmwRequestId, Call), String>>,
+    answers: Sender<(RmwRequestId, Reply)>,
+    events: Sender<TransitionEvent>,
+    /// The bond's topic as the node reads it (`None`: the node keeps no bond).
+    bond_in: Option<Inbound<Result<BondStatus, String>>>,
+    bond_out: Sender<BondStatus>,
+}
+
+/// What the lifecycle side sent out.
+pub(super) struct LifecycleOut {
+    pub answers: Receiver<(RmwRequestId, Reply)>,
+    pub events: Receiver<TransitionEvent>,
+    pub bond: Receiver<BondStatus>,
+}
+
+impl MemoryLifecycle {
+    /// The lifecycle side; with the bond's topic if `bond`.
+    pub fn new(bond: bool) -> (MemoryLifecycle, LifecycleOut) {
+        let (answers, answers_rx) = unbounded();
+        let (events, events_rx) = unbounded();
+        let (bond_out, bond_rx) = unbounded();
+        let l = MemoryLifecycle { calls: Inbound::new(), answers, events, bond_in: bond.then(Inbound::new), bond_out };
+        (l, LifecycleOut { answers: answers_rx, events: events_rx, bond: bond_rx })
+    }
+
+    /// A lifecycle request arrives, as client request number `seq`.
+    pub fn call(&self, seq: i64, call: Call) -> RmwRequestId {
+        let id = RmwRequestId { writer_gid: Gid::from([9u8; 16]), sequence_number: seq };
+        self.calls.tx.try_send(Ok((id, call))).expect("unbounded");
+        id
+    }
+
+    /// A status on the bond's topic (the lifecycle manager's end, or the node's own echo).
+    pub fn bond_status(&self, status: BondStatus) {
+        self.bond_in.as_ref().expect("a bond topic").tx.try_send(Ok(status)).expect("unbounded");
+    }
+}
+
+impl LifecycleWire for MemoryLifecycle {
+    type RequestId = RmwRequestId;
+
+    fn calls(&self) -> impl Stream<Item = Result<(RmwRequestId, Call), String>> + '_ {
+        self.calls.rx.clone()
+    }
+
+    fn answer(&self, id: RmwRequestId, reply: Reply) -> impl Future<Output = Result<(), String>> + '_ {
+        send(&self.answers, (id, reply))
+    }
+
+    fn publish_event(&self, event: TransitionEvent) -> impl Future<Output = Result<(), String>> + '_ {
+        send(&self.events, event)
+    }
+
+    fn bond_statuses(&self) -> Option<impl Stream<Item = Result<BondStatus, String>> + '_> {
+        self.bond_in.as_ref().map(|b| b.rx.clone())
+    }
+
+    fn publish_bond(&self, status: BondStatus) -> impl Future<Output = Result<(), String>> + '_ {
+        send(&self.bond_out, status)
     }
 }

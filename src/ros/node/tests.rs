@@ -1,7 +1,7 @@
 //! The node's loops in-process, through the in-memory [`MemoryWire`]: scans in and
 //! contours out, `/calibrate` (the parameters mirrored by the node's own validator and set
-//! action, the calibration latched), introspection, diagnostics and type descriptions,
-//! each in milliseconds. What only a middleware shows (wire compatibility, discovery,
+//! action, the calibration latched), introspection, diagnostics and type descriptions, a
+//! managed node's lifecycle and nav2's bond, each in milliseconds. What only a middleware shows (wire compatibility, discovery,
 //! QoS, security, loss) the interop suites test against stock peers.
 
 use std::time::Duration;
@@ -10,16 +10,20 @@ use nalgebra::Vector2;
 use rand::SeedableRng;
 use smol::channel::Receiver;
 
-use super::memory::MemoryWire;
+use super::lifecycle::{Call, Reply};
+use super::memory::{LifecycleOut, MemoryLifecycle, MemoryWire};
 use super::shared::Shared;
-use super::{calibrate, calibration, diagnostics, scans, type_description};
+use super::{bond, calibrate, calibration, diagnostics, lifecycle, scans, type_description};
 use crate::cell::NodeState;
+use crate::cell::bond::BondState;
+use crate::cell::lifecycle::State as CellState;
 use crate::engine::geometry::Mounting;
 use crate::engine::model::PlateSpec;
 use crate::engine::shape::{Ellipse, Shape};
 use crate::engine::simulate::{HeightOptions, SimOptions, SimScan, simulate, simulate_heights};
 use crate::interfaces::{
-    CalibrateRequest, CalibrateResponse, GetTypeDescriptionRequest, Header, RawScan, ServiceEventInfo,
+    BondStatus, CalibrateRequest, CalibrateResponse, ChangeStateRequest, GetTypeDescriptionRequest, Header,
+    LifecycleTransition, RawScan, ServiceEventInfo,
 };
 use crate::params::{Introspection, Parameters};
 
@@ -67,6 +71,15 @@ async fn next<T>(rx: &Receiver<T>, what: &str) -> T {
         .factor_first()
         .0
         .unwrap_or_else(|_| panic!("the {what} channel closed"))
+}
+
+/// Until `cond` holds, checked every 10 ms, 5 s at most.
+async fn until(cond: impl Fn() -> bool, what: &str) {
+    let start = std::time::Instant::now();
+    while !cond() {
+        assert!(start.elapsed() < Duration::from_secs(5), "not {what} within 5 s");
+        smol::Timer::after(Duration::from_millis(10)).await;
+    }
 }
 
 /// Run `test` while the node's loops run (until `test` ends).
@@ -205,5 +218,99 @@ fn diagnostics_and_type_descriptions_are_served() {
         assert_eq!(answered, id);
         assert!(response.successful, "{}", response.failure_reason);
         assert_eq!(response.type_description.type_description.type_name, "tracer_calib_msgs/msg/RawScan");
+    });
+}
+
+/// A managed node keeping nav2's bond (a heartbeat every 50 ms).
+fn managed() -> Shared {
+    let params = Parameters { managed: true, bond_heartbeat_period: 0.05, ..Parameters::default() };
+    let mut st = NodeState::new("/tracer_calibrator".into(), params);
+    st.lifecycle = Some(crate::cell::lifecycle::Lifecycle::new());
+    Shared::new(st)
+}
+
+fn transition(id: u8, label: &str) -> Call {
+    Call::ChangeState(ChangeStateRequest { transition: LifecycleTransition { id, label: label.into() } })
+}
+
+async fn change_state(l: &MemoryLifecycle, out: &LifecycleOut, seq: i64, id: u8, label: &str) -> bool {
+    let asked = l.call(seq, transition(id, label));
+    match next(&out.answers, "change_state answer").await {
+        (answered, Reply::ChangeState(r)) if answered == asked => r.success,
+        _ => panic!("not the change_state answer"),
+    }
+}
+
+async fn state_id(l: &MemoryLifecycle, out: &LifecycleOut, seq: i64) -> u8 {
+    l.call(seq, Call::GetState);
+    match next(&out.answers, "get_state answer").await {
+        (_, Reply::GetState(r)) => r.current_state.id,
+        _ => panic!("not the get_state answer"),
+    }
+}
+
+/// The next status the node's end of the bond publishes with `active`.
+async fn bond_status(out: &LifecycleOut, active: bool) -> BondStatus {
+    loop {
+        let s = next(&out.bond, "bond status").await;
+        if s.active == active {
+            return s;
+        }
+    }
+}
+
+/// A managed node through its lifecycle, with nav2's bond: unconfigured and inactive it
+/// takes scans and publishes nothing, refuses `/calibrate` by code; configured, activated,
+/// it serves and keeps the bond (formed when the manager's end answers); deactivated, it
+/// breaks the bond at once.
+#[test]
+fn a_managed_node_through_its_lifecycle_keeps_the_bond_while_active() {
+    let shared = managed();
+    let (wire, out) = MemoryWire::new(&shared);
+    let (life, life_out) = MemoryLifecycle::new(true);
+    smol::block_on(async {
+        let loops = async {
+            futures::join!(
+                scans::run(&wire, &shared),
+                calibrate::run(&wire, &shared),
+                lifecycle::run(&life, &shared),
+                bond::run(&life, &shared, "tracer_calibrator", Duration::from_millis(50)),
+            )
+        };
+        let test = async {
+            assert_eq!(state_id(&life, &life_out, 1).await, CellState::UNCONFIGURED.id);
+            wire.send_scan(Ok(lens(1)));
+            wire.call_calibrate(1, CalibrateRequest::default());
+            let (_, r) = next(&out.calibrate_answers, "calibrate answer").await;
+            assert_eq!((r.success, r.error_code), (false, CalibrateResponse::ERROR_NOT_ACTIVE), "{}", r.message);
+            assert!(out.contours.is_empty(), "nothing published before active");
+            assert_eq!(shared.state.lock().unwrap().stats.scans_received, 1, "the scan taken and counted");
+
+            assert!(change_state(&life, &life_out, 2, 1, "configure").await);
+            let steps: Vec<(u8, u8)> = std::iter::from_fn(|| life_out.events.try_recv().ok())
+                .map(|e| (e.start_state.id, e.goal_state.id))
+                .collect();
+            assert_eq!(steps.last().map(|s| s.1), Some(CellState::INACTIVE.id), "{steps:?}");
+            assert!(life_out.bond.is_empty(), "no bond before active");
+
+            assert!(change_state(&life, &life_out, 3, 3, "activate").await);
+            let mine = bond_status(&life_out, true).await;
+            assert_eq!(mine.id, "tracer_calibrator");
+            // The lifecycle manager's end answers: formed.
+            life.bond_status(BondStatus { instance_id: "manager".into(), ..mine.clone() });
+            until(
+                || shared.bond.lock().unwrap().as_ref().map(|b| b.state()) == Some(BondState::Alive),
+                "the bond formed",
+            )
+            .await;
+            wire.send_scan(Ok(lens(2)));
+            assert_eq!(next(&out.contours, "a contour once active").await.scan_id, 2);
+
+            assert!(change_state(&life, &life_out, 4, 4, "deactivate").await);
+            let broken = bond_status(&life_out, false).await;
+            assert_eq!(broken.instance_id, mine.instance_id, "the same end says it breaks");
+            assert_eq!(state_id(&life, &life_out, 5).await, CellState::INACTIVE.id);
+        };
+        futures::future::select(std::pin::pin!(loops), std::pin::pin!(test)).await;
     });
 }
