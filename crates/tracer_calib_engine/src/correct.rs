@@ -176,8 +176,8 @@ impl PolarContour {
     ///
     /// Always inlined: called for each point as it is computed, it would otherwise load
     /// the point from the two 8-byte stores the caller just made with one 16-byte load,
-    /// which the CPU cannot forward from the stores (a stall for every point: the node's
-    /// handling of a 400-sample scan took 16.5 µs instead of 13).
+    /// which the CPU cannot forward from the stores (a stall for every point; the root
+    /// package's BENCHMARKS.md, "Figures behind choices in the code", says how much).
     #[inline(always)]
     pub fn push(&mut self, p: Vector2<f64>) {
         let r2 = p.x * p.x + p.y * p.y;
@@ -344,7 +344,8 @@ const EXACT_ANGLE_EVERY: u32 = 16;
 /// is the common case: one division and the series `u - u³/3 + … - u¹³/13`, which leaves
 /// out less than `u¹⁵/15 < 1e-19`, where [`polar_angle`] takes two divisions and a
 /// table. The series is evaluated by Estrin's scheme (`u⁴`, `u⁸` and the pairs of terms
-/// at once) rather than Horner's six dependent steps: 4.5 → 2.9 µs for 400 points.
+/// at once) rather than Horner's six dependent steps, which wait on each other
+/// (BENCHMARKS.md, "Figures behind choices in the code").
 #[inline]
 fn next_angle(q: Vector2<f64>, tq: f64, p: &Vector2<f64>) -> Option<f64> {
     let (cross, dot) = (q.x * p.y - q.y * p.x, q.x * p.x + q.y * p.y);
@@ -398,8 +399,9 @@ const ATAN_EIGHTHS: [f64; 9] = [
 /// Then `π/2 - a` if `|y| > |x|`, `π - a` if `x < 0`, `2π - a` if `y < 0`.
 ///
 /// Why not `f64::atan2`: the resampler calls this for every sample of every scan, and
-/// in the node, where other processes evict the caches between scans, libm's atan2
-/// took ~34 ns a call (13.5 µs of a 400-sample scan), this small function ~26 ns.
+/// in the node, where other processes evict the caches between scans, libm's atan2 and
+/// its tables cost more than this small function (BENCHMARKS.md, "Figures behind choices
+/// in the code").
 pub(crate) fn polar_angle(y: f64, x: f64) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
     let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };

@@ -188,9 +188,9 @@ fn serve<'a, B: Backend>(
 ) {
     // Each loop is a future of its own, with its own waker: a scan arriving wakes the
     // scan loop alone. (Under one `select!`, every wake-up polled every loop, the
-    // calibrate request stream and the diagnostics timer included: the latency bench
-    // had the node ~15 µs slower, +62..+68 µs over the relay against +46..+55 µs.)
-    // The first loop to end ends the node.
+    // calibrate request stream and the diagnostics timer included: measurably slower,
+    // BENCHMARKS.md, "Figures behind choices in the code".) The first loop to end ends
+    // the node.
     let mut loops: FuturesUnordered<Loop<'a>> = FuturesUnordered::new();
     loops.push(graph);
     if let Some(l) = &e.lifecycle {
