@@ -8,16 +8,20 @@ use crate::engine::correct::Corrector;
 use crate::engine::geometry::Mounting;
 use crate::engine::height::{AxisTilt, TiltError, fit_axis_tilt};
 use crate::interfaces::{CalibrateRequest, CalibrateResponse};
+use crate::params::{ParamValue, names};
 use crate::records::{self, Previous, Record};
 use nalgebra::Vector2;
 
 /// What a calibrate request did.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct CalibrateOutcome {
     pub response: CalibrateResponse,
-    /// The new calibration, if one was applied (the node mirrors it into its ROS
-    /// parameters).
+    /// The new calibration, if one was applied.
     pub applied: Option<Mounting>,
+    /// The parameters the calibration set, each validated as any set of them is (the cell
+    /// owns them): what the node tells its ROS parameter server, as one change. Empty
+    /// unless one was applied.
+    pub parameters: Vec<(&'static str, ParamValue)>,
 }
 
 impl NodeState {
@@ -37,7 +41,7 @@ impl NodeState {
             this.stats.last_fit_error = error_code;
             CalibrateOutcome {
                 response: CalibrateResponse { success: false, message, error_code, ..Default::default() },
-                applied: None,
+                ..CalibrateOutcome::default()
             }
         };
         // The plate scans: those of plate_scan_ids, each a placement; else scan_id's.
@@ -148,12 +152,20 @@ impl NodeState {
             response.message = format!("dry run, not applied: {}", response.message);
             self.stats.last_fit_message = response.message.clone();
             self.stats.last_fit_error = response.error_code;
-            return CalibrateOutcome { response, applied: None };
+            return CalibrateOutcome { response, ..CalibrateOutcome::default() };
         }
         // The covariance's names where they say more than the five: with an angle error.
         let names_in_force =
             if response.angle_coefficients.is_empty() { Vec::new() } else { response.covariance_names.clone() };
         let fitted_tilt = tilt.as_ref().and_then(|t| t.as_ref().ok());
+        // The parameters it sets, together through the rules any set of them goes through:
+        // a value they refuse fails the calibration, and the one in force stays.
+        let parameters = calibration_parameters(&cal, &response, &names_in_force, fitted_tilt);
+        let mut next = self.params.clone();
+        if let Err(e) = next.set_all(parameters.iter().map(|(name, value)| (*name, value))) {
+            let message = format!("calibration failed on {scans}: the parameters refuse what the fit gives: {e}");
+            return fail(self, CalibrateResponse::ERROR_NO_FIT, message);
+        }
         let record = Record {
             format: records::format_for(&response.angle_coefficients),
             time: records::format_utc(now.wall),
@@ -181,16 +193,7 @@ impl NodeState {
             previous: previous.map(Previous::from),
             ros_time: Some(records::RosTime::from_nanos(now.ros.to_nanos())),
         };
-        self.params.calibration = cal.mounting;
-        self.params.calibration_valid = true;
-        self.params.covariance = response.covariance.clone();
-        self.params.covariance_names = names_in_force;
-        self.params.angle_coefficients = response.angle_coefficients.clone();
-        self.params.tip_radius = cal.tip_radius;
-        self.params.noise_lag1 = cal.noise_lag1;
-        if let Some(Ok(t)) = tilt {
-            self.params.axis_tilt = t;
-        }
+        self.params = next;
         // The time the record gives, to the millisecond: what a restart reads back.
         self.in_force = InForce {
             applied_at: record.applied_at().unwrap_or(now.wall),
@@ -213,8 +216,41 @@ impl NodeState {
         }
         self.stats.last_fit_message = response.message.clone();
         self.stats.last_fit_error = response.error_code;
-        CalibrateOutcome { response, applied: Some(cal.mounting) }
+        CalibrateOutcome { response, applied: Some(cal.mounting), parameters }
     }
+}
+
+/// The parameters a calibration sets, by name: the mounting, its covariance (and the rows'
+/// names), the tip radius, the angle error, the noise's lag-1 correlation, and the axis's
+/// tilt when it was fitted.
+fn calibration_parameters(
+    cal: &Calibration,
+    response: &CalibrateResponse,
+    covariance_names: &[String],
+    tilt: Option<&AxisTilt>,
+) -> Vec<(&'static str, ParamValue)> {
+    use ParamValue::{Bool, Double, DoubleArray, StringArray};
+    let m = cal.mounting;
+    let mut p = vec![
+        (names::ALPHA0, Double(m.alpha0)),
+        (names::OFFSET, Double(m.offset)),
+        (names::DELTA_L, Double(m.delta_l)),
+        (names::SCALE, Double(m.scale)),
+        (names::VALID, Bool(true)),
+        (names::COVARIANCE, DoubleArray(response.covariance.clone())),
+        (names::TIP_RADIUS, Double(cal.tip_radius)),
+        (names::ANGLE_COEFFICIENTS, DoubleArray(response.angle_coefficients.clone())),
+        (names::COVARIANCE_NAMES, StringArray(covariance_names.to_vec())),
+        (names::NOISE_LAG1, Double(cal.noise_lag1)),
+    ];
+    if let Some(t) = tilt {
+        p.extend([
+            (names::AXIS_TILT, DoubleArray(t.angles.to_vec())),
+            (names::AXIS_TILT_COVARIANCE, DoubleArray(t.covariance.to_vec())),
+            (names::HEIGHT_ZERO, Double(t.height_zero)),
+        ]);
+    }
+    p
 }
 
 /// The axis's tilt against the holder's plane from flat artefacts' heights, each at its

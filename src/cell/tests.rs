@@ -50,6 +50,11 @@ fn scans_are_corrected_once_calibrated() {
     assert!(out.response.success, "{}", out.response.message);
     assert!((out.response.offset - 0.004).abs() < 1e-5);
     assert_eq!(out.response.stddev.len(), 3);
+    // One owner: the parameters the node tells its parameter server are what the cell holds.
+    assert_eq!(out.parameters.len(), 10, "no heights, no tilt: {:?}", out.parameters);
+    for (name, value) in &out.parameters {
+        assert_eq!(st.params.get(name).as_ref(), Some(value), "{name}");
+    }
     // The covariance in the contract's layout: the variances are the stddevs squared, the
     // scale's and the tip radius's rows zero (the full model fits neither).
     let c = crate::engine::calibrate::covariance_from_values(&out.response.covariance).unwrap();

@@ -74,13 +74,12 @@ pub(super) async fn run(e: &impl Wire, shared: &Shared) {
             let mut st = shared.state.lock().expect("state lock");
             match st.calibrate_refused() {
                 // A managed node that is not active: refused, naming its state.
-                Some(response) => crate::cell::CalibrateOutcome { response, applied: None },
+                Some(response) => crate::cell::CalibrateOutcome { response, ..Default::default() },
                 None => st.on_calibrate_at(&req, shared.now()),
             }
         };
-        if let Some(m) = &outcome.applied {
-            let params = shared.state.lock().expect("state lock").params.clone();
-            parameters::mirror_calibration(e, m, &params);
+        if outcome.applied.is_some() {
+            parameters::mirror_calibration(e, &outcome.parameters);
             let _ = shared.calibration_changed.try_send(());
         }
         let r = &outcome.response;

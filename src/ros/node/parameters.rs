@@ -9,7 +9,6 @@ use std::sync::{Mutex, OnceLock};
 
 use super::{RosClock, Shared};
 use crate::cell::NodeState;
-use crate::engine::geometry::Mounting;
 use crate::params::spec::{Bound, Spec};
 use crate::params::{ParamValue, Parameters, names, spec};
 use crate::ros::qos_overrides::QosOverrides;
@@ -139,27 +138,13 @@ pub(super) fn apply(
     Ok(())
 }
 
-/// Mirror a calibration `/calibrate` applied into the ROS parameters (already persisted:
-/// the set action sees equal values and writes nothing): `m` and what `params` holds of it.
-pub(super) fn mirror_calibration(e: &impl super::Wire, m: &Mounting, params: &Parameters) {
-    // One change, one /parameter_events message: a calibration is one event.
-    let params = [
-        (names::ALPHA0, RosValue::Double(m.alpha0)),
-        (names::OFFSET, RosValue::Double(m.offset)),
-        (names::DELTA_L, RosValue::Double(m.delta_l)),
-        (names::SCALE, RosValue::Double(m.scale)),
-        (names::VALID, RosValue::Boolean(true)),
-        (names::COVARIANCE, RosValue::DoubleArray(params.covariance.clone())),
-        (names::TIP_RADIUS, RosValue::Double(params.tip_radius)),
-        (names::ANGLE_COEFFICIENTS, RosValue::DoubleArray(params.angle_coefficients.clone())),
-        (names::COVARIANCE_NAMES, RosValue::StringArray(params.covariance_names.clone())),
-        (names::NOISE_LAG1, RosValue::Double(params.noise_lag1)),
-        (names::AXIS_TILT, RosValue::DoubleArray(params.axis_tilt.angles.to_vec())),
-        (names::AXIS_TILT_COVARIANCE, RosValue::DoubleArray(params.axis_tilt.covariance.to_vec())),
-        (names::HEIGHT_ZERO, RosValue::Double(params.axis_tilt.height_zero)),
-    ]
-    .map(|(name, value)| ros2_client::Parameter { name: name.to_string(), value });
-    if let Err(err) = e.set_parameters(params.to_vec()) {
+/// Tell the ROS parameter server the parameters a calibration `/calibrate` applied set (the
+/// cell owns them, validated and persisted: the set action sees equal values and writes
+/// nothing), as one change: one `/parameter_events` message, as a calibration is one event.
+pub(super) fn mirror_calibration(e: &impl super::Wire, set: &[(&'static str, ParamValue)]) {
+    let params =
+        set.iter().map(|(name, value)| ros2_client::Parameter { name: name.to_string(), value: value.clone().into() });
+    if let Err(err) = e.set_parameters(params.collect()) {
         error!("cannot mirror the calibration into the ROS parameters: {err}");
     }
 }
