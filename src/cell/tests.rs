@@ -7,7 +7,7 @@ use crate::engine::model::PlateSpec;
 use crate::engine::shape::Shape;
 use crate::engine::simulate::{SimOptions, simulate};
 use crate::interfaces::{
-    CalibrateRequest, CalibrateResponse, DiagnosticArray, DiagnosticStatus, Header, RawScan, RosMsg, Time,
+    CalibrateRequest, CalibrateResponse, DiagnosticArray, DiagnosticStatus, RawScan, RosMsg, Time,
 };
 use crate::params::Parameters;
 use crate::params::file as params_file;
@@ -24,15 +24,7 @@ fn plate_msg(scan_id: u32, m: &Mounting) -> RawScan {
 fn plate_msg_with(scan_id: u32, m: &Mounting, opt: &SimOptions) -> RawScan {
     let mut rng = rand::rngs::StdRng::seed_from_u64(u64::from(scan_id));
     let sim = simulate(&PlateSpec::default().at(Vector2::new(0.0005, -0.0003)), m, opt, &mut rng).unwrap();
-    RawScan {
-        header: Header::default(),
-        scan_id,
-        target: RawScan::TARGET_CALIBRATION_PLATE,
-        steps_per_revolution: 400,
-        step: sim.scan.samples().iter().map(|s| s.step).collect(),
-        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
-        height_counts: Vec::new(),
-    }
+    RawScan::of_simulation(scan_id, RawScan::TARGET_CALIBRATION_PLATE, &sim, 1e-6)
 }
 
 #[test]
@@ -200,15 +192,7 @@ fn lens_msg(scan_id: u32, m: &Mounting) -> (RawScan, Vec<Vector2<f64>>) {
     let lens = Ellipse { center: Vector2::new(0.001, -0.002), a: 0.03, b: 0.018, angle: 0.3 };
     let mut rng = rand::rngs::StdRng::seed_from_u64(9);
     let sim = simulate(&lens, m, &SimOptions::default(), &mut rng).unwrap();
-    let msg = RawScan {
-        header: Header::default(),
-        scan_id,
-        target: RawScan::TARGET_LENS,
-        steps_per_revolution: 400,
-        step: sim.scan.samples().iter().map(|s| s.step).collect(),
-        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
-        height_counts: Vec::new(),
-    };
+    let msg = RawScan::of_simulation(scan_id, RawScan::TARGET_LENS, &sim, 1e-6);
     (msg, sim.truth)
 }
 
@@ -576,15 +560,7 @@ fn traced_in_groove(
     let inside = matches!(target, RawScan::TARGET_FRAME | RawScan::TARGET_RING_GAUGE);
     let opt = SimOptions { noise: 2e-6, tip_radius: tip, inside, groove_angle: groove, ..SimOptions::default() };
     let sim = simulate(shape, m, &opt, &mut rng).unwrap();
-    let msg = RawScan {
-        header: Header::default(),
-        scan_id,
-        target,
-        steps_per_revolution: 400,
-        step: sim.scan.samples().iter().map(|s| s.step).collect(),
-        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
-        height_counts: Vec::new(),
-    };
+    let msg = RawScan::of_simulation(scan_id, target, &sim, 1e-6);
     (msg, sim.truth)
 }
 

@@ -121,12 +121,7 @@ fn length_3d(shape: &impl Shape, center: Vector2<f64>, surface: impl Fn(Vector2<
 fn raw_msg(scan_id: u32, target: u8, sim: &SimScan) -> RawScan {
     RawScan {
         header: Header { frame_id: "tracer".into(), ..Header::default() },
-        scan_id,
-        target,
-        steps_per_revolution: sim.scan.steps_per_rev(),
-        step: sim.scan.samples().iter().map(|s| s.step).collect(),
-        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
-        height_counts: Vec::new(),
+        ..RawScan::of_simulation(scan_id, target, sim, 1e-6)
     }
 }
 

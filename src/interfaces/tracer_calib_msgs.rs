@@ -7,6 +7,29 @@ include!(concat!(env!("OUT_DIR"), "/tracer_calib_msgs.rs"));
 /// The node's own interface package.
 pub const PACKAGE: &str = "tracer_calib_msgs";
 
+impl RawScan {
+    /// A simulated revolution as a tracer driver publishes it: each sample's step, and its
+    /// length in counts of `meters_per_count`, rounded; no heights, a default header. For
+    /// the tools and tests that feed the cell scans of known shapes.
+    pub fn of_simulation(
+        scan_id: u32,
+        target: u8,
+        sim: &crate::engine::simulate::SimScan,
+        meters_per_count: f64,
+    ) -> RawScan {
+        let samples = sim.scan.samples();
+        RawScan {
+            header: crate::interfaces::Header::default(),
+            scan_id,
+            target,
+            steps_per_revolution: sim.scan.steps_per_rev(),
+            step: samples.iter().map(|s| s.step).collect(),
+            counts: samples.iter().map(|s| (s.rho / meters_per_count).round() as i32).collect(),
+            height_counts: Vec::new(),
+        }
+    }
+}
+
 /// The default is a failure with no result, and `scale` 1.0, the scale of no fit.
 impl Default for CalibrateResponse {
     fn default() -> Self {

@@ -22,7 +22,7 @@ use crate::engine::model::PlateSpec;
 use crate::engine::shape::{Ellipse, Shape};
 use crate::engine::simulate::{HeightOptions, SimOptions, SimScan, simulate, simulate_heights};
 use crate::interfaces::{
-    BondStatus, CalibrateRequest, CalibrateResponse, ChangeStateRequest, GetTypeDescriptionRequest, Header,
+    BondStatus, CalibrateRequest, CalibrateResponse, ChangeStateRequest, GetTypeDescriptionRequest,
     LifecycleTransition, RawScan, ServiceEventInfo,
 };
 use crate::params::{Introspection, Parameters};
@@ -36,15 +36,7 @@ fn sim(shape: &impl Shape, seed: u64) -> SimScan {
 }
 
 fn msg(scan_id: u32, target: u8, sim: &SimScan) -> RawScan {
-    RawScan {
-        header: Header::default(),
-        scan_id,
-        target,
-        steps_per_revolution: 400,
-        step: sim.scan.samples().iter().map(|s| s.step).collect(),
-        counts: sim.scan.samples().iter().map(|s| (s.rho / 1e-6).round() as i32).collect(),
-        height_counts: Vec::new(),
-    }
+    RawScan::of_simulation(scan_id, target, sim, 1e-6)
 }
 
 fn plate(scan_id: u32) -> RawScan {
