@@ -80,6 +80,13 @@ pub const GAP_NACK_REPEAT: Duration = Duration::from_millis(25);
 // every 100 ms while something is missing.
 pub const QUIET_NACK_REPEAT: Duration = Duration::from_millis(100);
 
+// tracer_calib patch: how many bytes of samples a reliable Reader's repair request names
+// at most (`RtpsWriterProxy::repair_slice`; at least one sample): about six frames at an
+// Ethernet MTU, a repair that arrives about one time in two under 10 % frame loss. Fewer
+// frames would bring the first missing sample (which holds back every later one) sooner
+// still, but repair fewer a round; more, the chance of a repair falls with each frame.
+pub const REPAIR_REQUEST_BYTES: usize = 8 * 1024;
+
 // How often a reliable user Reader asks each matched writer it has not heard of for
 // that long for a HEARTBEAT (`Reader::poll_quiet_writers`). A sample lost as the last
 // one a writer sends (a service request, a scan before a pause) is otherwise repaired

@@ -622,6 +622,9 @@ impl Reader {
 
     let writer_guid = GUID::new_with_prefix_and_id(mr_state.source_guid_prefix, data.writer_id);
     let writer_seq_num = data.writer_sn; // for borrow checker
+    // tracer_calib patch: its size sizes repair requests, then a gap below it is asked for
+    let size = data.serialized_payload.as_ref().map_or(0, |p| p.len());
+    self.note_sample_size(writer_guid, size);
     self.nack_gap_below(writer_guid, writer_seq_num, mr_state); // tracer_calib patch
 
     match self.data_to_dds_data(data, data_flags) {
@@ -644,6 +647,8 @@ impl Reader {
   ) {
     let writer_guid = GUID::new_with_prefix_and_id(mr_state.source_guid_prefix, datafrag.writer_id);
     let seq_num = datafrag.writer_sn;
+    // tracer_calib patch: the whole sample's size sizes repair requests
+    self.note_sample_size(writer_guid, datafrag.data_size as usize);
     self.nack_gap_below(writer_guid, seq_num, mr_state); // tracer_calib patch
     let receive_timestamp = Timestamp::now();
     //trace!("DATAFRAG received topic={:?}", self.topic_name);
@@ -962,6 +967,12 @@ impl Reader {
   /// set starts at the first sequence number not yet received (its base acknowledges
   /// what lies below) and holds what is missing below `sn`, within the 256 an ACKNACK
   /// can carry.
+  fn note_sample_size(&mut self, writer_guid: GUID, bytes: usize) {
+    if let Some(writer_proxy) = self.matched_writer_mut(writer_guid) {
+      writer_proxy.note_sample_size(bytes);
+    }
+  }
+
   fn nack_gap_below(
     &mut self,
     writer_guid: GUID,
@@ -1007,10 +1018,11 @@ impl Reader {
     reply_locators: Option<&[Locator]>,
   ) -> BTreeSet<SequenceNumber> {
     let base = writer_proxy.all_ackable_before();
-    let in_set: BTreeSet<SequenceNumber> = missing
+    let missing = missing
       .into_iter()
       .filter(|s| *s >= base && *s < base + SequenceNumber::new(256))
       .collect();
+    let in_set: BTreeSet<SequenceNumber> = writer_proxy.repair_slice(missing).into_iter().collect();
     if !in_set.is_empty() {
       let writer_guid = writer_proxy.remote_writer_guid;
       self.send_acknack_to(
@@ -1122,22 +1134,22 @@ impl Reader {
               // Here we assume missing_seqnums are returned in order.
               // Limit the set to maximum that can be sent in acknack submessage.
 
-              SequenceNumberSet::from_base_and_set(
-                first_missing,
-                &missing_seqnums
-                  .iter()
-                  .copied()
-                  .take_while(|sn| sn < &(first_missing + SequenceNumber::new(256)))
-                  .filter(|sn| {
-                    if this.is_frag_partially_received(writer_guid, *sn) {
-                      partially_received.push(*sn);
-                      false
-                    } else {
-                      true
-                    }
-                  })
-                  .collect(),
-              )
+              let named: Vec<SequenceNumber> = missing_seqnums
+                .iter()
+                .copied()
+                .take_while(|sn| sn < &(first_missing + SequenceNumber::new(256)))
+                .filter(|sn| {
+                  if this.is_frag_partially_received(writer_guid, *sn) {
+                    partially_received.push(*sn);
+                    false
+                  } else {
+                    true
+                  }
+                })
+                .collect();
+              // tracer_calib patch: at most a repair's worth named (`repair_slice`)
+              let named = writer_proxy.repair_slice(named);
+              SequenceNumberSet::from_base_and_set(first_missing, &named.into_iter().collect())
             }
 
             // Nothing missing. Report that we have all we have.
