@@ -24,8 +24,11 @@
 //!    `x̂` the encoder-scale model ([`super::model::full_scale`]) is linearised and one
 //!    Gauss-Newton step taken, `δ = -(JᵀJ)⁻¹ Jᵀr` (six parameters, one pass over the
 //!    samples); its scale component estimates `k/k₀ - 1`, with variance
-//!    `σ̂² [(JᵀJ)⁻¹]_kk`. At the full model's minimum the other five components of the
-//!    gradient vanish, so this is Rao's score (Lagrange multiplier) test of `k = k₀`. A
+//!    `σ̂² [(JᵀJ)⁻¹]_kk` (the sandwich of step 5 under noise correlated along the trace,
+//!    its correlation from the residuals after the step, unless the fit rejected more
+//!    than 1 % of the samples: then the residuals are more than noise). At the full
+//!    model's minimum the other five components of the gradient vanish, so this is Rao's
+//!    score (Lagrange multiplier) test of `k = k₀`. A
 //!    scale off by more than [`Options::max_scale_sigma`] standard uncertainties *and*
 //!    [`Options::scale_tolerance`] fails the calibration: the fitted `dL` would hide
 //!    the size error at the plate's own radius, and every lens larger or smaller than
@@ -160,6 +163,10 @@ const OUTLIER_FLOOR: f64 = 1e-7;
 const FREE_ROUNDS: usize = 3;
 /// Rejection rounds at most; the last round's fit stands.
 const MAX_ROUNDS: usize = 12;
+/// The share of a plate scan's samples a fit may reject as outliers with its residuals
+/// still taken for noise by the scale check ([`noise_only`]): dust and a bounce or two
+/// (Gaussian noise leaves about 1 in 16 000 beyond the outlier threshold).
+const MAX_NOISE_REJECTED: f64 = 0.01;
 
 /// The encoder scale a plate scan shows, with its standard uncertainty.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -697,14 +704,21 @@ pub fn calibrate_placements(
         let fit = Fit { scale: fit.scale * known_scale, ..fit };
         let grown = FullModel::from_scan(&plate.grown(fit.tip_radius), &scan);
         let x = fit.x;
-        let score = |tested: &[bool]| scale_score(grown.retain(|i| tested[i]), &x, opt.plate_side_uncertainty);
+        let score = |tested: &[bool]| {
+            scale_score(grown.retain(|i| tested[i]), &x, opt.plate_side_uncertainty, noise_only(tested))
+        };
         let result = finish(&scan, &[], fit, Some((&ring_scan, &ring.spec)), opt, score);
         return match result {
             Err(CalibrationError::ScaleOff { estimate, .. }) => {
                 let scale_at = |spec: &RingSpec| {
                     let fit = fit_tip(&scan, &ring_scan, spec, plate, opt).ok()?;
                     let grown = FullModel::from_scan(&plate.grown(fit.tip_radius), &scan);
-                    scale_score(grown.retain(|i| fit.used[i]), &fit.x, opt.plate_side_uncertainty)
+                    scale_score(
+                        grown.retain(|i| fit.used[i]),
+                        &fit.x,
+                        opt.plate_side_uncertainty,
+                        noise_only(&fit.used),
+                    )
                 };
                 Err(ring_groove_instead(&ring.spec, opt, estimate, scale_at)
                     .unwrap_or(CalibrationError::ScaleOff { estimate, k0: opt.scale }))
@@ -728,7 +742,8 @@ pub fn calibrate_placements(
     };
     let fit = Fit { scale: fit.scale * known_scale, tip_radius: opt.tip_radius, ..fit };
     let x = fit.x;
-    let score = |tested: &[bool]| scale_score(all.retain(|i| tested[i]), &x, opt.plate_side_uncertainty);
+    let score =
+        |tested: &[bool]| scale_score(all.retain(|i| tested[i]), &x, opt.plate_side_uncertainty, noise_only(tested));
     finish(&scan, &[], fit, None, opt, score)
 }
 
@@ -967,9 +982,22 @@ fn finish(
 /// A plate whose side is certified to `side_u` only adds that to the uncertainty (a
 /// plate a little larger looks like an encoder reading a little short): the step's
 /// sensitivity to the side, `-(JᵀJ)⁻¹ Jᵀ ∂r/∂S`, times `side_u` (as `inputs_of` does).
-pub fn scale_score(model: FullModel, x: &full::Params, side_u: f64) -> Option<ScaleEstimate> {
+/// `noise_only`: the residuals may be taken for noise (a fit that rejected at most 1 % of
+/// its samples), so that noise correlated along the trace widens the test.
+pub fn scale_score(model: FullModel, x: &full::Params, side_u: f64, noise_only: bool) -> Option<ScaleEstimate> {
     let b = model.side_sensitivity(x, 0.0)?;
-    score_test(&FullScaleModel::new(model), &full_scale::from_full(x, 1.0), full_scale::SCALE, &b, side_u)
+    score_test(&FullScaleModel::new(model), &full_scale::from_full(x, 1.0), full_scale::SCALE, &b, side_u, noise_only)
+}
+
+/// Whether the residuals of a fit that kept the samples `used` may be taken for noise,
+/// correlated or not: it rejected at most [`MAX_NOISE_REJECTED`] of them. Noise, even
+/// correlated, is Gaussian and leaves next to none beyond the outlier threshold; a misfit
+/// (a ring gauge of another diameter than the one set, whose plate corners are then
+/// fitted with the wrong tip) leaves its structure beyond it in places, and at every
+/// harmonic, where the residuals' spectrum would take it for correlated noise.
+fn noise_only(used: &[bool]) -> bool {
+    let rejected = used.iter().filter(|&&u| !u).count();
+    rejected as f64 <= MAX_NOISE_REJECTED * used.len() as f64
 }
 
 /// [`scale_score`] of any model that fits the scale, at its parameters `x` with `k = 1`
@@ -980,6 +1008,7 @@ fn score_test<D: Dim>(
     k: usize,
     b: &[f64],
     side_u: f64,
+    noise_only: bool,
 ) -> Option<ScaleEstimate>
 where
     DefaultAllocator: Allocator<D> + Allocator<D, D>,
@@ -989,16 +1018,26 @@ where
     if n <= p {
         return None;
     }
-    let inv = ne.jtj.cholesky()?.inverse();
+    let inv = ne.jtj.clone().cholesky()?.inverse();
     let step = -(&inv * &ne.jtr);
     // σ̂² from the residuals after the step: ‖r‖² - gᵀ(JᵀJ)⁻¹g, the linearised cost.
     let ss = (2.0 * ne.cost - ne.jtr.dot(&(&inv * &ne.jtr))).max(0.0);
     let sigma2 = ss / (n - p) as f64;
     let side = inputs_of(model, x, &[Input { dr: Cow::Borrowed(b), u: side_u, own: None }], &[Some(k)]).ok()?[(0, 0)];
-    // Under white noise: a misfit's localised residuals (a wrong ring gauge's, in the
-    // corners) look like correlated noise to [`correlated`], and would widen the very test
-    // meant to catch them.
-    let var = inv[(k, k)] * sigma2 + side;
+    // Noise correlated along the trace widens the estimate as it does the fit's
+    // ([`correlated`]), its lag-1 correlation taken from the residuals *after* the step:
+    // a wrong scale leaves structure at every harmonic of the plate's corners, which the
+    // residuals at `x` would pass off as correlated noise, widening the very test meant to
+    // catch it; the step takes it out, and what is left is the noise. Not when the
+    // residuals are more than noise (`noise_only`): then the white-noise variance.
+    let mut after = Vec::with_capacity(n);
+    model.for_each_row(x, |r, j| after.push(r + j.dot(&step)));
+    let phi = if noise_only { correlated_lag1(&after) } else { None };
+    let noise = match phi {
+        Some(phi) => (&inv * ar1_information(model, x, phi, &ne.jtj) * &inv)[(k, k)],
+        None => inv[(k, k)],
+    };
+    let var = noise * sigma2 + side;
     let est = ScaleEstimate { scale: 1.0 + step[k], stddev: var.max(0.0).sqrt() };
     (est.scale.is_finite() && est.stddev.is_finite() && est.stddev > 0.0).then_some(est)
 }
@@ -1129,11 +1168,34 @@ fn correlated<D: Dim>(
 where
     DefaultAllocator: Allocator<D> + Allocator<D, D>,
 {
+    let phi = correlated_lag1(residuals)?;
+    let m = ar1_information(model, x, phi, &ne.jtj);
+    // white = σ̂² A⁻¹ (σ̂² = ‖r‖²/(n - P), as lm::covariance): the sandwich σ̂² A⁻¹ M A⁻¹
+    // = white M white / σ̂².
+    let sigma2 = 2.0 * ne.cost / ne.count.saturating_sub(x.len()).max(1) as f64;
+    let sandwich = white * m * white / sigma2;
+    sandwich.iter().all(|v| v.is_finite()).then_some(sandwich)
+}
+
+/// The lag-1 correlation of the noise in `residuals` ([`noise_lag1`]), clamped to
+/// ±0.95; `None` where it shows none (`|φ̂| ≤ 2/√n`: the white-noise covariance stands).
+fn correlated_lag1(residuals: &[f64]) -> Option<f64> {
     let phi = noise_lag1(residuals)?;
-    if phi.abs() <= 2.0 / (residuals.len() as f64).sqrt() {
-        return None;
-    }
-    let phi = phi.clamp(-0.95, 0.95);
+    (phi.abs() > 2.0 / (residuals.len() as f64).sqrt()).then(|| phi.clamp(-0.95, 0.95))
+}
+
+/// `JᵀRJ`, `R_ij = φ^|i-j|` the correlation of AR(1) noise along the rows of `model` at
+/// `x`, by the recursion `F_i = J_i + φ F_(i-1)`: `Σ_i (J_i F_iᵀ + F_i J_iᵀ - J_i J_iᵀ)`
+/// ([`correlated`]); `jtj` is `JᵀJ`, the last sum.
+fn ar1_information<D: Dim>(
+    model: &impl Problem<D>,
+    x: &OVector<f64, D>,
+    phi: f64,
+    jtj: &OMatrix<f64, D, D>,
+) -> OMatrix<f64, D, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     let (dim, _) = x.shape_generic();
     let mut forward = OVector::<f64, D>::zeros_generic(dim, nalgebra::Const::<1>);
     let mut m = OMatrix::<f64, D, D>::zeros_generic(dim, dim);
@@ -1142,12 +1204,7 @@ where
         forward += j;
         m.ger(1.0, j, &forward, 1.0);
     });
-    let m = &m + m.transpose() - &ne.jtj;
-    // white = σ̂² A⁻¹ (σ̂² = ‖r‖²/(n - P), as lm::covariance): the sandwich σ̂² A⁻¹ M A⁻¹
-    // = white M white / σ̂².
-    let sigma2 = 2.0 * ne.cost / ne.count.saturating_sub(x.len()).max(1) as f64;
-    let sandwich = white * m * white / sigma2;
-    sandwich.iter().all(|v| v.is_finite()).then_some(sandwich)
+    &m + m.transpose() - jtj
 }
 
 /// Fit, reject outliers, refit from where the fit stands, until the set of samples
@@ -1583,11 +1640,11 @@ fn fit_turntable(
         placements,
     };
     // The score test of the scale on every sample the fit used, the scale inserted.
-    let score = |_: &[bool]| {
+    let score = |tested: &[bool]| {
         let with = used.with_scale(true);
         let x = used.insert_scale(&r.x, 1.0);
         let b: Vec<f64> = with.input_derivatives(&x)?.iter().map(|d| d.side).collect();
-        score_test(&with, &x, 3, &b, opt.plate_side_uncertainty)
+        score_test(&with, &x, 3, &b, opt.plate_side_uncertainty, noise_only(tested))
     };
     finish(&plates[0], &plates[1..], fit, ring, opt, score)
 }
