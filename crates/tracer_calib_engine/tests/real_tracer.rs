@@ -228,7 +228,7 @@ fn every_input_uncertain() {
     let b = Bounds {
         covered: [0.93, 0.93, 0.92, 0.93],
         bias: [3e-6, 2e-6, 3e-6, 2e-6],
-        short: "B covered 92.9 %, its mean error +2.0 µm; C's mean error -2.3 µm (white noise alone: -0.3 µm)",
+        short: "B covered 92.9 %, its mean error +2.0 µm (the seating's: +1.9 µm with it alone); C's mean error -2.3 µm (these trials with every input exact: -2.1 µm; the chain's own, noise-free: -1.1 µm)",
         ..TARGETS
     };
     check("h = {1, 2, 4}, σ 10 µm, every input uncertain", &run(10e-6, 0.0, inputs, 1000, 4), b);
