@@ -952,6 +952,15 @@ impl Reader {
   }
 
   // tracer_calib patch: begin (a gap below a newer sample is NACKed at once)
+  /// tracer_calib patch: a sample of `bytes` arrived from `writer_guid` (a DATA's payload,
+  /// or the whole sample a DATA_FRAG belongs to): it sizes the repair requests to that
+  /// writer (`RtpsWriterProxy::repair_slice`).
+  fn note_sample_size(&mut self, writer_guid: GUID, bytes: usize) {
+    if let Some(writer_proxy) = self.matched_writer_mut(writer_guid) {
+      writer_proxy.note_sample_size(bytes);
+    }
+  }
+
   /// A reliable reader that receives sample `sn` of a writer whose newest sample so far
   /// was older than `sn - 1` has lost what lies between (or it comes late, reordered):
   /// ask for it now, with an ACKNACK whose set names those sequence numbers, instead of
@@ -967,12 +976,6 @@ impl Reader {
   /// set starts at the first sequence number not yet received (its base acknowledges
   /// what lies below) and holds what is missing below `sn`, within the 256 an ACKNACK
   /// can carry.
-  fn note_sample_size(&mut self, writer_guid: GUID, bytes: usize) {
-    if let Some(writer_proxy) = self.matched_writer_mut(writer_guid) {
-      writer_proxy.note_sample_size(bytes);
-    }
-  }
-
   fn nack_gap_below(
     &mut self,
     writer_guid: GUID,

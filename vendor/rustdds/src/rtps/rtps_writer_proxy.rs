@@ -95,8 +95,10 @@ pub(crate) struct RtpsWriterProxy {
   // GAP) or last asked for a HEARTBEAT (`Reader::poll_quiet_writers`).
   pub last_heard: Option<std::time::Instant>,
   // tracer_calib patch: the largest sample (serialized bytes) seen from this writer, 0
-  // before the first; it sizes a repair request (`repair_slice`).
+  // before the first, and the newest sequence number a request has named; they size a
+  // repair request (`repair_slice`).
   largest_sample: usize,
+  named_up_to: SequenceNumber,
 }
 
 impl RtpsWriterProxy {
@@ -124,6 +126,7 @@ impl RtpsWriterProxy {
       newest_seen: SequenceNumber::new(0),          // tracer_calib patch
       gap_nacked_at: None,                          // tracer_calib patch
       largest_sample: 0,                            // tracer_calib patch
+      named_up_to: SequenceNumber::new(0),          // tracer_calib patch
       last_heard: None,                             // tracer_calib patch
     }
   }
@@ -222,20 +225,26 @@ impl RtpsWriterProxy {
     self.largest_sample = max(self.largest_sample, bytes);
   }
 
-  /// tracer_calib patch: the first of `missing` (in order) that one repair request names:
-  /// as many as fit in `REPAIR_REQUEST_BYTES` at the largest sample seen from this writer,
-  /// at least one; all of them before a first sample. A writer answers an ACKNACK with
-  /// the repairs it names; Fast DDS packs them into one datagram, which a link with an
-  /// Ethernet MTU carries as IP fragments, lost whole when any one is. Naming every missing
-  /// sample fed a spiral: the more were missing, the larger the repair and the less likely
-  /// to arrive (a Fast DDS driver's 3.2 kB scans under 10 % frame loss: repairs of 9-11
-  /// scans, 21-25 frames, each arriving about one time in ten, until the writer's keep-last
-  /// history dropped them). The set an ACKNACK carries may leave missing ones out (RTPS
-  /// 2.5, 8.3.7.1: a sequence number not in the set is undetermined); they are named by the
-  /// next request, once the first have come.
-  pub fn repair_slice(&self, mut missing: Vec<SequenceNumber>) -> Vec<SequenceNumber> {
-    if self.largest_sample > 0 {
+  /// tracer_calib patch: the first of `missing` (in order) that one repair request names.
+  /// A first request names them all. A request that names again a sample asked for before
+  /// (its repair, or the request, was lost) names as many as fit in `REPAIR_REQUEST_BYTES`
+  /// at the largest sample seen from this writer, at least one. A writer answers an
+  /// ACKNACK with the repairs it names; Fast DDS packs them into one datagram, which a link
+  /// with an Ethernet MTU carries as IP fragments, lost whole when any one is. Naming
+  /// every missing sample again and again fed a spiral: the more were missing, the larger
+  /// the repair and the less likely to arrive (a Fast DDS driver's 3.2 kB scans under 10 %
+  /// frame loss: repairs of 9-11 scans, 21-25 frames, each arriving about one time in ten,
+  /// until the writer's keep-last history dropped them). The set an ACKNACK carries may
+  /// leave missing ones out (RTPS 2.5, 8.3.7.1: a sequence number not in the set is
+  /// undetermined); the next request names them once the first have come. A reader
+  /// catching up on a history it has never asked for is not slowed.
+  pub fn repair_slice(&mut self, mut missing: Vec<SequenceNumber>) -> Vec<SequenceNumber> {
+    let again = missing.first().is_some_and(|first| *first <= self.named_up_to);
+    if again && self.largest_sample > 0 {
       missing.truncate(max(1, REPAIR_REQUEST_BYTES / self.largest_sample));
+    }
+    if let Some(&last) = missing.last() {
+      self.named_up_to = max(self.named_up_to, last);
     }
     missing
   }
@@ -486,6 +495,7 @@ impl RtpsWriterProxy {
       newest_seen: SequenceNumber::new(0),          // tracer_calib patch
       gap_nacked_at: None,                          // tracer_calib patch
       largest_sample: 0,                            // tracer_calib patch
+      named_up_to: SequenceNumber::new(0),          // tracer_calib patch
       last_heard: None,                             // tracer_calib patch
     }
   } // fn
@@ -633,26 +643,35 @@ mod bounded_map_tests {
     assert_eq!(wp.still_missing_due(repeat), None);
   }
 
-  // tracer_calib patch: a repair request names as many missing samples as fit in
-  // REPAIR_REQUEST_BYTES at the largest sample seen, at least one, the oldest first;
-  // all of them before a first sample (`repair_slice`).
+  // tracer_calib patch: a first repair request names every missing sample; one that
+  // names again a sample asked for before names as many as fit in REPAIR_REQUEST_BYTES at
+  // the largest sample seen, at least one, the oldest first (`repair_slice`).
   #[test]
-  fn a_repair_request_names_a_repairs_worth_of_samples() {
+  fn a_repeated_repair_request_names_a_repairs_worth_of_samples() {
     let sn = SequenceNumber::new;
-    let missing: Vec<SequenceNumber> = (1..=20).map(sn).collect();
+    let missing = |from: i64, to: i64| -> Vec<SequenceNumber> { (from..=to).map(sn).collect() };
+    // Before a first sample: all of them, however often.
     let mut wp = test_proxy();
-    assert_eq!(wp.repair_slice(missing.clone()), missing);
-    // 3.2 kB scans: two a request.
+    assert_eq!(wp.repair_slice(missing(1, 20)), missing(1, 20));
+    assert_eq!(wp.repair_slice(missing(1, 20)), missing(1, 20));
+    // 3.2 kB scans: a first request for 1..20 names all; asked again, two.
+    let mut wp = test_proxy();
     wp.note_sample_size(3200);
-    assert_eq!(wp.repair_slice(missing.clone()), vec![sn(1), sn(2)]);
-    // A larger sample seen since: sized by it; one at least however large.
+    assert_eq!(wp.repair_slice(missing(1, 20)), missing(1, 20));
+    assert_eq!(wp.repair_slice(missing(1, 20)), missing(1, 2));
+    // New samples missing beyond all that was named: named whole.
+    assert_eq!(wp.repair_slice(missing(21, 30)), missing(21, 30));
+    // The old ones still missing with new ones after: the oldest two.
+    assert_eq!(wp.repair_slice(missing(3, 40)), missing(3, 4));
+    // A larger sample seen since: one a request, however large.
     wp.note_sample_size(60_000);
     wp.note_sample_size(100);
-    assert_eq!(wp.repair_slice(missing.clone()), vec![sn(1)]);
-    // Small samples: REPAIR_REQUEST_BYTES / 100 of them, here all twenty.
+    assert_eq!(wp.repair_slice(missing(3, 40)), missing(3, 3));
+    // Small samples: REPAIR_REQUEST_BYTES / 100 of them, here all that is missing.
     let mut wp = test_proxy();
     wp.note_sample_size(100);
-    assert_eq!(wp.repair_slice(missing.clone()), missing);
+    assert_eq!(wp.repair_slice(missing(1, 20)), missing(1, 20));
+    assert_eq!(wp.repair_slice(missing(1, 20)), missing(1, 20));
     assert!(wp.repair_slice(vec![]).is_empty());
   }
 
