@@ -72,20 +72,20 @@ fn stated_uncertainties_hold_under_correlated_noise() {
 /// the scale is free, so a wrong scale's structure does not pass for correlated noise.
 #[test]
 fn the_scale_check_holds_under_correlated_noise() {
+    const TRIALS: u64 = 200;
     let full = Options { model: ModelKind::Full, lack_of_fit_alpha: 0.0, ..Options::default() };
+    let plate = PLATE.at(Vector2::new(0.0008, -0.0005));
+    let truth = Mounting::new(2f64.to_radians(), 0.005, 0.002);
+    let long = Mounting { scale: 1.0 / 1.0025, ..truth };
     for lag1 in [0.0, 0.5, 0.8] {
+        let sim = SimOptions { noise: 5e-6, noise_lag1: lag1, ..SimOptions::default() };
         let (mut estimates, mut stated, mut wrong_refused) = (Vec::new(), 0.0, 0);
-        const TRIALS: u64 = 200;
         for seed in 0..TRIALS {
-            let sim = SimOptions { noise: 5e-6, noise_lag1: lag1, ..SimOptions::default() };
-            let plate = PLATE.at(Vector2::new(0.0008, -0.0005));
             let mut rng = StdRng::seed_from_u64(7000 + seed);
-            let clean = simulate(&plate, &Mounting::new(2f64.to_radians(), 0.005, 0.002), &sim, &mut rng).unwrap().scan;
+            let clean = simulate(&plate, &truth, &sim, &mut rng).unwrap().scan;
             let check = calibrate(&clean, &PLATE, &full).unwrap().scale_check.unwrap();
             estimates.push(check.scale);
             stated += check.stddev;
-            let mut long = Mounting::new(2f64.to_radians(), 0.005, 0.002);
-            long.scale = 1.0 / 1.0025;
             let wrong = simulate(&plate, &long, &sim, &mut rng).unwrap().scan;
             if matches!(calibrate(&wrong, &PLATE, &full), Err(CalibrationError::ScaleOff { .. })) {
                 wrong_refused += 1;
