@@ -622,9 +622,6 @@ impl Reader {
 
     let writer_guid = GUID::new_with_prefix_and_id(mr_state.source_guid_prefix, data.writer_id);
     let writer_seq_num = data.writer_sn; // for borrow checker
-    // tracer_calib patch: its size sizes repair requests, then a gap below it is asked for
-    let size = data.serialized_payload.as_ref().map_or(0, |p| p.len());
-    self.note_sample_size(writer_guid, size);
     self.nack_gap_below(writer_guid, writer_seq_num, mr_state); // tracer_calib patch
 
     match self.data_to_dds_data(data, data_flags) {
@@ -647,8 +644,6 @@ impl Reader {
   ) {
     let writer_guid = GUID::new_with_prefix_and_id(mr_state.source_guid_prefix, datafrag.writer_id);
     let seq_num = datafrag.writer_sn;
-    // tracer_calib patch: the whole sample's size sizes repair requests
-    self.note_sample_size(writer_guid, datafrag.data_size as usize);
     self.nack_gap_below(writer_guid, seq_num, mr_state); // tracer_calib patch
     let receive_timestamp = Timestamp::now();
     //trace!("DATAFRAG received topic={:?}", self.topic_name);
@@ -803,6 +798,8 @@ impl Reader {
         }
         // Add the change and get the instant
         writer_proxy.received_changes_add(writer_sn, receive_timestamp);
+        // tracer_calib patch: its size sizes the repair requests to this writer
+        writer_proxy.note_sample_size(dds_data.payload_size());
       } else {
         // no writer proxy found
         debug!(
@@ -952,14 +949,6 @@ impl Reader {
   }
 
   // tracer_calib patch: begin (a gap below a newer sample is NACKed at once)
-  /// tracer_calib patch: a sample of `bytes` arrived from `writer_guid` (a DATA's payload,
-  /// or the whole sample a DATA_FRAG belongs to): it sizes the repair requests to that
-  /// writer (`RtpsWriterProxy::repair_slice`).
-  fn note_sample_size(&mut self, writer_guid: GUID, bytes: usize) {
-    if let Some(writer_proxy) = self.matched_writer_mut(writer_guid) {
-      writer_proxy.note_sample_size(bytes);
-    }
-  }
 
   /// A reliable reader that receives sample `sn` of a writer whose newest sample so far
   /// was older than `sn - 1` has lost what lies between (or it comes late, reordered):

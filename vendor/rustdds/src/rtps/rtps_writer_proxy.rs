@@ -219,8 +219,8 @@ impl RtpsWriterProxy {
     })
   }
 
-  /// tracer_calib patch: a sample of `bytes` (serialized) arrived from this writer, in
-  /// a DATA or in a DATA_FRAG (its whole sample's size).
+  /// tracer_calib patch: a sample of `bytes` (serialized) arrived from this writer, whole
+  /// (`Reader::process_received_data`: a DATA, or the last DATA_FRAG of a sample).
   pub fn note_sample_size(&mut self, bytes: usize) {
     self.largest_sample = max(self.largest_sample, bytes);
   }
