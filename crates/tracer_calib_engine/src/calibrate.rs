@@ -1030,9 +1030,13 @@ where
     // residuals at `x` would pass off as correlated noise, widening the very test meant to
     // catch it; the step takes it out, and what is left is the noise. Not when the
     // residuals are more than noise (`noise_only`): then the white-noise variance.
-    let mut after = Vec::with_capacity(n);
-    model.for_each_row(x, |r, j| after.push(r + j.dot(&step)));
-    let phi = if noise_only { correlated_lag1(&after) } else { None };
+    let phi = noise_only
+        .then(|| {
+            let mut after = Vec::with_capacity(n);
+            model.for_each_row(x, |r, j| after.push(r + j.dot(&step)));
+            correlated_lag1(&after)
+        })
+        .flatten();
     let noise = match phi {
         Some(phi) => (&inv * ar1_information(model, x, phi, &ne.jtj) * &inv)[(k, k)],
         None => inv[(k, k)],
