@@ -220,9 +220,15 @@ impl OmaFile {
 
     /// The value of a chiral record (`LABEL=right;left`, e.g. `HBOX=52.00;52.10`) for
     /// `eye`: its first field for `R`, its second for `L`, for `B` the first that is not
-    /// empty; `None` if the file has no such record or the field is empty.
+    /// empty; `None` if the file has no such record or the field is empty. A value with no
+    /// `;` at all is both eyes' (`CIRC=150.85` beside a right and a left trace of one frame,
+    /// as a frame library writes it); `50.03;` is the right eye's alone.
     pub fn chiral(&self, label: &str, eye: Eye) -> Option<&str> {
         let (_, value) = self.other.iter().find(|(l, _)| l.eq_ignore_ascii_case(label))?;
+        if !value.contains(';') {
+            let both = value.trim();
+            return (!both.is_empty()).then_some(both);
+        }
         let mut fields = value.split(';').map(str::trim);
         let (right, left) = (fields.next().unwrap_or(""), fields.next().unwrap_or(""));
         let field = match eye {
@@ -912,6 +918,8 @@ mod tests {
         assert_eq!(f.chiral("HBOX", Eye::Right), Some("50.00"));
         assert_eq!(f.chiral("hbox", Eye::Left), None);
         assert_eq!(f.chiral("HBOX", Eye::Both), Some("50.00"));
+        let one = parse("CIRC=150.85\r\nTRCFMT=1;4;E;R;F\r\nR=2500;2400;2500;2400\r\n", "lib.oma").unwrap();
+        assert_eq!([Eye::Right, Eye::Left, Eye::Both].map(|e| one.chiral("CIRC", e)), [Some("150.85"); 3]);
         // Written back and read again: the same traces and records.
         let again = parse(&render(&f).unwrap(), "again.oma").unwrap();
         assert_eq!(again.traces, f.traces);

@@ -4,7 +4,7 @@
 It follows the standard's record rules as docs/cli.md states them (records LABEL=VALUE,
 one a line; every dataset opens with its own ...FMT record and the data records R=, A=,
 Z= after it are its; TRCFMT=format;N;E|U;eye;type; radii and angles whole numbers in
-1/100 mm and 1/100 degree; chiral size records right;left) and computes each trace's
+1/100 mm and 1/100 degree; chiral size records right;left, one with no ";" both eyes', the first of a label) and computes each trace's
 figures by the plainest means: the circumference of the polygon through its points, the
 box of its points, the FED as twice the farthest point from the box centre. Prints one
 JSON object: {"traces": [{"eye", "type", "n", "circumference", "box_width",
@@ -48,7 +48,7 @@ def read(text):
             current["radii"] += [int(v) for v in value.split(";") if v.strip()]
         elif label == "A" and current is not None:
             current["angles"] += [int(v) for v in value.split(";") if v.strip()]
-        elif label in LABELS:
+        elif label in LABELS and label not in sizes:
             sizes[label] = value.split(";")
     out = []
     for t in traces:
@@ -69,6 +69,8 @@ def read(text):
         recs = {}
         for label, name in LABELS.items():
             fields = sizes.get(label)
+            if fields and len(fields) == 1:
+                fields = fields * 2  # no ';': both eyes' value
             if fields and len(fields) > side and fields[side].strip():
                 recs[name] = float(fields[side]) * 1e-3
         out.append({
