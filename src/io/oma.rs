@@ -42,7 +42,13 @@
 //! towards the viewer). `A=` angles and [`Trace::angles`] follow the same convention. The
 //! usual reading of the standard (point 0 on the horizontal axis at 0°, counter-clockwise)
 //! matches this if our +x axis is the horizontal axis the edger expects; no mirroring for
-//! left/right eyes is done here: the caller chooses the eye label and the shape.
+//! left/right eyes is done here: the caller chooses the eye label and the shape. Labs'
+//! files agree as far as they can show it: in each of seven public files holding both
+//! eyes (docs/cli.md, *on files as labs' systems wrote them*; 360 and 1000 points, two
+//! systems) the left trace is the right one mirrored about the 90°-270° line point for
+//! point, `L_i = R_((N/2 - i) mod N)` to the 1/100 mm: one angle frame for both eyes, angles
+//! running the same way for both. Which side of a right lens lies at 0° (nasal or
+//! temporal) they do not show.
 //!
 //! Units: radii in metres in code (SI, like the rest of the crate), 1/100 mm in the file;
 //! writing rounds to the nearest 1/100 mm.
