@@ -2562,15 +2562,20 @@ impl SecureDiscovery {
     }
 
     // Dig out remote's security attributes
+    // tracer_calib patch (security): begin (an endpoint of our own participant, matched
+    // before discovery's loopback has brought its announcement, from the local tables)
     let sec_info_opt = if remote_is_writer {
-      discovery_db_read(discovery_db)
-        .get_topic_writer(&remote_endpoint_guid)
+      let db = discovery_db_read(discovery_db);
+      db.get_topic_writer(&remote_endpoint_guid)
+        .or_else(|| db.get_local_topic_writer(remote_endpoint_guid))
         .map(|writer| writer.publication_topic_data.security_info().clone())
     } else {
-      discovery_db_read(discovery_db)
-        .get_topic_reader(&remote_endpoint_guid)
+      let db = discovery_db_read(discovery_db);
+      db.get_topic_reader(&remote_endpoint_guid)
+        .or_else(|| db.get_local_topic_reader(remote_endpoint_guid))
         .map(|reader| reader.subscription_topic_data.security_info().clone())
     };
+    // tracer_calib patch (security): end
 
     let sec_attr = match sec_info_opt.flatten() {
       Some(info) => EndpointSecurityAttributes::from(info),
