@@ -304,6 +304,7 @@ impl ParabolaTop {
 fn raw_extreme(
     points: &[Vector2<f64>],
     smooth: &impl Fn(f64) -> f64,
+    bend: &impl Fn(f64) -> f64,
     coords: impl Fn(&Vector2<f64>) -> (f64, f64),
     near: f64,
     tau: f64,
@@ -338,7 +339,7 @@ fn raw_extreme(
     if chosen.len() < 6 {
         return None;
     }
-    let chosen = off_the_corners(chosen, smooth);
+    let chosen = off_the_corners(chosen, bend);
     let s0 = chosen.iter().map(|c| c.1).sum::<f64>() / chosen.len() as f64;
     let fit = ParabolaTop::fit(&chosen.iter().map(|c| (c.1, c.0)).collect::<Vec<_>>(), s0)?;
     let half = (fit.hi - fit.lo) / 2.0;
@@ -358,29 +359,24 @@ fn raw_extreme(
     })
 }
 
-/// The least curvature a corner's shoulder has, 1/m: a radius of 25 mm. A smooth's noise
-/// ripple on a flat bends it by about a tenth of this (5 µm at 40 harmonics on a 26 mm
-/// radius: 12 m⁻¹).
-const SHOULDER_CURVATURE: f64 = 40.0;
+/// The least curvature a corner's shoulder is told by, 1/m: a radius of 8.3 mm. A frame's
+/// 3-5 mm corners bend 200-330 m⁻¹; the smooth's noise ripple bends a flat by up to about
+/// half of this at σ = 10 µm (3 µm at 60 harmonics on a 16 mm radius: 42 m⁻¹), and a
+/// lower floor left the ripple's crests out of the side, where the noise lies high (B
+/// -1.0 µm at 40 m⁻¹ on the 52 × 32 mm frame). A corner rounder than 8 mm keeps its
+/// shoulders in the side, as before.
+const SHOULDER_CURVATURE: f64 = 120.0;
 
-/// The chosen points of a side (`(v, s, θ)`) less those where the smooth `r(θ)` bends
-/// more than three times the points' median curvature and more than
-/// [`SHOULDER_CURVATURE`]: the shoulders of a flat side's corners, which the band about the
-/// extreme takes in once it is wider than the noise (at 3σ, 0.7 mm of a 5 mm corner each
-/// side at σ = 10 µm) and which, falling away at both ends, lift a parabola's centre above
-/// the flat (a 52 × 32 mm frame's A by about 0.3 µm white, 0.5 µm with noise correlated
-/// 0.8 along the trace). A side curved throughout (a lens) bends alike everywhere and
-/// keeps every point; so does a side left with fewer than six. The curvature of the polar
-/// curve, `κ = (r² + 2r'² - r r'')/(r² + r'²)^{3/2}`, by central differences of the smooth.
-fn off_the_corners(chosen: Vec<(f64, f64, f64)>, smooth: &impl Fn(f64) -> f64) -> Vec<(f64, f64, f64)> {
-    let h = 2e-3;
-    let kappa = |t: f64| {
-        let (r, ahead, behind) = (smooth(t), smooth(t + h), smooth(t - h));
-        let d1 = (ahead - behind) / (2.0 * h);
-        let d2 = (ahead - 2.0 * r + behind) / (h * h);
-        (r * r + 2.0 * d1 * d1 - r * d2) / (r * r + d1 * d1).powf(1.5)
-    };
-    let bends: Vec<f64> = chosen.iter().map(|c| kappa(c.2)).collect();
+/// The chosen points of a side (`(v, s, θ)`) less those where the smooth bends (its
+/// curvature at `θ`, `bend`) more than three times the points' median curvature and more
+/// than [`SHOULDER_CURVATURE`]: the shoulders of a flat side's corners, which the band
+/// about the extreme takes in once it is wider than the noise (at 3σ, 0.7 mm of a 5 mm
+/// corner each side at σ = 10 µm) and which, falling away at both ends, lift a parabola's
+/// centre above the flat (a 52 × 32 mm frame's A by about 0.8 µm white, 1.4 µm with noise
+/// correlated 0.8 along the trace). A side curved throughout (a lens) bends alike
+/// everywhere and keeps every point; so does a side left with fewer than six.
+fn off_the_corners(chosen: Vec<(f64, f64, f64)>, bend: &impl Fn(f64) -> f64) -> Vec<(f64, f64, f64)> {
+    let bends: Vec<f64> = chosen.iter().map(|c| bend(c.2)).collect();
     let mut sorted = bends.clone();
     sorted.sort_by(f64::total_cmp);
     let limit = (3.0 * sorted[sorted.len() / 2].abs()).max(SHOULDER_CURVATURE);
@@ -559,8 +555,21 @@ impl Sizes {
                 let (i, f) = grid_place(t.rem_euclid(TAU) / h);
                 grid[i].0 * (1.0 - f) + grid[(i + 1) % GRID].0 * f
             };
+            // Its curvature, `κ = (r² + 2r'² - r r'')/(r² + r'²)^{3/2}`, `r''` by central
+            // differences of the grid's `r'`; between grid angles linearly.
+            let curvature: Vec<f64> = (0..GRID)
+                .map(|i| {
+                    let (r, rp) = grid[i];
+                    let rpp = (grid[(i + 1) % GRID].1 - grid[(i + GRID - 1) % GRID].1) / (2.0 * h);
+                    (r * r + 2.0 * rp * rp - r * rpp) / (r * r + rp * rp).powf(1.5)
+                })
+                .collect();
+            let bend_at = |t: f64| {
+                let (i, f) = grid_place(t.rem_euclid(TAU) / h);
+                curvature[i] * (1.0 - f) + curvature[(i + 1) % GRID] * f
+            };
             for (side, coord) in sides.iter_mut().zip(coords) {
-                if let Some(raw) = raw_extreme(points, &r_at, coord, side.value, raw_tau, noise) {
+                if let Some(raw) = raw_extreme(points, &r_at, &bend_at, coord, side.value, raw_tau, noise) {
                     *side = raw;
                 }
             }
@@ -1458,7 +1467,7 @@ mod tests {
                     Vector2::new(t.cos(), t.sin()) * (0.02 + noise.sample(&mut rng))
                 })
                 .collect();
-            let side = raw_extreme(&points, &|_| 0.02, |p| (p.y, p.x), 0.02, 3.6 * sigma, sigma).unwrap();
+            let side = raw_extreme(&points, &|_| 0.02, &|_| 50.0, |p| (p.y, p.x), 0.02, 3.6 * sigma, sigma).unwrap();
             let e = side.value - 0.02;
             (sum, sq, n) = (sum + e, sq + e * e, n + 1.0);
             reported += side.weights.iter().map(|(_, w)| w * w).sum::<f64>() * sigma * sigma;
@@ -1486,7 +1495,7 @@ mod tests {
             (0.015 + 1e-6 + 8e-6 * u.powi(8)) / t.sin()
         };
         let near = 0.015 + 9e-6;
-        let side = raw_extreme(&points, &smooth, |p| (p.y, p.x), near, 0.5e-6, 0.1e-6).unwrap();
+        let side = raw_extreme(&points, &smooth, &|_| 0.0, |p| (p.y, p.x), near, 0.5e-6, 0.1e-6).unwrap();
         assert!(side.raw);
         assert!((side.value - 0.015).abs() < 1e-9, "side {} µm off", (side.value - 0.015) * 1e6);
     }
@@ -1516,7 +1525,12 @@ mod tests {
                 Vector2::new(t.cos(), t.sin()) * radius(t)
             })
             .collect();
-        let side = raw_extreme(&points, &radius, |p| (p.y, p.x), hh, 45e-6, 10e-6).unwrap();
+        // The box's curvature: 0 on its flats, 1/r on its corners' arcs.
+        let bend = |t: f64| {
+            let p = Vector2::new(t.cos(), t.sin()) * radius(t);
+            if p.x.abs() > hw - r && p.y.abs() > hh - r { 1.0 / r } else { 0.0 }
+        };
+        let side = raw_extreme(&points, &radius, &bend, |p| (p.y, p.x), hh, 45e-6, 10e-6).unwrap();
         assert!((side.value - hh).abs() < 0.05e-6, "side {:+.3} µm off", (side.value - hh) * 1e6);
     }
 }
