@@ -69,7 +69,7 @@ use nalgebra::DMatrix;
 use super::angle::HarmonicOrders;
 use super::geometry::Mounting;
 pub use super::smooth::{GRID, Smooth};
-use super::smooth::{forward_dft, grid_place, grid_unit};
+use super::smooth::{between_grid_angles, forward_dft, grid_place, grid_unit};
 use super::stylus::{Groove, Traced, contact_offset_per_groove_angle};
 
 /// Harmonics of the smooth fit at most.
@@ -332,9 +332,11 @@ fn raw_extreme(
     // Fewer than 6 in the band while the raw points lie below it: the smooth overshoots
     // the side by more than its noise ripple (the truncated harmonics at a flat side's
     // ends, which no noise covers on a quiet trace): the band is widened by that overshoot.
-    let top = points.iter().map(|p| coords(p).0).fold(f64::NEG_INFINITY, f64::max);
-    if chosen.len() < 6 && near - top > tau {
-        chosen = choose(tau + (near - top));
+    if chosen.len() < 6 {
+        let top = points.iter().map(|p| coords(p).0).fold(f64::NEG_INFINITY, f64::max);
+        if near - top > tau {
+            chosen = choose(tau + (near - top));
+        }
     }
     if chosen.len() < 6 {
         return None;
@@ -551,10 +553,7 @@ impl Sizes {
             let raw_tau = 3.0 * noise + tau;
             let coords: [&Coordinates; 4] = [&|p| (p.x, p.y), &|p| (-p.x, p.y), &|p| (p.y, p.x), &|p| (-p.y, p.x)];
             // The smooth between grid angles, linearly (a point's choice needs no more).
-            let r_at = |t: f64| {
-                let (i, f) = grid_place(t.rem_euclid(TAU) / h);
-                grid[i].0 * (1.0 - f) + grid[(i + 1) % GRID].0 * f
-            };
+            let r_at = |t: f64| between_grid_angles(t, |i| grid[i].0);
             // Its curvature, `κ = (r² + 2r'² - r r'')/(r² + r'²)^{3/2}`, `r''` by central
             // differences of the grid's `r'`; between grid angles linearly.
             let curvature: Vec<f64> = (0..GRID)
@@ -564,10 +563,7 @@ impl Sizes {
                     (r * r + 2.0 * rp * rp - r * rpp) / (r * r + rp * rp).powf(1.5)
                 })
                 .collect();
-            let bend_at = |t: f64| {
-                let (i, f) = grid_place(t.rem_euclid(TAU) / h);
-                curvature[i] * (1.0 - f) + curvature[(i + 1) % GRID] * f
-            };
+            let bend_at = |t: f64| between_grid_angles(t, |i| curvature[i]);
             for (side, coord) in sides.iter_mut().zip(coords) {
                 if let Some(raw) = raw_extreme(points, &r_at, &bend_at, coord, side.value, raw_tau, noise) {
                     *side = raw;
@@ -617,11 +613,7 @@ impl Sizes {
             let ddr = (d[(i + 1) % GRID] - d[(i + GRID - 1) % GRID]) / (2.0 * h);
             dc += (r * d[i] + rp * ddr) / (r * r + rp * rp).sqrt();
         }
-        let at = |t: f64| {
-            let (i, f) = grid_place(t.rem_euclid(TAU) / h);
-            d[i] * (1.0 - f) + d[(i + 1) % GRID] * f
-        };
-        self.extremes_response(dc * h, at)
+        self.extremes_response(dc * h, |t| between_grid_angles(t, |i| d[i]))
     }
 
     /// [`Self::response`] to `cos kθ` and `sin kθ` for `k = 0..=K` (`k = 0`: the constant).

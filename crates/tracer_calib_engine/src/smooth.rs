@@ -150,6 +150,13 @@ pub(super) fn grid_place(x: f64) -> (usize, f64) {
     (x.floor() as usize % GRID, x - x.floor())
 }
 
+/// A reading given at the grid angles (`value(i)` at angle `i·2π/GRID`) at the angle `t`,
+/// linearly between its two neighbours.
+pub(super) fn between_grid_angles(t: f64, value: impl Fn(usize) -> f64) -> f64 {
+    let (i, f) = grid_place(t.rem_euclid(TAU) / (TAU / GRID as f64));
+    value(i) * (1.0 - f) + value((i + 1) % GRID) * f
+}
+
 /// Points taken together in [`Smooth::squared_residuals`]: independent rotations side by
 /// side (instruction-level parallelism, and SIMD where the compiler finds it).
 const LANES: usize = 4;
