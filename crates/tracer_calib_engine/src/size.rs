@@ -277,6 +277,17 @@ impl ParabolaTop {
         .collect()
     }
 
+    /// The first-order weight of the parabola's slope at `s_0`, `c_1`, on each `v` of the
+    /// pairs whose `s` are given: `[0, 1, 0] (XᵀX)⁻¹ Xᵀ`.
+    fn weights_of_slope(&self, s: impl Iterator<Item = f64>) -> Vec<f64> {
+        let w = self.inv.column(1);
+        s.map(|s| {
+            let d = s - self.s0;
+            w[0] + w[1] * d + w[2] * d * d
+        })
+        .collect()
+    }
+
     /// The parabola at `s - s_0 = x`.
     fn at(&self, x: f64) -> f64 {
         self.c[0] + self.c[1] * x + self.c[2] * x * x
@@ -284,7 +295,7 @@ impl ParabolaTop {
 }
 
 /// A side of the box from the raw points themselves: those the smooth `r(θ)` puts within
-/// `tau` of its extreme `near` in the coordinate `v`, fitted with a parabola in the other
+/// `tau` of its extreme `near` in side `k_side`'s coordinate `v` ([`SIDE_COORDINATES`]), fitted with a parabola in the other
 /// coordinate `s` as [`extreme`] does. The smooth's ripple where a side is flat (a frame's: its
 /// truncated harmonics overshoot there by microns) does not reach it, and the samples'
 /// noise averages over the side. `None` with fewer than 6 points (a curved extreme: the
@@ -293,7 +304,9 @@ impl ParabolaTop {
 /// The top of a parabola through a noisy flat is biased up (the larger of its ends, or a
 /// vertex that noise put far out: by about the noise, a frame's 2-5 µm at σ = 10 µm). But
 /// the points, chosen by a band about the top, centre on it: where the parabola does not
-/// tilt (falls by less than a third of the band over half the points' width), the side is
+/// tilt (falls by less than a third of the band over half the points' width, or its slope
+/// `c_1` is within [`TILT_SIGNIFICANCE`] standard deviations of what the noise along the
+/// trace and the calibration's covariance can make: `side_noise`), the side is
 /// its value at the vertex kept within one point spacing of the points' centroid `s_0`
 /// (at `s_0` if the parabola is not bent down). Unbiased on a flat and on a curved side
 /// alike; the points' plain mean would fall short on a curved one by `|c_2|` times their
@@ -305,11 +318,13 @@ fn raw_extreme(
     points: &[Vector2<f64>],
     smooth: &impl Fn(f64) -> f64,
     bend: &impl Fn(f64) -> f64,
-    coords: impl Fn(&Vector2<f64>) -> (f64, f64),
+    k_side: usize,
     near: f64,
     tau: f64,
-    noise: f64,
+    side_noise: &SideNoise,
 ) -> Option<Extreme> {
+    let coords = SIDE_COORDINATES[k_side];
+    let noise = side_noise.sigma;
     // A point is chosen by where the smooth puts it, not by its own noisy value: a band
     // on the noisy values keeps a point at its edge when its noise is up and drops it when
     // down, so the choice would depend on the noise the fit's weights are to average.
@@ -345,7 +360,11 @@ fn raw_extreme(
     let s0 = chosen.iter().map(|c| c.1).sum::<f64>() / chosen.len() as f64;
     let fit = ParabolaTop::fit(&chosen.iter().map(|c| (c.1, c.0)).collect::<Vec<_>>(), s0)?;
     let half = (fit.hi - fit.lo) / 2.0;
-    if fit.c[1].abs() * half < tau / 3.0 {
+    // The tilt's spread: the noise's along the trace, and the calibration's.
+    let slope = fit.weights_of_slope(chosen.iter().map(|c| c.1));
+    let spread = correlated_sum(slope.iter().copied(), side_noise.phi) * noise * noise
+        + (side_noise.calibration)(k_side, &chosen.iter().zip(&slope).map(|(c, w)| (c.2, *w)).collect::<Vec<_>>());
+    if fit.c[1].abs() * half < tau / 3.0 || fit.c[1].abs() < TILT_SIGNIFICANCE * spread.sqrt() {
         // Not tilted (doc above): the vertex, kept near the centroid.
         let spacing = (fit.hi - fit.lo) / (chosen.len() - 1) as f64;
         let x = if fit.c[2] < 0.0 { (-fit.c[1] / (2.0 * fit.c[2])).clamp(-spacing, spacing) } else { 0.0 };
@@ -360,6 +379,13 @@ fn raw_extreme(
         raw: true,
     })
 }
+
+/// How many of its own standard deviations a side's tilt must reach to be taken
+/// ([`raw_extreme`]): as the band's 3σ. Noise correlated along the trace tilts a fit over
+/// fewer effectively independent stretches (a 120-point side at lag-1 0.8: the tilt's
+/// spread about three times the white noise's), and a tilt the noise made reads the side at
+/// its high end.
+const TILT_SIGNIFICANCE: f64 = 3.0;
 
 /// The least curvature a corner's shoulder is told by, 1/m: a radius of 8.3 mm. A frame's
 /// 3-5 mm corners bend 200-330 m⁻¹; the smooth's noise ripple bends a flat by up to about
@@ -507,7 +533,95 @@ fn fit_circle(points: &[Vector2<f64>]) -> Option<(Vector2<f64>, f64)> {
 }
 
 /// A side's coordinate of a point and the one along the side.
-type Coordinates = dyn Fn(&Vector2<f64>) -> (f64, f64);
+type SideCoordinates = fn(&Vector2<f64>) -> (f64, f64);
+
+/// Each side's coordinates (max x, max -x, max y, max -y).
+const SIDE_COORDINATES: [SideCoordinates; 4] = [|p| (p.x, p.y), |p| (-p.x, p.y), |p| (p.y, p.x), |p| (-p.y, p.x)];
+
+/// Each side's coordinate's change for a radial change `δr` at `θ`, per unit `δr`, from
+/// `(cos θ, sin θ)`.
+const SIDE_DIRECTION: [fn(f64, f64) -> f64; 4] = [|c, _| c, |c, _| -c, |_, s| s, |_, s| -s];
+
+/// The calibration's variance of side `k`'s weighted change over `(θ_i, w_i)`.
+pub type SideVariance<'a> = dyn Fn(usize, &[(f64, f64)]) -> f64 + 'a;
+
+/// What a side read from the raw points ([`Sizes::of_noisy`]) knows of their spread: the
+/// samples' noise `σ`, its lag-1 correlation along the trace, and the calibration's
+/// variance of a side's weighted change `Σ w_i δv(θ_i)` (side index, `(θ_i, w_i)`).
+pub struct SideNoise<'a> {
+    /// The samples' noise, m.
+    pub sigma: f64,
+    /// Its lag-1 correlation along the trace.
+    pub phi: f64,
+    /// The calibration's variance of a side's weighted change.
+    pub calibration: &'a SideVariance<'a>,
+}
+
+impl SideNoise<'_> {
+    /// No noise, no calibration.
+    pub const QUIET: SideNoise<'static> = SideNoise { sigma: 0.0, phi: 0.0, calibration: &|_, _| 0.0 };
+}
+
+/// A calibration's covariance over a contour: the parameters' covariance and each one's
+/// radial change at the grid angles ([`Correction::all_sensitivities_at`]).
+struct CalibrationSpread {
+    /// Parameters: the five, then the angle's coefficients when the covariance has them.
+    n: usize,
+    sigma: DMatrix<f64>,
+    /// A grid point's `n` radial changes at `n k`.
+    table: Vec<f64>,
+}
+
+impl CalibrationSpread {
+    /// The covariance's rows: the five, then the angle's coefficients when it has them (a
+    /// covariance without them: the five alone); `None` if it has fewer than five.
+    fn new(cov: &DMatrix<f64>, correction: &Correction, grid: &[(f64, f64)]) -> Option<CalibrationSpread> {
+        let mut correction = *correction;
+        let with_angle = 5 + 2 * correction.angle_orders.len();
+        let n = if cov.shape() == (with_angle, with_angle) {
+            with_angle
+        } else {
+            correction.angle_orders = HarmonicOrders::NONE;
+            if cov.nrows() >= 5 && cov.ncols() >= 5 { 5 } else { return None }
+        };
+        let mut row = Vec::with_capacity(with_angle);
+        let mut table = vec![0.0; GRID * n];
+        for (k, ((r, rp), u)) in grid.iter().zip(grid_unit()).enumerate() {
+            correction.all_sensitivities_at(*r, *rp, *u, &mut row);
+            table[k * n..(k + 1) * n].copy_from_slice(&row[..n]);
+        }
+        Some(CalibrationSpread { n, sigma: cov.view((0, 0), (n, n)).into_owned(), table })
+    }
+
+    /// Grid point `k`'s radial changes.
+    fn at(&self, k: usize) -> &[f64] {
+        &self.table[k * self.n..(k + 1) * self.n]
+    }
+
+    /// `sᵀ Σ s`.
+    fn quadratic(&self, s: &[f64]) -> f64 {
+        let mut v = 0.0;
+        for (a, sa) in s.iter().enumerate() {
+            v += sa * s.iter().enumerate().map(|(b, sb)| self.sigma[(a, b)] * sb).sum::<f64>();
+        }
+        v
+    }
+
+    /// The variance of side `k_side`'s weighted change `Σ w_i δv(θ_i)` over `(θ_i, w_i)`.
+    fn side_variance(&self, k_side: usize, weights: &[(f64, f64)]) -> f64 {
+        let mut s = vec![0.0; self.n];
+        for &(t, w) in weights {
+            let (sin, cos) = t.sin_cos();
+            let f = w * SIDE_DIRECTION[k_side](cos, sin);
+            let (j, frac) = grid_place(t.rem_euclid(TAU) / (TAU / GRID as f64));
+            let (a, b) = (self.at(j), self.at((j + 1) % GRID));
+            for (p, x) in s.iter_mut().enumerate() {
+                *x += f * (a[p] * (1.0 - frac) + b[p] * frac);
+            }
+        }
+        self.quadratic(&s)
+    }
+}
 
 /// The size figures of a smooth contour, and where its extremes are.
 #[derive(Debug, Clone, PartialEq)]
@@ -532,13 +646,14 @@ pub struct Sizes {
 impl Sizes {
     /// The figures of `smooth` (module docs), taken as noise-free.
     pub fn of(smooth: &Smooth) -> Sizes {
-        Self::of_noisy(smooth, 0.0, &[], 0.0)
+        Self::of_noisy(smooth, 0.0, &[], &SideNoise::QUIET)
     }
 
     /// The figures of `smooth` whose radii have a noise ripple of standard deviation
     /// `ripple` (`extreme`), fitted to the raw `points` whose noise is `noise`: the box's
     /// flat sides are taken from those (`raw_extreme`).
-    pub fn of_noisy(smooth: &Smooth, ripple: f64, points: &[Vector2<f64>], noise: f64) -> Sizes {
+    pub fn of_noisy(smooth: &Smooth, ripple: f64, points: &[Vector2<f64>], side_noise: &SideNoise) -> Sizes {
+        let noise = side_noise.sigma;
         let h = TAU / GRID as f64;
         let unit = grid_unit();
         let grid = smooth.on_grid();
@@ -551,7 +666,6 @@ impl Sizes {
             [extreme(&x, &y, tau), extreme(&neg(&x), &y, tau), extreme(&y, &x, tau), extreme(&neg(&y), &x, tau)];
         if !points.is_empty() {
             let raw_tau = 3.0 * noise + tau;
-            let coords: [&Coordinates; 4] = [&|p| (p.x, p.y), &|p| (-p.x, p.y), &|p| (p.y, p.x), &|p| (-p.y, p.x)];
             // The smooth between grid angles, linearly (a point's choice needs no more).
             let r_at = |t: f64| between_grid_angles(t, |i| grid[i].0);
             // Its curvature, `κ = (r² + 2r'² - r r'')/(r² + r'²)^{3/2}`, `r''` by central
@@ -564,8 +678,8 @@ impl Sizes {
                 })
                 .collect();
             let bend_at = |t: f64| between_grid_angles(t, |i| curvature[i]);
-            for (side, coord) in sides.iter_mut().zip(coords) {
-                if let Some(raw) = raw_extreme(points, &r_at, &bend_at, coord, side.value, raw_tau, noise) {
+            for (k_side, side) in sides.iter_mut().enumerate() {
+                if let Some(raw) = raw_extreme(points, &r_at, &bend_at, k_side, side.value, raw_tau, side_noise) {
                     *side = raw;
                 }
             }
@@ -648,7 +762,7 @@ impl Sizes {
     /// For each side of the box and `k = 0..=k_max`, its response to `cos kθ` and `sin kθ`
     /// ([`Self::side_responses`] of each harmonic, by rotation instead of trigonometry).
     fn side_harmonics(&self, k_max: usize) -> [Vec<(f64, f64)>; 4] {
-        let direction: [fn(f64, f64) -> f64; 4] = [|c, _| c, |c, _| -c, |_, s| s, |_, s| -s];
+        let direction = SIDE_DIRECTION;
         [0, 1, 2, 3].map(|j| {
             let mut out = vec![(0.0, 0.0); k_max + 1];
             for &(t, w) in &self.sides[j].weights {
@@ -1091,7 +1205,13 @@ pub fn uncertainty(
     // The smooth holds the information of min(N, M) equal-angle values.
     let n = points.len().min(m).max(1);
     // The smooth's own ripple: 2K + 1 coefficients of n values.
-    let mut sizes = Sizes::of_noisy(&smooth, noise * ((2 * k + 1) as f64 / n as f64).sqrt(), points, noise);
+    // The calibration's spread over the contour, when its covariance is given: the box's
+    // sides take a tilt only beyond what it and the noise can make ([`raw_extreme`]).
+    let calibration = covariance.and_then(|cov| CalibrationSpread::new(cov, correction, &smooth.on_grid()));
+    let side_spread =
+        |side: usize, weights: &[(f64, f64)]| calibration.as_ref().map_or(0.0, |cal| cal.side_variance(side, weights));
+    let side_noise = SideNoise { sigma: noise, phi: tn.phi(), calibration: &side_spread };
+    let mut sizes = Sizes::of_noisy(&smooth, noise * ((2 * k + 1) as f64 / n as f64).sqrt(), points, &side_noise);
     let responses = sizes.harmonic_responses(k);
     let mut var_noise = [0.0; 4];
     for (i, g) in responses.iter().enumerate() {
@@ -1191,50 +1311,24 @@ pub fn uncertainty(
     }
     let mut var_cal = [0.0; 4];
     let mut radii_var_cal = vec![0.0; m];
-    if let Some(cov) = covariance {
-        // The covariance's rows: the five, then the angle's coefficients when it has them
-        // (a covariance without them: the five alone).
-        let mut correction = *correction;
-        let with_angle = 5 + 2 * correction.angle_orders.len();
-        let n = if cov.shape() == (with_angle, with_angle) {
-            with_angle
-        } else {
-            correction.angle_orders = HarmonicOrders::NONE;
-            if cov.nrows() >= 5 && cov.ncols() >= 5 { 5 } else { 0 }
-        };
-        let sigma = cov.view((0, 0), (n, n));
-        let quadratic = |s: &[f64]| -> f64 {
-            let mut v = 0.0;
-            for (a, sa) in s.iter().enumerate() {
-                v += sa * s.iter().enumerate().map(|(b, sb)| sigma[(a, b)] * sb).sum::<f64>();
-            }
-            v
-        };
-        // Each parameter's radial change on the grid, in one pass (a grid point's n values
-        // at `n k`); the figures' response.
-        let mut row = Vec::with_capacity(with_angle);
-        let mut table = vec![0.0; GRID * n];
-        for (k, ((r, rp), u)) in sizes.grid.iter().zip(grid_unit()).enumerate() {
-            correction.all_sensitivities_at(*r, *rp, *u, &mut row);
-            table[k * n..(k + 1) * n].copy_from_slice(&row[..n]);
-        }
-        let at = |k: usize| &table[k * n..(k + 1) * n];
+    if let Some(cal) = &calibration {
+        let n = cal.n;
         let mut g = vec![[0.0; 4]; n];
         for (j, gj) in g.iter_mut().enumerate() {
-            if sigma[(j, j)] > 0.0 {
-                *gj = sizes.response_on_grid(&table.iter().skip(j).step_by(n).copied().collect::<Vec<_>>());
+            if cal.sigma[(j, j)] > 0.0 {
+                *gj = sizes.response_on_grid(&cal.table.iter().skip(j).step_by(n).copied().collect::<Vec<_>>());
             }
         }
         for (f, v) in var_cal.iter_mut().enumerate() {
-            *v = quadratic(&g.iter().map(|gj| gj[f]).collect::<Vec<_>>());
+            *v = cal.quadratic(&g.iter().map(|gj| gj[f]).collect::<Vec<_>>());
         }
         // Each radius' own, read off the grid between its neighbours.
         let mut between = vec![0.0; n];
         for (i, v) in radii_var_cal.iter_mut().enumerate() {
             let (j, f) = grid_place(i as f64 * GRID as f64 / m as f64);
-            let (a, b) = (at(j), at((j + 1) % GRID));
+            let (a, b) = (cal.at(j), cal.at((j + 1) % GRID));
             between.iter_mut().enumerate().for_each(|(p, x)| *x = a[p] * (1.0 - f) + b[p] * f);
-            *v = quadratic(&between);
+            *v = cal.quadratic(&between);
         }
     }
     // The groove angle assumed: the contour moves along its normal by `∂o/∂γ u_γ`, a
@@ -1459,7 +1553,16 @@ mod tests {
                     Vector2::new(t.cos(), t.sin()) * (0.02 + noise.sample(&mut rng))
                 })
                 .collect();
-            let side = raw_extreme(&points, &|_| 0.02, &|_| 50.0, |p| (p.y, p.x), 0.02, 3.6 * sigma, sigma).unwrap();
+            let side = raw_extreme(
+                &points,
+                &|_| 0.02,
+                &|_| 50.0,
+                2,
+                0.02,
+                3.6 * sigma,
+                &SideNoise { sigma, ..SideNoise::QUIET },
+            )
+            .unwrap();
             let e = side.value - 0.02;
             (sum, sq, n) = (sum + e, sq + e * e, n + 1.0);
             reported += side.weights.iter().map(|(_, w)| w * w).sum::<f64>() * sigma * sigma;
@@ -1487,7 +1590,9 @@ mod tests {
             (0.015 + 1e-6 + 8e-6 * u.powi(8)) / t.sin()
         };
         let near = 0.015 + 9e-6;
-        let side = raw_extreme(&points, &smooth, &|_| 0.0, |p| (p.y, p.x), near, 0.5e-6, 0.1e-6).unwrap();
+        let side =
+            raw_extreme(&points, &smooth, &|_| 0.0, 2, near, 0.5e-6, &SideNoise { sigma: 0.1e-6, ..SideNoise::QUIET })
+                .unwrap();
         assert!(side.raw);
         assert!((side.value - 0.015).abs() < 1e-9, "side {} µm off", (side.value - 0.015) * 1e6);
     }
@@ -1522,7 +1627,8 @@ mod tests {
             let p = Vector2::new(t.cos(), t.sin()) * radius(t);
             if p.x.abs() > hw - r && p.y.abs() > hh - r { 1.0 / r } else { 0.0 }
         };
-        let side = raw_extreme(&points, &radius, &bend, |p| (p.y, p.x), hh, 45e-6, 10e-6).unwrap();
+        let side = raw_extreme(&points, &radius, &bend, 2, hh, 45e-6, &SideNoise { sigma: 10e-6, ..SideNoise::QUIET })
+            .unwrap();
         assert!((side.value - hh).abs() < 0.05e-6, "side {:+.3} µm off", (side.value - hh) * 1e6);
     }
 }
