@@ -1204,13 +1204,13 @@ pub fn uncertainty(
     let k = smooth.harmonics();
     // The smooth holds the information of min(N, M) equal-angle values.
     let n = points.len().min(m).max(1);
-    // The smooth's own ripple: 2K + 1 coefficients of n values.
     // The calibration's spread over the contour, when its covariance is given: the box's
     // sides take a tilt only beyond what it and the noise can make ([`raw_extreme`]).
     let calibration = covariance.and_then(|cov| CalibrationSpread::new(cov, correction, &smooth.on_grid()));
     let side_spread =
         |side: usize, weights: &[(f64, f64)]| calibration.as_ref().map_or(0.0, |cal| cal.side_variance(side, weights));
     let side_noise = SideNoise { sigma: noise, phi: tn.phi(), calibration: &side_spread };
+    // The smooth's own ripple: 2K + 1 coefficients of n values.
     let mut sizes = Sizes::of_noisy(&smooth, noise * ((2 * k + 1) as f64 / n as f64).sqrt(), points, &side_noise);
     let responses = sizes.harmonic_responses(k);
     let mut var_noise = [0.0; 4];
