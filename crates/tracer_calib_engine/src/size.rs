@@ -295,8 +295,8 @@ impl ParabolaTop {
 }
 
 /// A side of the box from the raw points themselves: those the smooth `r(θ)` puts within
-/// `tau` of its extreme `near` in side `k_side`'s coordinate `v` ([`SIDE_COORDINATES`]), fitted with a parabola in the other
-/// coordinate `s` as [`extreme`] does. The smooth's ripple where a side is flat (a frame's: its
+/// `tau` of its extreme `near` in side `k_side`'s coordinate `v` ([`SIDE_COORDINATES`]),
+/// fitted with a parabola in the other coordinate `s` as [`extreme`] does. The smooth's ripple where a side is flat (a frame's: its
 /// truncated harmonics overshoot there by microns) does not reach it, and the samples'
 /// noise averages over the side. `None` with fewer than 6 points (a curved extreme: the
 /// smooth's own is good there).
@@ -360,11 +360,16 @@ fn raw_extreme(
     let s0 = chosen.iter().map(|c| c.1).sum::<f64>() / chosen.len() as f64;
     let fit = ParabolaTop::fit(&chosen.iter().map(|c| (c.1, c.0)).collect::<Vec<_>>(), s0)?;
     let half = (fit.hi - fit.lo) / 2.0;
-    // The tilt's spread: the noise's along the trace, and the calibration's.
-    let slope = fit.weights_of_slope(chosen.iter().map(|c| c.1));
-    let spread = correlated_sum(slope.iter().copied(), side_noise.phi) * noise * noise
-        + (side_noise.calibration)(k_side, &chosen.iter().zip(&slope).map(|(c, w)| (c.2, *w)).collect::<Vec<_>>());
-    if fit.c[1].abs() * half < tau / 3.0 || fit.c[1].abs() < TILT_SIGNIFICANCE * spread.sqrt() {
+    // The tilt's spread, the noise's along the trace and the calibration's: weighed only
+    // where the band alone would take the tilt.
+    let within_spread = || {
+        let slope = fit.weights_of_slope(chosen.iter().map(|c| c.1));
+        let weighted: Vec<(f64, f64)> = chosen.iter().zip(&slope).map(|(c, w)| (c.2, *w)).collect();
+        let spread = correlated_sum(slope.iter().copied(), side_noise.phi) * noise * noise
+            + (side_noise.calibration)(k_side, &weighted);
+        fit.c[1].abs() < TILT_SIGNIFICANCE * spread.sqrt()
+    };
+    if fit.c[1].abs() * half < tau / 3.0 || within_spread() {
         // Not tilted (doc above): the vertex, kept near the centroid.
         let spacing = (fit.hi - fit.lo) / (chosen.len() - 1) as f64;
         let x = if fit.c[2] < 0.0 { (-fit.c[1] / (2.0 * fit.c[2])).clamp(-spacing, spacing) } else { 0.0 };
@@ -650,13 +655,18 @@ impl Sizes {
     }
 
     /// The figures of `smooth` whose radii have a noise ripple of standard deviation
-    /// `ripple` (`extreme`), fitted to the raw `points` whose noise is `noise`: the box's
-    /// flat sides are taken from those (`raw_extreme`).
+    /// `ripple` (`extreme`), fitted to the raw `points` whose spread `side_noise` states:
+    /// the box's flat sides are taken from those (`raw_extreme`).
     pub fn of_noisy(smooth: &Smooth, ripple: f64, points: &[Vector2<f64>], side_noise: &SideNoise) -> Sizes {
+        Self::of_noisy_grid(smooth.on_grid(), ripple, points, side_noise)
+    }
+
+    /// [`Self::of_noisy`] of the smooth whose `r`, `r'` on the grid are `grid`
+    /// ([`Smooth::on_grid`]), for a caller that has them already.
+    fn of_noisy_grid(grid: Vec<(f64, f64)>, ripple: f64, points: &[Vector2<f64>], side_noise: &SideNoise) -> Sizes {
         let noise = side_noise.sigma;
         let h = TAU / GRID as f64;
         let unit = grid_unit();
-        let grid = smooth.on_grid();
         let circumference = grid_length(&grid);
         let x: Vec<f64> = grid.iter().zip(unit).map(|((r, _), (c, _))| r * c).collect();
         let y: Vec<f64> = grid.iter().zip(unit).map(|((r, _), (_, s))| r * s).collect();
@@ -762,12 +772,11 @@ impl Sizes {
     /// For each side of the box and `k = 0..=k_max`, its response to `cos kθ` and `sin kθ`
     /// ([`Self::side_responses`] of each harmonic, by rotation instead of trigonometry).
     fn side_harmonics(&self, k_max: usize) -> [Vec<(f64, f64)>; 4] {
-        let direction = SIDE_DIRECTION;
         [0, 1, 2, 3].map(|j| {
             let mut out = vec![(0.0, 0.0); k_max + 1];
             for &(t, w) in &self.sides[j].weights {
                 let (s1, c1) = t.sin_cos();
-                let f = w * direction[j](c1, s1);
+                let f = w * SIDE_DIRECTION[j](c1, s1);
                 let (mut c, mut s) = (1.0, 0.0);
                 for o in out.iter_mut() {
                     o.0 += f * c;
@@ -1206,12 +1215,13 @@ pub fn uncertainty(
     let n = points.len().min(m).max(1);
     // The calibration's spread over the contour, when its covariance is given: the box's
     // sides take a tilt only beyond what it and the noise can make ([`raw_extreme`]).
-    let calibration = covariance.and_then(|cov| CalibrationSpread::new(cov, correction, &smooth.on_grid()));
+    let grid = smooth.on_grid();
+    let calibration = covariance.and_then(|cov| CalibrationSpread::new(cov, correction, &grid));
     let side_spread =
         |side: usize, weights: &[(f64, f64)]| calibration.as_ref().map_or(0.0, |cal| cal.side_variance(side, weights));
     let side_noise = SideNoise { sigma: noise, phi: tn.phi(), calibration: &side_spread };
     // The smooth's own ripple: 2K + 1 coefficients of n values.
-    let mut sizes = Sizes::of_noisy(&smooth, noise * ((2 * k + 1) as f64 / n as f64).sqrt(), points, &side_noise);
+    let mut sizes = Sizes::of_noisy_grid(grid, noise * ((2 * k + 1) as f64 / n as f64).sqrt(), points, &side_noise);
     let responses = sizes.harmonic_responses(k);
     let mut var_noise = [0.0; 4];
     for (i, g) in responses.iter().enumerate() {
