@@ -137,6 +137,15 @@ pub fn resample_radii_with_gain(points: &[Vector2<f64>], m: usize, max_gap: f64)
     polar_of(points).resample_with_gain(m, max_gap)
 }
 
+/// Values `v_i` known at angles `θ_i` (in `[0, 2π)`, any order; a contour's points' own)
+/// at `m` equal angles `2π k/m`, by [`PolarContour::resample`]'s cubic, no gap checked and
+/// none clamped (a value may be negative). `None` as there.
+pub fn resample_values(knots: impl IntoIterator<Item = (f64, f64)>, m: usize) -> Option<Vec<f64>> {
+    let mut polar = PolarContour::with_capacity(0);
+    polar.knots.extend(knots);
+    polar.resample_into(m, f64::INFINITY, None, false)
+}
+
 /// `points` as a [`PolarContour`].
 fn polar_of(points: &[Vector2<f64>]) -> PolarContour {
     let mut polar = PolarContour::with_capacity(points.len());
@@ -218,7 +227,7 @@ impl PolarContour {
     /// slopes `S_i = (h_i d_{i-1} + h_{i-1} d_i) / (h_{i-1} + h_i)`. The walk keeps the
     /// secants of three segments as it goes: two divisions a knot.
     pub fn resample(self, m: usize, max_gap: f64) -> Option<Vec<f64>> {
-        self.resample_into(m, max_gap, None)
+        self.resample_into(m, max_gap, None, true)
     }
 
     /// [`Self::resample`], and each radius' noise gain: the variance it gets per unit
@@ -230,11 +239,12 @@ impl PolarContour {
     /// equal to within the mounting's small distortion; that is the gain taken).
     pub fn resample_with_gain(self, m: usize, max_gap: f64) -> Option<(Vec<f64>, Vec<f64>)> {
         let mut gain = Vec::with_capacity(m);
-        let radii = self.resample_into(m, max_gap, Some(&mut gain))?;
+        let radii = self.resample_into(m, max_gap, Some(&mut gain), true)?;
         Some((radii, gain))
     }
 
-    fn resample_into(self, m: usize, max_gap: f64, mut gain: Option<&mut Vec<f64>>) -> Option<Vec<f64>> {
+    /// `clamp`: a radius is a distance, never below 0 (false for other values).
+    fn resample_into(self, m: usize, max_gap: f64, mut gain: Option<&mut Vec<f64>>, clamp: bool) -> Option<Vec<f64>> {
         if m == 0 || self.len() < 3 {
             return None;
         }
@@ -284,7 +294,7 @@ impl PolarContour {
             let r = r0 + s * (m0 + s * ((3.0 * delta - 2.0 * m0 - m1) + s * (m0 + m1 - 2.0 * delta)));
             // Between a point near the axis and a far one the cubic can dip below zero; a
             // radius is a distance, and the contour there is at the axis.
-            out.push(if r < 0.0 { 0.0 } else { r });
+            out.push(if clamp && r < 0.0 { 0.0 } else { r });
             if let Some(gain) = gain.as_deref_mut() {
                 gain.push(noise_gain(s));
             }

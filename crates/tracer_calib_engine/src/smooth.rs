@@ -77,6 +77,17 @@ impl Smooth {
         }
     }
 
+    /// `r'''` at the [`GRID`] angles: `Σ_k k³ (a_k sin kθ - b_k cos kθ)`.
+    pub(super) fn third_derivative_on_grid(&self) -> Vec<f64> {
+        let mut y = vec![Complex::new(0.0, 0.0); GRID / 2 + 1];
+        for (k, yk) in y.iter_mut().enumerate().skip(1).take(self.harmonics()) {
+            let (a, b) = (self.coefficients[2 * k - 1], self.coefficients[2 * k]);
+            let k3 = (k * k * k) as f64;
+            *yk = Complex::new(-k3 * b / 2.0, -k3 * a / 2.0);
+        }
+        inverse_dft(y).unwrap_or_else(|| vec![0.0; GRID])
+    }
+
     /// `Σ (|p| - r(θ_p))²` over `points` (`θ_p` the angle of `p`, whose cosine and sine
     /// are `p/|p|`), LANES points at a time.
     pub(super) fn squared_residuals(&self, points: &[Vector2<f64>]) -> f64 {
