@@ -77,6 +77,23 @@ impl Smooth {
         }
     }
 
+    /// `r` at the [`FINE`] angles `2π i/FINE` (the spectrum zero-padded, one inverse FFT).
+    pub(super) fn on_fine_grid(&self) -> Vec<f64> {
+        let mut y = vec![Complex::new(0.0, 0.0); FINE / 2 + 1];
+        y[0].re = self.coefficients[0];
+        for (k, yk) in y.iter_mut().enumerate().skip(1).take(self.harmonics().min(FINE / 2 - 1)) {
+            let (a, b) = (self.coefficients[2 * k - 1], self.coefficients[2 * k]);
+            *yk = Complex::new(a / 2.0, -b / 2.0);
+        }
+        FFT.with(|planner| {
+            let fft = planner.borrow_mut().plan_fft_inverse(FINE);
+            let mut output = fft.make_output_vec();
+            fft.process(&mut y, &mut output).ok()?;
+            Some(output)
+        })
+        .unwrap_or_else(|| (0..FINE).map(|i| self.at(TAU * i as f64 / FINE as f64).0).collect())
+    }
+
     /// `r'''` at the [`GRID`] angles: `Σ_k k³ (a_k sin kθ - b_k cos kθ)`.
     pub(super) fn third_derivative_on_grid(&self) -> Vec<f64> {
         let mut y = vec![Complex::new(0.0, 0.0); GRID / 2 + 1];
@@ -141,6 +158,27 @@ fn inverse_dft(mut spectrum: Vec<Complex<f64>>) -> Option<Vec<f64>> {
         fft.process(&mut spectrum, &mut output).ok()?;
         Some(output)
     })
+}
+
+/// How many equal angles [`Smooth::on_fine_grid`] samples a series at: enough to read it
+/// between them by a cubic ([`read_fine`]).
+pub(super) const FINE: usize = 2048;
+
+/// A series sampled by [`Smooth::on_fine_grid`], read at angle `t` by the cubic through
+/// the four samples about it (Lagrange). For the grid's top harmonic (127, `ωh` = 0.39 a
+/// sample) within `(ωh)⁴/24 · 9/16` = 5·10⁻⁴ of its amplitude; for a contour's first ten
+/// harmonics, 10⁻⁸ of theirs.
+pub(super) fn read_fine(fine: &[f64], t: f64) -> f64 {
+    let n = fine.len();
+    let x = t.rem_euclid(TAU) / TAU * n as f64;
+    let i = x.floor() as usize;
+    let f = x - i as f64;
+    let at = |j: usize| fine[(i + n + j - 1) % n];
+    let w0 = -f * (f - 1.0) * (f - 2.0) / 6.0;
+    let w1 = (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0;
+    let w2 = -(f + 1.0) * f * (f - 2.0) / 2.0;
+    let w3 = (f + 1.0) * f * (f - 1.0) / 6.0;
+    w0 * at(0) + w1 * at(1) + w2 * at(2) + w3 * at(3)
 }
 
 /// `(cos θ_i, sin θ_i)` of the [`GRID`] angles `θ_i = 2π i/GRID`, computed once.
