@@ -131,7 +131,7 @@ pub fn noise_lengthening_along(grid: &[(f64, f64)], spectrum: impl Fn(usize) -> 
 }
 
 /// The circumference's harmonics: twice the smooth's `K` for a smooth shape (`K` =
-/// [`HARMONICS`]: 80). A frame's sharp corners keep harmonics well above the `K` at which
+/// [`HARMONICS`], 40: 80 harmonics). A frame's sharp corners keep harmonics well above the `K` at which
 /// the other figures stop (their noise would cost more than the shape gains): a 52×32 mm
 /// frame with 5 mm corners is 6.3 µm short at 40 harmonics, 1.1 µm at 80. The
 /// circumference's response to a harmonic falls with its order (a circle's is 0 but for
@@ -194,10 +194,12 @@ fn series_at_own_angles(points: &[Vector2<f64>], radii: &[f64], kc: usize) -> Op
 /// for `j > 0`, at `ω_j = 2π j/N` a sample. Along the contour that varies in two ways, both
 /// taken into the lengthening at each grid angle: the rail's share, `(u·N)²/(N·e_r)²` of the
 /// noise in the radius at a fixed angle where the points' distances see `(u·e_r)²`
-/// ([`Correction::noise_share`]; on a frame traced with the rail 5 mm off the axis, 0.97
-/// overall and up to 40 % apart by corner side); and the samples' spacing, `h` times the
-/// mean where they are farther apart in angle, which gives a coefficient `h` times the
-/// noise at `ω = 2π j h/N` ([`local_spacing`]; up to about 30 % either way on that frame).
+/// ([`Correction::noise_share`]; on a frame traced with the rail 5 mm off the axis the
+/// points' distances show 0.97-0.985 of the encoder's noise variance); and the samples'
+/// spacing, `h` times the mean where they are farther apart in angle (a rail off the axis
+/// spaces them unevenly), which gives a coefficient `h` times the noise at `ω = 2π j h/N`
+/// ([`local_spacing`]). Both together took that frame's modelled lengthening from 33.6-34.1
+/// to 32.8-33.3 µm, against 32.0 µm measured (docs/engine.md).
 fn circumference(
     points: &[Vector2<f64>],
     radii: &[f64],
@@ -1296,8 +1298,8 @@ impl Correction {
 /// trimming keeps a few spikes or a sharper corner out.
 ///
 /// Against the median of `|d_i|` (what this was): its `σ̂²` was 1.7 % high and spread 16.5 %
-/// a trace (400 samples of white noise, 3000 traces), this one's is 0.3 % high and spreads
-/// 12.8 % ([`sample_noise_relative_variance`]); a frame's circumference takes 35 µm of noise
+/// a trace (400 samples of white noise, 3000 traces), this one's is 0.3-0.7 % high and
+/// spreads 12.6-12.8 % ([`sample_noise_relative_variance`]); a frame's circumference takes 35 µm of noise
 /// lengthening off in proportion to `σ̂²`, so both count.
 pub fn sample_noise(points: &[Vector2<f64>]) -> f64 {
     let r: Vec<f64> = points.iter().map(|p| p.norm()).collect();
@@ -1309,7 +1311,7 @@ pub fn sample_noise(points: &[Vector2<f64>]) -> f64 {
 /// a flat side) put shape into about a tenth of the fourth differences, moderately (a
 /// jump `J` in `r''` gives a few `J h²`, tens of µm on a 52 × 32 mm frame with 5 mm
 /// corners), which neither trimming nor a median removes: on that frame `σ̂²` reads 1.2-2.2 %
-/// high at σ = 10 µm, 5 % at 5 µm, 15 % at 2 µm (about 1-2 µm² whatever the noise), and a
+/// high at σ = 10 µm, 5 % at 5 µm, 15 % at 2 µm (0.6-1.7 µm² whatever the noise), and a
 /// circumference's noise lengthening, in proportion to `σ̂²`, is taken off that much too
 /// long. A difference is left out where the shape may reach it, from `smooth` (the
 /// contour's series, harmonics `K`): a jump spreads over about `π/K` in its series, so
@@ -1347,8 +1349,9 @@ pub fn sample_noise_clear_of_shape(points: &[Vector2<f64>], smooth: &Smooth, see
 
 /// What of the noise's own fourth difference (`√70 σ̂`) the shape may put into one before
 /// [`sample_noise_clear_of_shape`] leaves it out: 0.4. Tighter does not help: at 0.2 a
-/// third of a frame's differences are left out (σ = 10 µm) for no less bias, at 0.1 two
-/// thirds for more (only the quietest are left: 600 traces each).
+/// third of a frame's differences are left out (σ = 10 µm) and `σ̂²` reads 1.3 % high
+/// (0.4 % at 0.4), at 0.1 two thirds and 3.5 % (only the quietest are left; 600 traces
+/// each).
 pub const CLEAR_OF_SHAPE: f64 = 0.4;
 
 /// The noise of squared fourth differences `d2` ([`sample_noise`]): the mean of the
