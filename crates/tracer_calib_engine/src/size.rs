@@ -164,14 +164,8 @@ const SERIES_ROUNDS: usize = 3;
 /// added, [`SERIES_ROUNDS`] times. At its end the series' coefficients are the points' own
 /// (`P R E c = P R p`: the resampling `R` of the series `E c` at the points' angles matches
 /// that of the points, harmonic by harmonic), so they carry the samples' noise whole.
-fn series_at_own_angles(points: &[Vector2<f64>], radii: &[f64], kc: usize) -> Option<Smooth> {
-    let own: Vec<(f64, f64)> = points
-        .iter()
-        .filter_map(|p| {
-            let r = p.norm();
-            (r > 0.0 && r.is_finite()).then(|| (polar_angle(p.y, p.x), r))
-        })
-        .collect();
+fn series_at_own_angles(polar: &[(f64, f64)], radii: &[f64], kc: usize) -> Option<Smooth> {
+    let own: Vec<(f64, f64)> = polar.iter().copied().filter(|&(_, r)| r > 0.0 && r.is_finite()).collect();
     let mut radii = radii.to_vec();
     let mut series = Smooth::fit(&radii, kc)?;
     for _ in 0..SERIES_ROUNDS {
@@ -201,7 +195,7 @@ fn series_at_own_angles(points: &[Vector2<f64>], radii: &[f64], kc: usize) -> Op
 /// ([`local_spacing`]). Both together took that frame's modelled lengthening from 33.6-34.1
 /// to 32.8-33.3 µm, against 32.0 µm measured (docs/engine.md).
 fn circumference(
-    points: &[Vector2<f64>],
+    polar: &[(f64, f64)],
     radii: &[f64],
     kc: usize,
     per_sample: f64,
@@ -209,11 +203,11 @@ fn circumference(
     relative_variance: f64,
     correction: &Correction,
 ) -> Option<(f64, f64)> {
-    let fine = series_at_own_angles(points, radii, kc)?;
+    let fine = series_at_own_angles(polar, radii, kc)?;
     let kc = fine.harmonics();
     let grid = fine.on_grid();
-    let big_n = points.len().max(1) as f64;
-    let spacing = local_spacing(points, grid.len());
+    let big_n = polar.len().max(1) as f64;
+    let spacing = local_spacing(polar, grid.len());
     let shares: Vec<(f64, f64)> =
         grid.iter().enumerate().map(|(i, &(r, rp))| correction.noise_share(r, rp, grid_unit()[i])).collect();
     // The fourth differences see every sample alike, `1/h` of them a grid step.
@@ -257,13 +251,13 @@ fn circumference(
 /// The points' angular spacing about each of `g` equal angles, over its mean `2π/N`: each
 /// point's half-distance to its two neighbours in trace order, averaged over the points
 /// within two grid steps.
-fn local_spacing(points: &[Vector2<f64>], g: usize) -> Vec<f64> {
-    let n = points.len();
-    let theta: Vec<f64> = points.iter().map(|p| polar_angle(p.y, p.x)).collect();
+fn local_spacing(polar: &[(f64, f64)], g: usize) -> Vec<f64> {
+    let n = polar.len();
+    let theta = |i: usize| polar[i].0;
     let (mut sum, mut count) = (vec![0.0; g], vec![0.0; g]);
     for i in 0..n {
-        let half = (theta[(i + 1) % n] - theta[(i + n - 1) % n]).rem_euclid(TAU) / 2.0;
-        let bin = ((theta[i] / TAU * g as f64) as usize).min(g - 1);
+        let half = (theta((i + 1) % n) - theta((i + n - 1) % n)).rem_euclid(TAU) / 2.0;
+        let bin = ((theta(i) / TAU * g as f64) as usize).min(g - 1);
         for o in 0..5 {
             let j = (bin + g + o - 2) % g;
             sum[j] += half;
@@ -1303,8 +1297,23 @@ impl Correction {
 /// lengthening off in proportion to `σ̂²`, so both count.
 pub fn sample_noise(points: &[Vector2<f64>]) -> f64 {
     let r: Vec<f64> = points.iter().map(|p| p.norm()).collect();
-    trimmed_noise(r.windows(5).map(|w| (w[0] - 4.0 * w[1] + 6.0 * w[2] - 4.0 * w[3] + w[4]).powi(2)).collect())
-        .unwrap_or(0.0)
+    sample_noise_of(&r)
+}
+
+/// Each point's angle about the axis (in `[0, 2π)`) and distance from it, in trace order.
+fn polar_form(points: &[Vector2<f64>]) -> Vec<(f64, f64)> {
+    points.iter().map(|p| (polar_angle(p.y, p.x), p.norm())).collect()
+}
+
+/// [`sample_noise`] of the points' distances from the axis `r`, in trace order.
+fn sample_noise_of(r: &[f64]) -> f64 {
+    trimmed_noise(squared_fourth_differences(r).collect()).unwrap_or(0.0)
+}
+
+/// `d_i²` of [`sample_noise`], `d_i = r_{i-2} - 4 r_{i-1} + 6 r_i - 4 r_{i+1} + r_{i+2}`, one
+/// for each five neighbours in trace order.
+fn squared_fourth_differences(r: &[f64]) -> impl Iterator<Item = f64> + '_ {
+    r.windows(5).map(|w| (w[0] - 4.0 * w[1] + 6.0 * w[2] - 4.0 * w[3] + w[4]).powi(2))
 }
 
 /// [`sample_noise`] clear of a contour's curvature jumps: a frame's corners (an arc meeting
@@ -1317,28 +1326,28 @@ pub fn sample_noise(points: &[Vector2<f64>]) -> f64 {
 /// contour's series, harmonics `K`): a jump spreads over about `π/K` in its series, so
 /// `|r'''| π/K h²` bounds what it puts into a difference at spacing `h`; left out where that
 /// exceeds [`CLEAR_OF_SHAPE`] of the noise's own `√70 σ̂` (`seen`: [`sample_noise`]'s) at
-/// any of the five samples. Returns the noise and the share left out (none on a lens or a
-/// circle; 19 % on that frame at σ = 10 µm, where `σ̂²` then reads 0.6 % above what it
-/// reads on a circle, 1.6 % without: 2000 traces each).
-pub fn sample_noise_clear_of_shape(points: &[Vector2<f64>], smooth: &Smooth, seen: f64) -> (f64, f64) {
+/// any of the five samples. `polar`: each point's angle about the axis (in `[0, 2π)`)
+/// and distance from it, in trace order. Returns the noise and the share left out (none
+/// on a lens or a circle; 19 % on that frame at σ = 10 µm, where `σ̂²` then reads 0.6 %
+/// above what it reads on a circle, 1.6 % without: 2000 traces each).
+pub fn sample_noise_clear_of_shape(polar: &[(f64, f64)], smooth: &Smooth, seen: f64) -> (f64, f64) {
     let r3 = smooth.third_derivative_on_grid();
     let k = smooth.harmonics().max(1) as f64;
-    let h = TAU / points.len().max(1) as f64;
+    let h = TAU / polar.len().max(1) as f64;
     let reach = std::f64::consts::PI / k * h * h;
     let threshold = CLEAR_OF_SHAPE * 70f64.sqrt() * seen;
-    let shape: Vec<f64> = points
+    let shape: Vec<f64> = polar
         .iter()
-        .map(|p| {
-            let (j, f) = grid_place(polar_angle(p.y, p.x) / TAU * GRID as f64);
+        .map(|&(t, _)| {
+            let (j, f) = grid_place(t / TAU * GRID as f64);
             (r3[j] * (1.0 - f) + r3[(j + 1) % GRID] * f).abs() * reach
         })
         .collect();
-    let r: Vec<f64> = points.iter().map(|p| p.norm()).collect();
-    let d2: Vec<f64> = r
-        .windows(5)
+    let r: Vec<f64> = polar.iter().map(|p| p.1).collect();
+    let d2: Vec<f64> = squared_fourth_differences(&r)
         .zip(shape.windows(5))
         .filter(|(_, reached)| reached.iter().all(|&x| x <= threshold))
-        .map(|(w, _)| (w[0] - 4.0 * w[1] + 6.0 * w[2] - 4.0 * w[3] + w[4]).powi(2))
+        .map(|(d2, _)| d2)
         .collect();
     let left_out = 1.0 - d2.len() as f64 / r.len().saturating_sub(4).max(1) as f64;
     match trimmed_noise(d2) {
@@ -1431,7 +1440,11 @@ pub fn uncertainty(
     // The noise's variance, σ², from what the fourth differences see of it (the
     // calibration's correlation), never below the quantum's.
     let quantum = tn.quantum / 12f64.sqrt();
-    let seen = sample_noise(points);
+    // Each point's angle and distance from the axis, once: the noise, the circumference's
+    // series at the points' own angles and their spacing all read them.
+    let polar = polar_form(points);
+    let distances: Vec<f64> = polar.iter().map(|p| p.1).collect();
+    let seen = sample_noise_of(&distances);
     let floor = (seen / tn.fourth_difference_share().sqrt()).max(quantum);
     // The fewest harmonics that leave only noise: the raw points' radial scatter about
     // the fit, each at its own angle (the resampled radii are interpolated, smoother than
@@ -1480,11 +1493,11 @@ pub fn uncertainty(
     // The noise for the circumference's lengthening from the fourth differences clear of
     // the shape's curvature jumps (a frame's corners reach about a tenth of them), its
     // relative variance as many times larger as fewer of them are left.
-    let (seen_clear, left_out) = sample_noise_clear_of_shape(points, &smooth, seen);
+    let (seen_clear, left_out) = sample_noise_clear_of_shape(&polar, &smooth, seen);
     let floor_c = (seen_clear / tn.fourth_difference_share().sqrt()).max(quantum);
     let relative_variance = sample_noise_relative_variance(points.len(), tn.phi()) / (1.0 - left_out).max(0.05);
     let (circumference, var_circumference) = circumference(
-        points,
+        &polar,
         radii,
         circumference_harmonics(k),
         floor_c * floor_c / n as f64,
@@ -1824,7 +1837,7 @@ mod tests {
         let worst =
             |s: &Smooth| (0..360).map(|i| TAU * i as f64 / 360.0).map(|t| (s.at(t).0 - r(t)).abs()).fold(0.0, f64::max);
         let resampled = worst(&Smooth::fit(&radii, 40).unwrap());
-        let own = worst(&series_at_own_angles(&points, &radii, 40).unwrap());
+        let own = worst(&series_at_own_angles(&polar_form(&points), &radii, 40).unwrap());
         assert!(own < 1e-10 && own * 100.0 < resampled, "own angles {own}, resampled {resampled}");
     }
 
@@ -1852,7 +1865,7 @@ mod tests {
                 let (radii, _) = super::super::correct::resample_radii_with_gain(&points, 400, 0.2).unwrap();
                 let smooth = Smooth::fit(&radii, if frame { 60 } else { 40 }).unwrap();
                 let seen = sample_noise(&points);
-                let (noise, out) = sample_noise_clear_of_shape(&points, &smooth, seen);
+                let (noise, out) = sample_noise_clear_of_shape(&polar_form(&points), &smooth, seen);
                 plain += (seen / sigma).powi(2) / traces as f64;
                 clear += (noise / sigma).powi(2) / traces as f64;
                 left_out += out / traces as f64;

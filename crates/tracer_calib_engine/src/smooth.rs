@@ -61,15 +61,8 @@ impl Smooth {
     /// over the Hermitian spectrum with `Y_0 = a_0`, `Y_k = (a_k - i b_k)/2`, and for `r'`,
     /// `Y'_k = k (b_k + i a_k)/2`.
     pub(super) fn on_grid(&self) -> Vec<(f64, f64)> {
-        let k_max = self.harmonics();
-        let mut y = vec![Complex::new(0.0, 0.0); GRID / 2 + 1];
-        let mut yp = y.clone();
-        y[0].re = self.coefficients[0];
-        for k in 1..=k_max {
-            let (a, b) = (self.coefficients[2 * k - 1], self.coefficients[2 * k]);
-            y[k] = Complex::new(a / 2.0, -b / 2.0);
-            yp[k] = Complex::new(k as f64 * b / 2.0, k as f64 * a / 2.0);
-        }
+        let y = self.values_spectrum(GRID);
+        let yp = self.spectrum(GRID, |k, a, b| Complex::new(k * b / 2.0, k * a / 2.0));
         match (inverse_dft(y), inverse_dft(yp)) {
             (Some(r), Some(rp)) => r.into_iter().zip(rp).collect(),
             // Not reached (the plan's own lengths); the sums themselves, then.
@@ -79,30 +72,31 @@ impl Smooth {
 
     /// `r` at the [`FINE`] angles `2π i/FINE` (the spectrum zero-padded, one inverse FFT).
     pub(super) fn on_fine_grid(&self) -> Vec<f64> {
-        let mut y = vec![Complex::new(0.0, 0.0); FINE / 2 + 1];
-        y[0].re = self.coefficients[0];
-        for (k, yk) in y.iter_mut().enumerate().skip(1).take(self.harmonics().min(FINE / 2 - 1)) {
-            let (a, b) = (self.coefficients[2 * k - 1], self.coefficients[2 * k]);
-            *yk = Complex::new(a / 2.0, -b / 2.0);
-        }
-        FFT.with(|planner| {
-            let fft = planner.borrow_mut().plan_fft_inverse(FINE);
-            let mut output = fft.make_output_vec();
-            fft.process(&mut y, &mut output).ok()?;
-            Some(output)
-        })
-        .unwrap_or_else(|| (0..FINE).map(|i| self.at(TAU * i as f64 / FINE as f64).0).collect())
+        inverse_dft(self.values_spectrum(FINE))
+            .unwrap_or_else(|| (0..FINE).map(|i| self.at(TAU * i as f64 / FINE as f64).0).collect())
     }
 
     /// `r'''` at the [`GRID`] angles: `Σ_k k³ (a_k sin kθ - b_k cos kθ)`.
     pub(super) fn third_derivative_on_grid(&self) -> Vec<f64> {
-        let mut y = vec![Complex::new(0.0, 0.0); GRID / 2 + 1];
-        for (k, yk) in y.iter_mut().enumerate().skip(1).take(self.harmonics()) {
-            let (a, b) = (self.coefficients[2 * k - 1], self.coefficients[2 * k]);
-            let k3 = (k * k * k) as f64;
-            *yk = Complex::new(-k3 * b / 2.0, -k3 * a / 2.0);
-        }
+        let y = self.spectrum(GRID, |k, a, b| Complex::new(-k * k * k * b / 2.0, -k * k * k * a / 2.0));
         inverse_dft(y).unwrap_or_else(|| vec![0.0; GRID])
+    }
+
+    /// The first half (`0..=n/2`) of the Hermitian spectrum of `n` equal-angle values of a
+    /// derivative of the series: `Y_k = term(k, a_k, b_k)` for `k = 1..=K`, `Y_0 = 0`.
+    fn spectrum(&self, n: usize, term: impl Fn(f64, f64, f64) -> Complex<f64>) -> Vec<Complex<f64>> {
+        let mut y = vec![Complex::new(0.0, 0.0); n / 2 + 1];
+        for (k, yk) in y.iter_mut().enumerate().skip(1).take(self.harmonics().min(n / 2 - 1)) {
+            *yk = term(k as f64, self.coefficients[2 * k - 1], self.coefficients[2 * k]);
+        }
+        y
+    }
+
+    /// [`Self::spectrum`] of the series' own values: `Y_0 = a_0`, `Y_k = (a_k - i b_k)/2`.
+    fn values_spectrum(&self, n: usize) -> Vec<Complex<f64>> {
+        let mut y = self.spectrum(n, |_, a, b| Complex::new(a / 2.0, -b / 2.0));
+        y[0].re = self.coefficients[0];
+        y
     }
 
     /// `Σ (|p| - r(θ_p))²` over `points` (`θ_p` the angle of `p`, whose cosine and sine
@@ -149,11 +143,11 @@ pub(super) fn forward_dft(values: &[f64]) -> Option<Vec<Complex<f64>>> {
     })
 }
 
-/// The real values `f_i = Σ_k Y_k e^{2πi ik/GRID}` (over the Hermitian spectrum whose
-/// first half, `k = 0..=GRID/2`, is `spectrum`; `Y_0` and `Y_{GRID/2}` real).
+/// The `n` real values `f_i = Σ_k Y_k e^{2πi ik/n}` (over the Hermitian spectrum whose
+/// first half, `k = 0..=n/2`, is `spectrum`, `n/2 + 1` long; `Y_0` and `Y_{n/2}` real).
 fn inverse_dft(mut spectrum: Vec<Complex<f64>>) -> Option<Vec<f64>> {
     FFT.with(|planner| {
-        let fft = planner.borrow_mut().plan_fft_inverse(GRID);
+        let fft = planner.borrow_mut().plan_fft_inverse(2 * spectrum.len().saturating_sub(1));
         let mut output = fft.make_output_vec();
         fft.process(&mut spectrum, &mut output).ok()?;
         Some(output)
