@@ -22,7 +22,9 @@
 //! resampling's cubic misses a frame's corners by microns), so that its coefficients carry
 //! the samples' noise whole; the lengthening taken off follows the noise as the tracer
 //! makes it, along its rail and at its samples' own spacing (`circumference`), with the
-//! noise read clear of the corners' shape ([`sample_noise_clear_of_shape`]).
+//! noise read clear of the corners' shape ([`sample_noise_clear_of_shape`]). Its noise part
+//! is the smooth's response to the noise (the finer series' curvature is mostly noise) and
+//! the spread of the lengthening the noise makes in one trace beside that of `σ̂`.
 //!
 //! **The figures** ([`Sizes`]), on a grid of [`GRID`] angles: the circumference
 //! `C = ∮ √(r² + r'²) dθ` (trapezoid, spectrally accurate on a periodic function); the box
@@ -271,7 +273,9 @@ struct NoiseSeen<'a> {
 /// The relative variance of the lengthening the noise makes in one trace (the one taken
 /// off is its mean): harmonic `j`'s part of it is `t_j = w_j (A + j² B)`, `w_j` the noise's
 /// density there (twice for `j > 0`), `A = ½∮ r'²/L³`, `B = ½∮ r²/L³` (the sum in
-/// [`noise_lengthening`] harmonic by harmonic), and each harmonic's two coefficients'
+/// [`noise_lengthening`] harmonic by harmonic; the rail's share and the samples' spacing,
+/// which vary along the contour, left out of the ratio), and each
+/// harmonic's two coefficients'
 /// squares sum to an exponential variate, whose variance is its mean squared:
 ///
 /// ```text
