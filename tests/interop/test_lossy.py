@@ -23,11 +23,10 @@ answers each scan with a same-size Contour and each /calibrate call at once) and
   5. 3 parameter requests (get `calibration.valid`), likewise;
   6. a late subscriber to the latched `calibration`: how long until it has the message.
 
-Tests (each runs the stock node and tracer_calib_node under the same loss, at the same
-time, each in its own namespace, so that both meet the same load; LOSSY_SEQUENTIAL=1 runs
-them one after the other, as before 2026-12-07; and prints both side by side): lossy_fastdds_10, lossy_fastdds_25, lossy_cyclone_10, lossy_cyclone_25
-(the Cyclone ones need target/ros/DISTRO/cyclone_env.sh, made by tests/interop/cyclone.sh,
-and say they are skipped without it). Each asserts: the node loses no more contours than
+Tests (each runs the stock node and tracer_calib_node under the same loss at the same
+time, each in a namespace of its own, so that both meet the same load, and prints both side
+by side): lossy_fastdds_10, lossy_fastdds_25, lossy_cyclone_10, lossy_cyclone_25 (the
+Cyclone ones need target/ros/DISTRO/cyclone_env.sh, made by tests/interop/cyclone.sh, and say they are skipped without it). Each asserts: the node loses no more contours than
 the stock node (none at 10 %), every call and parameter request is answered, the latched
 calibration reaches the late subscriber. Latency is printed, not asserted (a loaded CI
 machine; BENCHMARKS.md has the figures). lossy_zenoh_10: the same on Zenoh
@@ -62,7 +61,8 @@ and reordered too; mtu1500: lo's MTU 1500, loss per frame; keepall: keep all on 
 the driver's and the server's publishers and subscriptions, so that on Zenoh nothing is
 dropped, only delayed (Block, not Drop; docs/zenoh.md, "On a lossy link"), stragglers
 waited for 40 s; rtomax1s: TCP's retransmission timeout at most 1 s), as
-scripts/bench_lossy.sh does for other losses.
+scripts/bench_lossy.sh does for other losses. LOSSY_SEQUENTIAL=1: a test's stock node and
+node one after the other (as before 2026-12-07).
 """
 
 import atexit

@@ -321,6 +321,7 @@ fn c_noise_part_as_stated() {
     let orders = HarmonicOrders::new(&[1, 2, 4]).unwrap();
     let angle = AngleError::new(orders, ANGLE.iter().flat_map(|(_, c, s)| [*c, *s]).collect()).unwrap();
     let mounting = Mounting::new(tracer.alpha0, tracer.d, tracer.dl);
+    // No calibration's part: the five of the fixed layout and h = {1, 2, 4}'s six, zero.
     let quiet = DMatrix::zeros(11, 11);
     let (mut first, mut second, mut stated) = (Vec::new(), Vec::new(), 0.0);
     for _ in 0..400 {
