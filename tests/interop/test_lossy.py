@@ -26,8 +26,9 @@ answers each scan with a same-size Contour and each /calibrate call at once) and
 Tests (each runs the stock node and tracer_calib_node under the same loss at the same
 time, each in a namespace of its own, so that both meet the same load, and prints both side
 by side): lossy_fastdds_10, lossy_fastdds_25, lossy_cyclone_10, lossy_cyclone_25 (the
-Cyclone ones need target/ros/DISTRO/cyclone_env.sh, made by tests/interop/cyclone.sh, and say they are skipped without it). Each asserts: the node loses no more contours than
-the stock node (none at 10 %), every call and parameter request is answered, the latched
+Cyclone ones need target/ros/DISTRO/cyclone_env.sh, made by tests/interop/cyclone.sh, and
+say they are skipped without it). Each asserts: the node loses no more contours than the
+stock node (none at 10 %), every call and parameter request is answered, the latched
 calibration reaches the late subscriber. Latency is printed, not asserted (a loaded CI
 machine; BENCHMARKS.md has the figures). lossy_zenoh_10: the same on Zenoh
 (target/ros/DISTRO/zenoh_env.sh, made by tests/interop/zenoh.sh; rmw_zenohd in the
