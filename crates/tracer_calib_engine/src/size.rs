@@ -274,9 +274,8 @@ struct NoiseSeen<'a> {
 /// off is its mean): harmonic `j`'s part of it is `t_j = w_j (A + j² B)`, `w_j` the noise's
 /// density there (twice for `j > 0`), `A = ½∮ r'²/L³`, `B = ½∮ r²/L³` (the sum in
 /// [`noise_lengthening`] harmonic by harmonic; the rail's share and the samples' spacing,
-/// which vary along the contour, left out of the ratio), and each
-/// harmonic's two coefficients'
-/// squares sum to an exponential variate, whose variance is its mean squared:
+/// which vary along the contour, left out of the ratio), and each harmonic's two
+/// coefficients' squares sum to an exponential variate, whose variance is its mean squared:
 ///
 /// ```text
 /// var λ / λ² = Σ_j t_j² / (Σ_j t_j)²        (white noise, a circle: 9/(5K), 11.9 % at K = 127)
