@@ -284,8 +284,11 @@ fn every_input_uncertain() {
 /// Noise-free (1 nm), h = {1, 2, 4} from two placements: the frame's C, A, B as the
 /// calibration measures them within 0.5 µm of what the true calibration measures; the
 /// chain's own error (400 samples, the ball's offset, the smooth) printed apart, A, B and
-/// FED within 0.5 µm of the truth, C within 1 µm (-0.7 µm: the circumference's series
-/// truncated at 127 harmonics of 400 samples, and the ball's offset; docs/engine.md).
+/// FED within 0.5 µm of the truth, C within 1 µm (-0.7 µm: what 400 samples of a frame
+/// with 5 mm corners hold, the series' truncation at 127 harmonics -0.33 µm, where the
+/// samples fall and how unevenly, the ball's offset -0.13 µm; docs/engine.md, *The
+/// noise-free chain's C, taken apart*). The 0.5 µm is the calibration's part, as
+/// the study behind it measured it.
 #[test]
 fn noise_free_frame_within_half_a_micrometre() {
     let t = run(1e-9, 0.0, Inputs::default(), 1, 5);
