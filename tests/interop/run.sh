@@ -30,7 +30,10 @@
 #      `ros2 param`, `ros2 topic`, `ros2 node`, Ctrl-C of a launch; no `ros2 daemon` left.
 #      Whatever is still running in that namespace after it (a launch, a node, a daemon)
 #      is listed, killed, and fails the step.
-# Nothing leaves the machine. Prints each part's time.
+# Nothing leaves the machine. Prints each part's time. The set-ups (1, 3 and the stock
+# peers below) run first, one distribution after the other; then the suites (2, 4) in two
+# lanes side by side, each lane's output printed whole when it ends (TRACER_INTEROP_LANES=1:
+# one lane after the other, as they come).
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), type_hash
 # test_type_hash.py's (type_hash: all), runtime or sim_time, replay_clock, describe,
@@ -114,8 +117,14 @@ peer_run() {
         exec timeout -s KILL "$limit" python "$0" "$@"
     ' "$HERE/$script" "$ROOT" "$d" "$rmw_env" "${SUITE_LIMIT:-600}" "$@"
 }
-failed=()
+# Failures, one `DISTRO:WHAT` a line: the lanes below run in subshells of their own.
+FAILS=$(mktemp)
+LANES=$(mktemp -d)
+trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true; rm -rf "$FAILS" "$LANES"' EXIT
+fail() { echo "$1" >>"$FAILS"; }
 all=$(( $# == 0 ))
+# wanted ARRAY_LENGTH: whether a suite runs (everything with no names, else its own names).
+wanted() { [ "$all" -eq 1 ] || [ "$1" -gt 0 ]; }
 # suite SCRIPT DISTRO WHAT FAILURE [NAME...]: a test script in a private network namespace
 # (peer_run), with the NAMEs selected for it; skipped when names were given to run.sh and
 # none is its own. Prints its time; a failure is recorded as DISTRO:FAILURE.
@@ -126,9 +135,14 @@ suite() {
     local t0
     t0=$(now_ms)
     echo "run.sh: $d: $script ($what)"
-    peer_run netns.sh "$script" "$d" "" "$@" || failed+=("$d:$failure")
+    peer_run netns.sh "$script" "$d" "" "$@" || fail "$d:$failure"
     echo "run.sh: $d: $script $(took "$t0")"
 }
+
+# 1. Everything the suites need, one distribution after the other (builds and installs,
+# quick when cached): the suites below only run.
+cyclone_ok=0 zenoh_ok=0 sros2_ok=0
+declare -A workspace_ok=()
 for d in $DISTROS; do
     t0=$(now_ms)
     "$HERE/setup.sh" "$d" >/dev/null
@@ -138,139 +152,169 @@ for d in $DISTROS; do
     # The stock bond packages (bond, smclib, bondpy; quick when built): test_runtime.py's bond.
     "$HERE/bond.sh" "$d"
     # The stock ros2 bag (rosbag2; Jazzy only; quick when built): test_rosbag2.py's.
-    if [ "$d" = jazzy ] && { [ "$all" -eq 1 ] || [ "${#rosbag2[@]}" -gt 0 ]; } && ! "$HERE/rosbag2.sh" "$d"; then
-        failed+=("$d:rosbag2_setup")
+    if [ "$d" = jazzy ] && wanted "${#rosbag2[@]}" && ! "$HERE/rosbag2.sh" "$d"; then
+        fail "$d:rosbag2_setup"
+    fi
+    # rmw_cyclonedds_cpp, `ros2 security` and rmw_zenoh_cpp (Jazzy only: see 2b-2d), for
+    # test_first_scan.py's and test_lossy.py's peers on them and their own suites.
+    if [ "$d" = jazzy ]; then
+        if wanted $(( ${#first_scan[@]} + ${#lossy[@]} + ${#cyclone[@]} + ${#security[@]} )); then
+            t1=$(now_ms)
+            if "$HERE/cyclone.sh" "$d"; then
+                cyclone_ok=1
+                echo "run.sh: $d: rmw_cyclonedds_cpp $(took "$t1")"
+            else
+                fail "$d:cyclone_setup"
+            fi
+        fi
+        if [ "$cyclone_ok" -eq 1 ] && wanted "${#security[@]}"; then
+            if "$HERE/sros2.sh" "$d"; then sros2_ok=1; else fail "$d:security_setup"; fi
+        fi
+        if wanted $(( ${#lossy[@]} + ${#zenoh[@]} )); then
+            t1=$(now_ms)
+            if "$HERE/zenoh.sh" "$d"; then
+                zenoh_ok=1
+                echo "run.sh: $d: rmw_zenoh_cpp $(took "$t1")"
+            else
+                fail "$d:zenoh_setup"
+            fi
+        fi
+    fi
+    # 3. The README's `colcon build` (test_launch.py's workspace). One at a time: the
+    # workspaces share cargo's target directory.
+    if [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ]; then
+        t1=$(now_ms)
+        if "$HERE/workspace.sh" "$d"; then
+            workspace_ok[$d]=1
+            echo "run.sh: $d: workspace $(took "$t1")"
+        else
+            fail "$d:workspace"
+        fi
     fi
     echo "run.sh: $d: setup $(took "$t0")"
-    suite node_suite.py "$d" "test_node.py, test_records.py; ROS 2 $d rclpy, release binaries" node_suite \
-        ${node_tests[@]+"${node_tests[@]}"}
-    suite test_graph.py "$d" "ROS 2 $d rclpy, release binaries" test_graph ${graph[@]+"${graph[@]}"}
-    suite test_type_hash.py "$d" "ROS 2 $d rclpy, release binaries" test_type_hash ${type_hash[@]+"${type_hash[@]}"}
-    suite test_runtime.py "$d" "ROS 2 $d rclpy, release binaries" test_runtime ${runtime[@]+"${runtime[@]}"}
-    # test_first_scan.py's Cyclone DDS peers need rmw_cyclonedds_cpp (Jazzy only: see 2b);
-    # without it first_scan_cyclone says it is skipped.
-    if [ "$d" = jazzy ] && { [ "$all" -eq 1 ] || [ "${#first_scan[@]}" -gt 0 ]; } \
-        && ! "$HERE/cyclone.sh" "$d"; then
-        failed+=("$d:cyclone_setup")
+done
+if wanted "${#lossy[@]}"; then
+    # iptables' NFQUEUE and a venv with NetfilterQueue (built against
+    # libnetfilter-queue): tests/interop/netdelay.py, the *_delay scenarios' delay.
+    apt_install_missing run.sh "$ROOT/target/lossy_deps.log" nftables iptables libnetfilter-queue-dev
+    if [ ! -x "$ROOT/target/tools/netdelay/bin/python" ] \
+        || ! "$ROOT/target/tools/netdelay/bin/python" -c 'import netfilterqueue' 2>/dev/null; then
+        rm -rf "$ROOT/target/tools/netdelay"
+        python3 -m venv "$ROOT/target/tools/netdelay" \
+            && "$ROOT/target/tools/netdelay/bin/pip" install -q NetfilterQueue==1.1.0 \
+                >"$ROOT/target/netdelay_setup.log" 2>&1 \
+            || { tail -n 20 "$ROOT/target/netdelay_setup.log" >&2; fail "netdelay_setup"; }
     fi
-    suite test_first_scan.py "$d" "ROS 2 $d rclpy, release binaries" test_first_scan ${first_scan[@]+"${first_scan[@]}"}
-    # test_lossy.py: the node and a stock rclpy node in its place under 10 and 25 % UDP loss
-    # (nftables, in a network namespace of each scenario's own), and under 10 % loss with
-    # datagrams delayed and reordered, with Fast DDS peers and, on Jazzy, Cyclone DDS and
-    # Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's lossy_cyclone_* and lossy_zenoh_*
-    # say they are skipped; Zenoh under 25 % loss also with TCP's retransmission timeout
-    # capped at 1 s); ten cells started at once under 10 % (Fast DDS planner) and 25 % loss
-    # (Cyclone DDS planner).
-    if [ "$all" -eq 1 ] || [ "${#lossy[@]}" -gt 0 ]; then
-        # iptables' NFQUEUE and a venv with NetfilterQueue (built against
-        # libnetfilter-queue): tests/interop/netdelay.py, the *_delay scenarios' delay.
-        apt_install_missing run.sh "$ROOT/target/lossy_deps.log" nftables iptables libnetfilter-queue-dev
-        if [ ! -x "$ROOT/target/tools/netdelay/bin/python" ] \
-            || ! "$ROOT/target/tools/netdelay/bin/python" -c 'import netfilterqueue' 2>/dev/null; then
-            rm -rf "$ROOT/target/tools/netdelay"
-            python3 -m venv "$ROOT/target/tools/netdelay" \
-                && "$ROOT/target/tools/netdelay/bin/pip" install -q NetfilterQueue==1.1.0 \
-                    >"$ROOT/target/netdelay_setup.log" 2>&1 \
-                || { tail -n 20 "$ROOT/target/netdelay_setup.log" >&2; failed+=("netdelay_setup"); }
+    export TRACER_NETDELAY_PYTHON=$ROOT/target/tools/netdelay/bin/python
+fi
+
+# 2. The suites, in two lanes side by side (each suite in network namespaces of its own,
+# which share nothing with the other lane's; TRACER_INTEROP_LANES=1: one after the other).
+# Most of a suite's time is waiting (discovery, loss, timeouts), not computing: the lanes
+# are balanced by time, one the DDS graph, the CLI and launch, the other loss and the
+# other middleware.
+lane_dds() {
+    local d t0
+    for d in $DISTROS; do
+        suite node_suite.py "$d" "test_node.py, test_records.py; ROS 2 $d rclpy, release binaries" node_suite \
+            ${node_tests[@]+"${node_tests[@]}"}
+        suite test_graph.py "$d" "ROS 2 $d rclpy, release binaries" test_graph ${graph[@]+"${graph[@]}"}
+        suite test_type_hash.py "$d" "ROS 2 $d rclpy, release binaries" test_type_hash ${type_hash[@]+"${type_hash[@]}"}
+        suite test_runtime.py "$d" "ROS 2 $d rclpy, release binaries" test_runtime ${runtime[@]+"${runtime[@]}"}
+        # test_first_scan.py's Cyclone DDS peers need rmw_cyclonedds_cpp (Jazzy only: see
+        # 2b); without it first_scan_cyclone says it is skipped.
+        suite test_first_scan.py "$d" "ROS 2 $d rclpy, release binaries" test_first_scan \
+            ${first_scan[@]+"${first_scan[@]}"}
+        if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
+            if [ "$(id -u)" -ne 0 ]; then
+                echo "run.sh: $d: two_hosts skipped (needs root for ip netns)"
+            else
+                t0=$(now_ms)
+                echo "run.sh: $d: test_two_hosts.py (ROS 2 $d rclpy, release binaries)"
+                peer_run two_hosts.sh test_two_hosts.py "$d" "" ${two_hosts[@]+"${two_hosts[@]}"} \
+                    || fail "$d:two_hosts"
+                echo "run.sh: $d: test_two_hosts.py $(took "$t0")"
+            fi
         fi
-        export TRACER_NETDELAY_PYTHON=$ROOT/target/tools/netdelay/bin/python
-        if [ "$d" = jazzy ] && ! "$HERE/cyclone.sh" "$d"; then
-            failed+=("$d:cyclone_setup")
-        fi
-        if [ "$d" = jazzy ] && ! "$HERE/zenoh.sh" "$d"; then
-            failed+=("$d:zenoh_setup")
-        fi
-        # 14 scenarios of 30-60 s, each bounded at 300 s by test_lossy.py itself.
-        SUITE_LIMIT=1200 suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
-            ${lossy[@]+"${lossy[@]}"}
-    fi
-    if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
-        if [ "$(id -u)" -ne 0 ]; then
-            echo "run.sh: $d: two_hosts skipped (needs root for ip netns)"
-        else
-            t0=$(now_ms)
-            echo "run.sh: $d: test_two_hosts.py (ROS 2 $d rclpy, release binaries)"
-            peer_run two_hosts.sh test_two_hosts.py "$d" "" ${two_hosts[@]+"${two_hosts[@]}"} || failed+=("$d:two_hosts")
-            echo "run.sh: $d: test_two_hosts.py $(took "$t0")"
-        fi
-    fi
-    # 2b. Cyclone DDS peers (test_cyclone.py), with the stock ros2 CLI. Jazzy only: the
-    # rmw_cyclonedds tarball is its Jazzy branch, which does not build against Kilted's
-    # wheels (rmw_dds_common 4.0 has no security.hpp any more).
-    if [ "$d" != jazzy ] && { [ "$#" -eq 0 ] || [ "${#cyclone[@]}" -gt 0 ]; }; then
-        echo "run.sh: $d: test_cyclone.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
-    elif [ "$#" -eq 0 ] || [ "${#cyclone[@]}" -gt 0 ]; then
-        t0=$(now_ms)
-        if "$HERE/cyclone.sh" "$d"; then
-            echo "run.sh: $d: rmw_cyclonedds_cpp $(took "$t0")"
+        # 2b. Cyclone DDS peers (test_cyclone.py), with the stock ros2 CLI. Jazzy only: the
+        # rmw_cyclonedds tarball is its Jazzy branch, which does not build against Kilted's
+        # wheels (rmw_dds_common 4.0 has no security.hpp any more).
+        if [ "$d" != jazzy ] && wanted "${#cyclone[@]}"; then
+            echo "run.sh: $d: test_cyclone.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
+        elif wanted "${#cyclone[@]}" && [ "$cyclone_ok" -eq 1 ]; then
             t0=$(now_ms)
             echo "run.sh: $d: test_cyclone.py (ROS 2 $d rclpy on Cyclone DDS and Fast DDS, release binaries)"
             peer_run netns.sh test_cyclone.py "$d" cyclone_env.sh ${cyclone[@]+"${cyclone[@]}"} \
-                || failed+=("$d:test_cyclone")
+                || fail "$d:test_cyclone"
             echo "run.sh: $d: test_cyclone.py $(took "$t0")"
-        else
-            failed+=("$d:cyclone_setup")
         fi
-    fi
-    # 2c. SROS2 (test_security.py): the release node (built with `security`), `ros2
-    # security`, and a secure Cyclone DDS peer (Debian's Cyclone security plugins). Jazzy
-    # only, as 2b.
-    if [ "$d" != jazzy ] && { [ "$#" -eq 0 ] || [ "${#security[@]}" -gt 0 ]; }; then
-        echo "run.sh: $d: test_security.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
-    elif [ "$#" -eq 0 ] || [ "${#security[@]}" -gt 0 ]; then
-        t0=$(now_ms)
-        if "$HERE/cyclone.sh" "$d" && "$HERE/sros2.sh" "$d"; then
+        # 4. test_launch.py in the installed workspace.
+        [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ] || continue
+        [ "${workspace_ok[$d]:-0}" -eq 1 ] || continue
+        launch_suite "$d"
+    done
+}
+lane_loss() {
+    local d t0
+    for d in $DISTROS; do
+        # test_lossy.py: the node and a stock rclpy node in its place under 10 and 25 % UDP
+        # loss (nftables, in a network namespace of each scenario's own), and under 10 % loss
+        # with datagrams delayed and reordered, with Fast DDS peers and, on Jazzy, Cyclone DDS
+        # and Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's lossy_cyclone_* and
+        # lossy_zenoh_* say they are skipped; Zenoh under 25 % loss also with TCP's
+        # retransmission timeout capped at 1 s); ten cells started at once under 10 % (Fast
+        # DDS planner) and 25 % loss (Cyclone DDS planner). 14 scenarios of 30-60 s, each
+        # bounded at 300 s by test_lossy.py itself.
+        if wanted "${#lossy[@]}"; then
+            SUITE_LIMIT=1200 suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
+                ${lossy[@]+"${lossy[@]}"}
+        fi
+        # 2c. SROS2 (test_security.py): the release node (built with `security`), `ros2
+        # security`, and a secure Cyclone DDS peer (Debian's Cyclone security plugins). Jazzy
+        # only, as 2b.
+        if [ "$d" != jazzy ] && wanted "${#security[@]}"; then
+            echo "run.sh: $d: test_security.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
+        elif wanted "${#security[@]}" && [ "$sros2_ok" -eq 1 ]; then
+            t0=$(now_ms)
             echo "run.sh: $d: test_security.py (secure node, ROS 2 $d rclpy on Cyclone DDS with security)"
             # test_security.py runs each test in a process of its own and reruns one whose
             # rclpy peer segfaulted (Cyclone DDS 0.10.2; eclipse-cyclonedds/cyclonedds#1548).
             TRACER_CALIB_NODE_SECURE="$TRACER_CALIB_NODE" peer_run netns.sh test_security.py "$d" cyclone_env.sh \
-                ${security[@]+"${security[@]}"} || failed+=("$d:test_security")
+                ${security[@]+"${security[@]}"} || fail "$d:test_security"
             echo "run.sh: $d: test_security.py $(took "$t0")"
-        else
-            failed+=("$d:security_setup")
         fi
-    fi
-    # 2d. The node in a Zenoh cell with stock rmw_zenoh peers (test_zenoh.py). Jazzy only:
-    # the rmw_zenoh tarball is Jazzy's release (0.2.10).
-    if [ "${#zenoh[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
-        echo "run.sh: $d: test_zenoh.py skipped (rmw_zenoh_cpp is built for jazzy only)"
-    elif [ "${#zenoh[@]}" -gt 0 ] || { [ "$#" -eq 0 ] && [ "$d" = jazzy ]; }; then
-        t0=$(now_ms)
-        if "$HERE/zenoh.sh" "$d"; then
-            echo "run.sh: $d: rmw_zenoh_cpp $(took "$t0")"
+        # 2d. The node in a Zenoh cell with stock rmw_zenoh peers (test_zenoh.py). Jazzy
+        # only: the rmw_zenoh tarball is Jazzy's release (0.2.10).
+        if [ "${#zenoh[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
+            echo "run.sh: $d: test_zenoh.py skipped (rmw_zenoh_cpp is built for jazzy only)"
+        elif { [ "${#zenoh[@]}" -gt 0 ] || { [ "$all" -eq 1 ] && [ "$d" = jazzy ]; }; } && [ "$zenoh_ok" -eq 1 ]; then
             t0=$(now_ms)
             echo "run.sh: $d: test_zenoh.py (ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd)"
-            peer_run netns.sh test_zenoh.py "$d" zenoh_env.sh ${zenoh[@]+"${zenoh[@]}"} || failed+=("$d:test_zenoh")
+            peer_run netns.sh test_zenoh.py "$d" zenoh_env.sh ${zenoh[@]+"${zenoh[@]}"} || fail "$d:test_zenoh"
             echo "run.sh: $d: test_zenoh.py $(took "$t0")"
-        else
-            failed+=("$d:zenoh_setup")
         fi
-    fi
-    # 2e. The stock `ros2 bag` (test_rosbag2.py) against the node, peers on Fast DDS, with
-    # target/ros/jazzy/rosbag2_env.sh. Jazzy only: rosbag2.sh builds Jazzy's rosbag2.
-    if [ "$d" != jazzy ] && { [ "$#" -eq 0 ] || [ "${#rosbag2[@]}" -gt 0 ]; }; then
-        echo "run.sh: $d: test_rosbag2.py skipped (rosbag2 is built for jazzy only)"
-    elif [ "$#" -eq 0 ] || [ "${#rosbag2[@]}" -gt 0 ]; then
-        if [ -f "$ROOT/target/ros/$d/rosbag2_env.sh" ]; then
-            t0=$(now_ms)
-            echo "run.sh: $d: test_rosbag2.py (the stock ros2 bag, ROS 2 $d rclpy, release binaries)"
-            peer_run netns.sh test_rosbag2.py "$d" rosbag2_env.sh ${rosbag2[@]+"${rosbag2[@]}"} \
-                || failed+=("$d:test_rosbag2")
-            echo "run.sh: $d: test_rosbag2.py $(took "$t0")"
-        else
-            failed+=("$d:rosbag2_setup")
+        # 2e. The stock `ros2 bag` (test_rosbag2.py) against the node, peers on Fast DDS,
+        # with target/ros/jazzy/rosbag2_env.sh. Jazzy only: rosbag2.sh builds Jazzy's rosbag2.
+        if [ "$d" != jazzy ] && wanted "${#rosbag2[@]}"; then
+            echo "run.sh: $d: test_rosbag2.py skipped (rosbag2 is built for jazzy only)"
+        elif wanted "${#rosbag2[@]}"; then
+            if [ -f "$ROOT/target/ros/$d/rosbag2_env.sh" ]; then
+                t0=$(now_ms)
+                echo "run.sh: $d: test_rosbag2.py (the stock ros2 bag, ROS 2 $d rclpy, release binaries)"
+                peer_run netns.sh test_rosbag2.py "$d" rosbag2_env.sh ${rosbag2[@]+"${rosbag2[@]}"} \
+                    || fail "$d:test_rosbag2"
+                echo "run.sh: $d: test_rosbag2.py $(took "$t0")"
+            else
+                fail "$d:rosbag2_setup"
+            fi
         fi
-    fi
-    [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ] || continue
-    t0=$(now_ms)
-    if ! "$HERE/workspace.sh" "$d"; then
-        failed+=("$d:workspace")
-        continue
-    fi
-    echo "run.sh: $d: workspace $(took "$t0")"
+    done
+}
+# 4. test_launch.py DISTRO: the installed workspace, the stock ros2 CLI and launch.
+launch_suite() {
+    local d=$1 t0 names=() n
     t0=$(now_ms)
     echo "run.sh: $d: test_launch.py (installed workspace; the stock ros2 CLI and launch, ROS 2 $d)"
-    names=()
     for n in ${launch[@]+"${launch[@]}"}; do [ "$n" = all ] || names+=("$n"); done
     # The environment of a shell that sourced ROS 2 and the workspace, plus the loopback-only
     # DDS settings of the tests. Then whatever is left running in the namespace.
@@ -296,11 +340,31 @@ for d in $DISTROS; do
         [ "${#left[@]}" -eq 0 ] || { kill -KILL "${left[@]}" 2>/dev/null; rc=1; }
         exit "$rc"
     ' "$HERE/test_launch.py" "$ROOT" "$d" ${names[@]+"${names[@]}"}; then
-        failed+=("$d:test_launch")
+        fail "$d:test_launch"
     fi
     echo "run.sh: $d: test_launch.py $(took "$t0")"
-done
-if [ "${#failed[@]}" -gt 0 ]; then
-    echo "run.sh: failed: ${failed[*]}" >&2
+}
+if [ "${TRACER_INTEROP_LANES:-2}" = 1 ]; then
+    lane_dds "$@"
+    lane_loss "$@"
+else
+    # Each lane's output whole, when it ends (first ended, first printed).
+    declare -A lane_of=()
+    for lane in dds loss; do
+        ( t0=$(now_ms); rc=0; "lane_$lane" "$@" || rc=$?; echo "run.sh: lane $lane $(took "$t0")"
+          [ "$rc" -eq 0 ] || fail "lane_$lane:exit_$rc" ) >"$LANES/$lane.log" 2>&1 &
+        lane_of[$!]=$lane
+        echo "run.sh: lane $lane started (its output when it ends)"
+    done
+    while [ "${#lane_of[@]}" -gt 0 ]; do
+        ended=
+        wait -n -p ended "${!lane_of[@]}" || true
+        [ -n "$ended" ] || break
+        cat "$LANES/${lane_of[$ended]}.log"
+        unset "lane_of[$ended]"
+    done
+fi
+if [ -s "$FAILS" ]; then
+    echo "run.sh: failed: $(tr '\n' ' ' <"$FAILS")" >&2
     exit 1
 fi
