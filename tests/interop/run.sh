@@ -125,18 +125,29 @@ fail() { echo "$1" >>"$FAILS"; }
 all=$(( $# == 0 ))
 # wanted ARRAY_LENGTH: whether a suite runs (everything with no names, else its own names).
 wanted() { [ "$all" -eq 1 ] || [ "$1" -gt 0 ]; }
-# suite SCRIPT DISTRO WHAT FAILURE [NAME...]: a test script in a private network namespace
-# (peer_run), with the NAMEs selected for it; skipped when names were given to run.sh and
-# none is its own. Prints its time; a failure is recorded as DISTRO:FAILURE.
-suite() {
-    local script=$1 d=$2 what=$3 failure=$4
-    shift 4
+# suite_in WRAPPER RMW_ENV SCRIPT DISTRO WHAT FAILURE [NAME...]: a test script through
+# WRAPPER (netns.sh: a private network namespace; two_hosts.sh) with RMW_ENV (peer_run),
+# with the NAMEs selected for it; skipped when names were given to run.sh and none is its
+# own. Prints its time; a failure is recorded as DISTRO:FAILURE.
+suite_in() {
+    local wrapper=$1 rmw_env=$2 script=$3 d=$4 what=$5 failure=$6
+    shift 6
     [ "$all" -eq 1 ] || [ "$#" -gt 0 ] || return 0
     local t0
     t0=$(now_ms)
     echo "run.sh: $d: $script ($what)"
-    peer_run netns.sh "$script" "$d" "" "$@" || fail "$d:$failure"
+    peer_run "$wrapper" "$script" "$d" "$rmw_env" "$@" || fail "$d:$failure"
     echo "run.sh: $d: $script $(took "$t0")"
+}
+# suite SCRIPT DISTRO WHAT FAILURE [NAME...]: suite_in a private network namespace, Fast DDS.
+suite() { suite_in netns.sh "" "$@"; }
+# built WHAT DISTRO CMD...: a set-up step; prints its time if it succeeded, and its status.
+built() {
+    local what=$1 d=$2 t0
+    shift 2
+    t0=$(now_ms)
+    "$@" || return 1
+    echo "run.sh: $d: $what $(took "$t0")"
 }
 
 # 1. Everything the suites need, one distribution after the other (builds and installs,
@@ -159,37 +170,19 @@ for d in $DISTROS; do
     # test_first_scan.py's and test_lossy.py's peers on them and their own suites.
     if [ "$d" = jazzy ]; then
         if wanted $(( ${#first_scan[@]} + ${#lossy[@]} + ${#cyclone[@]} + ${#security[@]} )); then
-            t1=$(now_ms)
-            if "$HERE/cyclone.sh" "$d"; then
-                cyclone_ok=1
-                echo "run.sh: $d: rmw_cyclonedds_cpp $(took "$t1")"
-            else
-                fail "$d:cyclone_setup"
-            fi
+            if built rmw_cyclonedds_cpp "$d" "$HERE/cyclone.sh" "$d"; then cyclone_ok=1; else fail "$d:cyclone_setup"; fi
         fi
         if [ "$cyclone_ok" -eq 1 ] && wanted "${#security[@]}"; then
             if "$HERE/sros2.sh" "$d"; then sros2_ok=1; else fail "$d:security_setup"; fi
         fi
         if wanted $(( ${#lossy[@]} + ${#zenoh[@]} )); then
-            t1=$(now_ms)
-            if "$HERE/zenoh.sh" "$d"; then
-                zenoh_ok=1
-                echo "run.sh: $d: rmw_zenoh_cpp $(took "$t1")"
-            else
-                fail "$d:zenoh_setup"
-            fi
+            if built rmw_zenoh_cpp "$d" "$HERE/zenoh.sh" "$d"; then zenoh_ok=1; else fail "$d:zenoh_setup"; fi
         fi
     fi
     # 3. The README's `colcon build` (test_launch.py's workspace). One at a time: the
     # workspaces share cargo's target directory.
     if [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ]; then
-        t1=$(now_ms)
-        if "$HERE/workspace.sh" "$d"; then
-            workspace_ok[$d]=1
-            echo "run.sh: $d: workspace $(took "$t1")"
-        else
-            fail "$d:workspace"
-        fi
+        if built workspace "$d" "$HERE/workspace.sh" "$d"; then workspace_ok[$d]=1; else fail "$d:workspace"; fi
     fi
     echo "run.sh: $d: setup $(took "$t0")"
 done
@@ -214,7 +207,7 @@ fi
 # are balanced by time, one the DDS graph, the CLI and launch, the other loss and the
 # other middleware.
 lane_dds() {
-    local d t0
+    local d
     for d in $DISTROS; do
         suite node_suite.py "$d" "test_node.py, test_records.py; ROS 2 $d rclpy, release binaries" node_suite \
             ${node_tests[@]+"${node_tests[@]}"}
@@ -225,28 +218,20 @@ lane_dds() {
         # 2b); without it first_scan_cyclone says it is skipped.
         suite test_first_scan.py "$d" "ROS 2 $d rclpy, release binaries" test_first_scan \
             ${first_scan[@]+"${first_scan[@]}"}
-        if [ "$#" -eq 0 ] || [ "${#two_hosts[@]}" -gt 0 ]; then
-            if [ "$(id -u)" -ne 0 ]; then
-                echo "run.sh: $d: two_hosts skipped (needs root for ip netns)"
-            else
-                t0=$(now_ms)
-                echo "run.sh: $d: test_two_hosts.py (ROS 2 $d rclpy, release binaries)"
-                peer_run two_hosts.sh test_two_hosts.py "$d" "" ${two_hosts[@]+"${two_hosts[@]}"} \
-                    || fail "$d:two_hosts"
-                echo "run.sh: $d: test_two_hosts.py $(took "$t0")"
-            fi
+        if wanted "${#two_hosts[@]}" && [ "$(id -u)" -ne 0 ]; then
+            echo "run.sh: $d: two_hosts skipped (needs root for ip netns)"
+        elif [ "$(id -u)" -eq 0 ]; then
+            suite_in two_hosts.sh "" test_two_hosts.py "$d" "ROS 2 $d rclpy, release binaries" two_hosts \
+                ${two_hosts[@]+"${two_hosts[@]}"}
         fi
         # 2b. Cyclone DDS peers (test_cyclone.py), with the stock ros2 CLI. Jazzy only: the
         # rmw_cyclonedds tarball is its Jazzy branch, which does not build against Kilted's
         # wheels (rmw_dds_common 4.0 has no security.hpp any more).
         if [ "$d" != jazzy ] && wanted "${#cyclone[@]}"; then
             echo "run.sh: $d: test_cyclone.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
-        elif wanted "${#cyclone[@]}" && [ "$cyclone_ok" -eq 1 ]; then
-            t0=$(now_ms)
-            echo "run.sh: $d: test_cyclone.py (ROS 2 $d rclpy on Cyclone DDS and Fast DDS, release binaries)"
-            peer_run netns.sh test_cyclone.py "$d" cyclone_env.sh ${cyclone[@]+"${cyclone[@]}"} \
-                || fail "$d:test_cyclone"
-            echo "run.sh: $d: test_cyclone.py $(took "$t0")"
+        elif [ "$cyclone_ok" -eq 1 ]; then
+            suite_in netns.sh cyclone_env.sh test_cyclone.py "$d" \
+                "ROS 2 $d rclpy on Cyclone DDS and Fast DDS, release binaries" test_cyclone ${cyclone[@]+"${cyclone[@]}"}
         fi
         # 4. test_launch.py in the installed workspace.
         [ "$#" -eq 0 ] || [ "${#launch[@]}" -gt 0 ] || continue
@@ -255,7 +240,7 @@ lane_dds() {
     done
 }
 lane_loss() {
-    local d t0
+    local d
     for d in $DISTROS; do
         # test_lossy.py: the node and a stock rclpy node in its place under 10 and 25 % UDP
         # loss (nftables, in a network namespace of each scenario's own), and under 10 % loss
@@ -265,33 +250,26 @@ lane_loss() {
         # retransmission timeout capped at 1 s); ten cells started at once under 10 % (Fast
         # DDS planner) and 25 % loss (Cyclone DDS planner). 14 scenarios of 30-60 s, each
         # bounded at 300 s by test_lossy.py itself.
-        if wanted "${#lossy[@]}"; then
-            SUITE_LIMIT=1200 suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
-                ${lossy[@]+"${lossy[@]}"}
-        fi
+        SUITE_LIMIT=1200 suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
+            ${lossy[@]+"${lossy[@]}"}
         # 2c. SROS2 (test_security.py): the release node (built with `security`), `ros2
         # security`, and a secure Cyclone DDS peer (Debian's Cyclone security plugins). Jazzy
         # only, as 2b.
         if [ "$d" != jazzy ] && wanted "${#security[@]}"; then
             echo "run.sh: $d: test_security.py skipped (rmw_cyclonedds_cpp is built for jazzy only)"
-        elif wanted "${#security[@]}" && [ "$sros2_ok" -eq 1 ]; then
-            t0=$(now_ms)
-            echo "run.sh: $d: test_security.py (secure node, ROS 2 $d rclpy on Cyclone DDS with security)"
+        elif [ "$sros2_ok" -eq 1 ]; then
             # test_security.py runs each test in a process of its own and reruns one whose
             # rclpy peer segfaulted (Cyclone DDS 0.10.2; eclipse-cyclonedds/cyclonedds#1548).
-            TRACER_CALIB_NODE_SECURE="$TRACER_CALIB_NODE" peer_run netns.sh test_security.py "$d" cyclone_env.sh \
-                ${security[@]+"${security[@]}"} || fail "$d:test_security"
-            echo "run.sh: $d: test_security.py $(took "$t0")"
+            TRACER_CALIB_NODE_SECURE="$TRACER_CALIB_NODE" suite_in netns.sh cyclone_env.sh test_security.py "$d" \
+                "secure node, ROS 2 $d rclpy on Cyclone DDS with security" test_security ${security[@]+"${security[@]}"}
         fi
         # 2d. The node in a Zenoh cell with stock rmw_zenoh peers (test_zenoh.py). Jazzy
         # only: the rmw_zenoh tarball is Jazzy's release (0.2.10).
         if [ "${#zenoh[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
             echo "run.sh: $d: test_zenoh.py skipped (rmw_zenoh_cpp is built for jazzy only)"
-        elif { [ "${#zenoh[@]}" -gt 0 ] || { [ "$all" -eq 1 ] && [ "$d" = jazzy ]; }; } && [ "$zenoh_ok" -eq 1 ]; then
-            t0=$(now_ms)
-            echo "run.sh: $d: test_zenoh.py (ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd)"
-            peer_run netns.sh test_zenoh.py "$d" zenoh_env.sh ${zenoh[@]+"${zenoh[@]}"} || fail "$d:test_zenoh"
-            echo "run.sh: $d: test_zenoh.py $(took "$t0")"
+        elif [ "$d" = jazzy ] && [ "$zenoh_ok" -eq 1 ]; then
+            suite_in netns.sh zenoh_env.sh test_zenoh.py "$d" "ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd" \
+                test_zenoh ${zenoh[@]+"${zenoh[@]}"}
         fi
         # 2e. The stock `ros2 bag` (test_rosbag2.py) against the node, peers on Fast DDS,
         # with target/ros/jazzy/rosbag2_env.sh. Jazzy only: rosbag2.sh builds Jazzy's rosbag2.
@@ -299,11 +277,8 @@ lane_loss() {
             echo "run.sh: $d: test_rosbag2.py skipped (rosbag2 is built for jazzy only)"
         elif wanted "${#rosbag2[@]}"; then
             if [ -f "$ROOT/target/ros/$d/rosbag2_env.sh" ]; then
-                t0=$(now_ms)
-                echo "run.sh: $d: test_rosbag2.py (the stock ros2 bag, ROS 2 $d rclpy, release binaries)"
-                peer_run netns.sh test_rosbag2.py "$d" rosbag2_env.sh ${rosbag2[@]+"${rosbag2[@]}"} \
-                    || fail "$d:test_rosbag2"
-                echo "run.sh: $d: test_rosbag2.py $(took "$t0")"
+                suite_in netns.sh rosbag2_env.sh test_rosbag2.py "$d" \
+                    "the stock ros2 bag, ROS 2 $d rclpy, release binaries" test_rosbag2 ${rosbag2[@]+"${rosbag2[@]}"}
             else
                 fail "$d:rosbag2_setup"
             fi
