@@ -1,11 +1,12 @@
 """What the interop tests share, with ROS (rclpy and the generated tracer_calib_msgs):
 the node under test as a process, the rclpy peer, scans, ellipse geometry, params files
-and their read-back by a stock rclpy node, and the test runner with the node logs.
+and their read-back by a stock rclpy node (the suites' fixtures, in conftest.py, build on
+it).
 
 Imported by the test scripts (test_node.py, test_records.py, test_graph.py,
-test_launch.py, cell_graph.py, and test_two_hosts.py's peer process); none of them
-imports another test script. What needs no ROS is in runner.py (test_two_hosts.py's
-controller imports only that).
+test_launch.py, cell_graph.py, and test_two_hosts.py's peer process); test_zenoh.py
+runs test_node.py's, test_records.py's and some of test_runtime.py's tests on Zenoh. What
+needs no ROS is in processes.py (test_two_hosts.py's controller imports only that).
 
 At import: NODE_BIN and TOOL_BIN from $TRACER_CALIB_NODE and $TRACER_CALIB (run.sh sets
 them to the release binaries in cargo's target directory); WORK, a fresh temporary
@@ -30,7 +31,7 @@ from tracer_calib_msgs.msg import Contour, RawScan
 from tracer_calib_msgs.srv import Calibrate
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import runner  # noqa: E402
+import processes  # noqa: E402
 
 NODE_BIN = os.environ["TRACER_CALIB_NODE"]
 TOOL_BIN = os.environ["TRACER_CALIB"]
@@ -123,7 +124,7 @@ class NodeProcess:
         """SIGTERM, then the seconds it took to exit."""
         if self in RUNNING:
             RUNNING.remove(self)
-        took = runner.terminate(self.proc, timeout)
+        took = processes.terminate(self.proc, timeout)
         if took is None:
             raise AssertionError(f"{self.label}: did not exit within {timeout} s of SIGTERM")
         return took
@@ -261,7 +262,7 @@ class ZenohRouter:
             return f.read()
 
     def stop(self):
-        runner.terminate(self.proc)
+        processes.terminate(self.proc)
 
 
 def peer_envs():
@@ -340,28 +341,9 @@ def params_file(name, body):
 def read_back_with_rclpy(path, node_name, namespace):
     """Load a params file into a stock rclpy node with --params-file (a fresh process,
     as `ros2 run ... --ros-args --params-file` would) and return its parameters."""
-    code = f"""
-import json, rclpy
-from rclpy.node import Node
-rclpy.init(args=['--ros-args', '--params-file', {path!r}])
-n = Node({node_name!r}, namespace={namespace!r}, automatically_declare_parameters_from_overrides=True)
-print(json.dumps({{p.name: p.value for p in n._parameters.values()}}, default=list))
-n.destroy_node()
-rclpy.shutdown()
-"""
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    out = subprocess.run([sys.executable, processes.peer_program("params_read_back"), path, node_name, namespace],
+                         capture_output=True, text=True, timeout=60)
     if out.returncode != 0:
         raise AssertionError(f"rclpy could not load {path}:\n{out.stderr}")
     # The last JSON line: a middleware may log after it (rmw_zenoh_cpp's session, closing).
     return json.loads(next(ln for ln in reversed(out.stdout.splitlines()) if ln.startswith("{")))
-
-
-def run_tests(tests, only, label, summary, after_each=None):
-    """runner.run_tests, with the tail of every node log in WORK after a failure."""
-    return runner.run_tests(tests, only, label, summary, after_each, log_dir=WORK)
-
-
-def run_tests_and_exit(script, tests, argv, label, summary):
-    """runner.run_tests_and_exit with WORK as the scratch folder, and its node logs' tails
-    after a failure."""
-    runner.run_tests_and_exit(script, tests, argv, label, summary, WORK, log_dir=WORK)

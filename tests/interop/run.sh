@@ -7,8 +7,9 @@
 #      distribution's venv (quick when installed);
 #   2. against the release binaries (in cargo's target directory: scripts/target_dir.sh),
 #      with the peer's environment target/ros/DISTRO/env.sh:
-#      - node_suite.py (test_node.py's tests, then test_records.py's) in a private network
-#        namespace;
+#      every suite with pytest (tests/interop/conftest.py; pytest installed into the venv
+#      from requirements-pytest.txt; a JUnit report a suite in target/interop-junit/):
+#      - test_node.py's tests, then test_records.py's, in a private network namespace;
 #      - test_graph.py, the node in the ROS graph (leaving it, matching, QoS), in a private
 #        network namespace too;
 #      - test_type_hash.py, type hashes and ~/get_type_description (REP-2016), likewise;
@@ -44,8 +45,9 @@
 # all), cyclone or mixed test_cyclone.py's (cyclone: all), security or secure_* or
 # insecure_* or hmi_* or capture_* or foreign_* or *_missing_enclave or
 # *_bad_credentials test_security.py's (security: all), launch test_launch.py's
-# (launch_NAME: its test NAME; launch: all, with 3 before it); the others, node_suite.py's
-# tests. With names, 3 and 4 run only for launch names. No names: everything.
+# (launch_NAME: its test NAME; launch: all, with 3 before it); the others, test_node.py's
+# and test_records.py's tests (conftest.py: a parametrized test's name is its function's
+# and its parameters', e.g. lossy_fastdds_10_delay, first_scan_call_cyclone). With names, 3 and 4 run only for launch names. No names: everything.
 # Also: after 1, tests/interop/ros2cli.sh installs the stock ros2 CLI and launch into the
 # venv; (2b, after 2, Jazzy) tests/interop/cyclone.sh builds rmw_cyclonedds_cpp (cached
 # outside the clone), and test_cyclone.py runs with the node's peers on Cyclone DDS, and
@@ -99,24 +101,31 @@ done
 for b in "$TRACER_CALIB_NODE" "$TRACER_CALIB"; do
     [ -x "$b" ] || { echo "missing $b: run 'cargo build --release' first" >&2; exit 2; }
 done
-# A test script with the distribution's peer environment: SCRIPT DISTRO [NAME...]
-# (node_suite.py, test_graph.py), through WRAPPER (netns.sh or two_hosts.sh).
-# peer_run WRAPPER SCRIPT DISTRO RMW_ENV [ARG...]: python SCRIPT under WRAPPER (netns.sh,
-# two_hosts.sh) in the peer's environment (target/ros/DISTRO/env.sh), and with RMW_ENV
-# (cyclone_env.sh, zenoh_env.sh; empty: Fast DDS) sourced after it. The script is killed
-# after SUITE_LIMIT seconds (600 unless set for it: a hang fails, it does not stop CI).
+# Each suite's JUnit report: target/interop-junit/DISTRO-SUITE.xml.
+JUNIT=$ROOT/target/interop-junit
+rm -rf "$JUNIT"
+mkdir -p "$JUNIT"
+# peer_run WRAPPER SCRIPTS DISTRO RMW_ENV REPORT [NAME...]: pytest on SCRIPTS (test files,
+# space-separated; tests/interop/conftest.py) under WRAPPER (netns.sh, two_hosts.sh) in the
+# peer's environment (target/ros/DISTRO/env.sh), and with RMW_ENV (cyclone_env.sh,
+# zenoh_env.sh; empty: Fast DDS) sourced after it; the tests the NAMEs select (all if
+# none), the JUnit report $JUNIT/DISTRO-REPORT.xml. Killed after SUITE_LIMIT seconds (600
+# unless set for it: a hang fails, it does not stop CI).
 peer_run() {
-    local wrapper=$1 script=$2 d=$3 rmw_env=$4
-    shift 4
+    local wrapper=$1 scripts=$2 d=$3 rmw_env=$4 report=$5 args=() f n
+    shift 5
+    for f in $scripts; do args+=("$HERE/$f"); done
+    for n in "$@"; do args+=(--name "$n"); done
     # shellcheck disable=SC2016
     "$HERE/$wrapper" bash -c '
-        . "$1/target/ros/$2/env.sh"
-        [ ! -f "$1/target/ros/$2/bond_env.sh" ] || . "$1/target/ros/$2/bond_env.sh"
-        [ -z "$3" ] || . "$1/target/ros/$2/$3"
-        limit=$4
-        shift 4
-        exec timeout -s KILL "$limit" python "$0" "$@"
-    ' "$HERE/$script" "$ROOT" "$d" "$rmw_env" "${SUITE_LIMIT:-600}" "$@"
+        . "$0/target/ros/$1/env.sh"
+        [ ! -f "$0/target/ros/$1/bond_env.sh" ] || . "$0/target/ros/$1/bond_env.sh"
+        [ -z "$2" ] || . "$0/target/ros/$1/$2"
+        limit=$3
+        shift 3
+        exec timeout -s KILL "$limit" python -m pytest "$@"
+    ' "$ROOT" "$d" "$rmw_env" "${SUITE_LIMIT:-600}" -c "$HERE/pytest.ini" --rootdir "$HERE" \
+        --junitxml "$JUNIT/$d-$report.xml" "${args[@]}"
 }
 # Failures, one `DISTRO:WHAT` a line: the lanes below run in subshells of their own.
 FAILS=$(mktemp)
@@ -126,19 +135,20 @@ fail() { echo "$1" >>"$FAILS"; }
 all=$(( $# == 0 ))
 # wanted ARRAY_LENGTH: whether a suite runs (everything with no names, else its own names).
 wanted() { [ "$all" -eq 1 ] || [ "$1" -gt 0 ]; }
-# suite_in WRAPPER RMW_ENV SCRIPT DISTRO WHAT FAILURE [NAME...]: a test script through
-# WRAPPER (netns.sh: a private network namespace; two_hosts.sh) with RMW_ENV (peer_run),
-# with the NAMEs selected for it; skipped when names were given to run.sh and none is its
-# own. Prints its time; a failure is recorded as DISTRO:FAILURE.
+# suite_in WRAPPER RMW_ENV SCRIPTS DISTRO WHAT FAILURE [NAME...]: a suite's test files
+# through WRAPPER (netns.sh: a private network namespace; two_hosts.sh) with RMW_ENV
+# (peer_run), with the NAMEs selected for it; skipped when names were given to run.sh and
+# none is its own. Prints its time; a failure is recorded as DISTRO:FAILURE, its JUnit
+# report is $JUNIT/DISTRO-FAILURE.xml.
 suite_in() {
-    local wrapper=$1 rmw_env=$2 script=$3 d=$4 what=$5 failure=$6
+    local wrapper=$1 rmw_env=$2 scripts=$3 d=$4 what=$5 failure=$6
     shift 6
     [ "$all" -eq 1 ] || [ "$#" -gt 0 ] || return 0
     local t0
     t0=$(now_ms)
-    echo "run.sh: $d: $script ($what)"
-    peer_run "$wrapper" "$script" "$d" "$rmw_env" "$@" || fail "$d:$failure"
-    echo "run.sh: $d: $script $(took "$t0")"
+    echo "run.sh: $d: $scripts ($what)"
+    peer_run "$wrapper" "$scripts" "$d" "$rmw_env" "$failure" "$@" || fail "$d:$failure"
+    echo "run.sh: $d: $scripts $(took "$t0")"
 }
 # suite SCRIPT DISTRO WHAT FAILURE [NAME...]: suite_in a private network namespace, Fast DDS.
 suite() { suite_in netns.sh "" "$@"; }
@@ -174,6 +184,22 @@ zenoh_wait() {
     if [ "$(cat "$LANES/zenoh.rc")" = 0 ]; then zenoh_ok=1; else fail "$1:zenoh_setup"; zenoh_pid=; fi
 }
 
+# pytest_in_venv DISTRO: the suites' runner (requirements-pytest.txt) in the distribution's
+# venv, on top of setup.sh's (quick when installed: keyed on the file and the venv's stamp,
+# so a venv made afresh gets it again).
+pytest_in_venv() {
+    local ros=$ROOT/target/ros/$1 key
+    key=$(cat "$HERE/requirements-pytest.txt" "$ros/stamps/venv" | sha256sum | cut -c1-64)
+    [ "$(cat "$ros/stamps/pytest" 2>/dev/null)" != "$key" ] || return 0
+    if ! "$ros/venv/bin/python" -m pip install -q --disable-pip-version-check --no-input --no-deps \
+            --require-hashes -r "$HERE/requirements-pytest.txt" >"$ros/logs/pytest.log" 2>&1; then
+        tail -n 20 "$ros/logs/pytest.log" >&2
+        return 1
+    fi
+    echo "$key" >"$ros/stamps/pytest"
+    echo "run.sh: $1: pytest installed in its venv"
+}
+
 # 1. Everything the suites need, one distribution after the other (builds and installs,
 # quick when cached; rmw_zenoh_cpp beside them): the suites below only run.
 cyclone_ok=0 zenoh_ok=0 sros2_ok=0
@@ -181,6 +207,7 @@ declare -A workspace_ok=()
 for d in $DISTROS; do
     t0=$(now_ms)
     "$HERE/setup.sh" "$d" >/dev/null
+    pytest_in_venv "$d"
     # The stock ros2 CLI and launch in the venv (quick when installed): test_cyclone.py's
     # and test_launch.py's.
     "$HERE/ros2cli.sh" "$d"
@@ -233,7 +260,7 @@ fi
 lane_dds() {
     local d
     for d in $DISTROS; do
-        suite node_suite.py "$d" "test_node.py, test_records.py; ROS 2 $d rclpy, release binaries" node_suite \
+        suite "test_node.py test_records.py" "$d" "ROS 2 $d rclpy, release binaries" node_suite \
             ${node_tests[@]+"${node_tests[@]}"}
         suite test_graph.py "$d" "ROS 2 $d rclpy, release binaries" test_graph ${graph[@]+"${graph[@]}"}
         suite test_type_hash.py "$d" "ROS 2 $d rclpy, release binaries" test_type_hash ${type_hash[@]+"${type_hash[@]}"}
@@ -322,7 +349,7 @@ launch_suite() {
     local d=$1 t0 names=() n
     t0=$(now_ms)
     echo "run.sh: $d: test_launch.py (installed workspace; the stock ros2 CLI and launch, ROS 2 $d)"
-    for n in ${launch[@]+"${launch[@]}"}; do [ "$n" = all ] || names+=("$n"); done
+    for n in ${launch[@]+"${launch[@]}"}; do [ "$n" = all ] || names+=(--name "$n"); done
     # The environment of a shell that sourced ROS 2 and the workspace, plus the loopback-only
     # DDS settings of the tests. Then whatever is left running in the namespace.
     # shellcheck disable=SC2016
@@ -331,10 +358,11 @@ launch_suite() {
         . "$1/target/colcon_ws/$2/install/setup.bash"
         export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
         export FASTDDS_DEFAULT_PROFILES_FILE="$1/target/ros/$2/fastdds_localhost.xml"
-        script=$0
-        shift 2
+        script=$0 here=$3 report=$4
+        shift 4
         rc=0
-        timeout -s KILL 600 python "$script" "$@" || rc=$?
+        timeout -s KILL 600 python -m pytest -c "$here/pytest.ini" --rootdir "$here" --junitxml "$report" \
+            "$script" "$@" || rc=$?
         me=$(readlink /proc/$$/ns/net)
         left=()
         for p in /proc/[0-9]*; do
@@ -346,7 +374,7 @@ launch_suite() {
         done
         [ "${#left[@]}" -eq 0 ] || { kill -KILL "${left[@]}" 2>/dev/null; rc=1; }
         exit "$rc"
-    ' "$HERE/test_launch.py" "$ROOT" "$d" ${names[@]+"${names[@]}"}; then
+    ' "$HERE/test_launch.py" "$ROOT" "$d" "$HERE" "$JUNIT/$d-test_launch.xml" ${names[@]+"${names[@]}"}; then
         fail "$d:test_launch"
     fi
     echo "run.sh: $d: test_launch.py $(took "$t0")"

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """tracer_calib_node with stock ROS 2 peers on Cyclone DDS: rclpy on rmw_cyclonedds_cpp
 (built from source by tests/interop/cyclone.sh against Debian's Cyclone DDS), alone and
 next to rclpy on rmw_fastrtps_cpp (Fast DDS) in one cell.
@@ -20,7 +19,7 @@ preload; Fast DDS peers are subprocesses with the Fast DDS environment of env.sh
 - mixed_cell: a Cyclone client process and a Fast DDS client process, 30 /calibrate calls
   each at once, every one answered with the fit of the plate scan it named.
 
-Prints one line per test and a closing 'N passed, N skipped, N failed'.
+Run with pytest (conftest.py).
 """
 
 import json
@@ -28,9 +27,7 @@ import os
 import shutil
 import subprocess
 import sys
-import time
 
-import rclpy
 from rclpy.parameter import Parameter
 from rclpy.utilities import get_rmw_implementation_identifier
 
@@ -40,7 +37,14 @@ from tracer_calib_msgs.srv import Calibrate
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 # The shared helpers (node processes, scans, an rclpy peer with deadlines).
 import harness as tn  # noqa: E402
-import runner  # noqa: E402
+import pytest  # noqa: E402
+import processes  # noqa: E402
+from processes import peer_program  # noqa: E402
+
+if get_rmw_implementation_identifier() != "rmw_cyclonedds_cpp":
+    pytest.exit(f"test_cyclone.py: this rclpy is on {get_rmw_implementation_identifier()}, not rmw_cyclonedds_cpp: "
+                "source cyclone_env.sh", returncode=2)
+pytestmark = pytest.mark.cyclone
 
 # This process's environment is Cyclone's; the preload is already in this interpreter.
 # Children get it only when they are peers meant for Cyclone DDS.
@@ -161,49 +165,6 @@ def test_cyclone_cli(peer):
     assert not bad, "\n".join(bad)
 
 
-# One client process of the mixed cell: a warm-up call (discovery both ways), "ready",
-# then on "go" CALLS calls at once, alternating between two plate scans; prints what each
-# call named and got, as JSON. Its reply queue holds CALLS replies (see below).
-CLIENT = r"""
-import json, sys, time
-import rclpy
-from rclpy.qos import QoSProfile
-from rclpy.node import Node
-from rclpy.utilities import get_rmw_implementation_identifier
-from tracer_calib_msgs.srv import Calibrate
-calls, ids = int(sys.argv[1]), [int(a) for a in sys.argv[2:]]
-rclpy.init()
-n = Node("mixed_client")
-# A reply queue as deep as the calls it has outstanding: with ROS's default (KEEP_LAST 10),
-# 30 replies arriving within ms push some out before rclpy takes them on Cyclone DDS (a
-# stock rclpy server on Cyclone DDS got 10 of 30 answers through, this node 20).
-c = n.create_client(Calibrate, "/calibrate", qos_profile=QoSProfile(depth=calls))
-def wait(cond, timeout):
-    deadline = time.monotonic() + timeout
-    while not cond() and time.monotonic() < deadline:
-        rclpy.spin_once(n, timeout_sec=0.05)
-    return cond()
-assert wait(c.service_is_ready, 20), "service not ready"
-for attempt in range(10):
-    f = c.call_async(Calibrate.Request(scan_id=ids[0], dry_run=True))
-    if wait(f.done, 3):
-        break
-else:
-    raise SystemExit("no warm-up answer")
-print("ready", flush=True)
-sys.stdin.readline()
-reqs = [ids[i % len(ids)] for i in range(calls)]
-t0 = time.monotonic()
-futures = [c.call_async(Calibrate.Request(scan_id=s, dry_run=True)) for s in reqs]
-wait(lambda: all(f.done() for f in futures), 60)
-took = time.monotonic() - t0
-out = [[s, f.result().success, f.result().message, f.result().alpha0] if f.done() else [s, None, None, None]
-       for s, f in zip(reqs, futures)]
-print(json.dumps({"rmw": get_rmw_implementation_identifier(), "took": took, "calls": out}), flush=True)
-import os; os._exit(0)
-"""
-
-
 def test_mixed_cell(peer):
     """A Cyclone client and a Fast DDS client, 30 calls each at once: every call answered
     with the fit of the scan it named (each reply in its client's layout, to its client)."""
@@ -212,7 +173,7 @@ def test_mixed_cell(peer):
         send_plate_scans(peer, [(21, 11), (22, 12)])
         procs = {
             name: subprocess.Popen(
-                ["timeout", "-s", "KILL", "120", sys.executable, "-c", CLIENT, str(CALLS), "21", "22"],
+                ["timeout", "-s", "KILL", "120", sys.executable, peer_program("cyclone_client"), str(CALLS), "21", "22"],
                 env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
             )
             for name, env in (("cyclone", CYCLONE_ENV), ("fastdds", FAST_ENV))
@@ -243,27 +204,8 @@ def test_mixed_cell(peer):
         assert fits[21] != fits[22], fits
     finally:
         for p in locals().get("procs", {}).values():
-            runner.kill(p)
+            processes.kill(p)
         node.stop()
     bad = node_warnings(node)
     assert not bad, "\n".join(bad)
     return ", ".join(f"{n}: {CALLS} answered in {r['took'] * 1e3:.0f} ms" for n, r in results.items())
-
-
-def main():
-    rmw = get_rmw_implementation_identifier()
-    if rmw != "rmw_cyclonedds_cpp":
-        print(f"test_cyclone.py: this rclpy is on {rmw}, not rmw_cyclonedds_cpp: source cyclone_env.sh", flush=True)
-        os._exit(2)
-    rclpy.init()
-    peer = tn.Peer("cyclone_peer")
-    tests = [
-        ("cyclone_calibrate", lambda: test_cyclone_calibrate(peer)),
-        ("cyclone_parameters", lambda: test_cyclone_parameters(peer)),
-        ("cyclone_cli", lambda: test_cyclone_cli(peer)),
-        ("mixed_cell", lambda: test_mixed_cell(peer)),
-    ]
-    tn.run_tests_and_exit("test_cyclone.py", tests, sys.argv[1:], "interop::", "cyclone")
-
-if __name__ == "__main__":
-    main()

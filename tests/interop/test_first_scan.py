@@ -23,11 +23,9 @@ waited for up to 6 s so that the figures show how late they were.
   ready; the answer must come within LIMIT (a client whose request comes before the node
   has matched its response reader must not wait for good, nor for a repair).
 
-    python test_first_scan.py [first_scan | first_scan_fastdds | first_scan_cyclone
-                               | first_scan_call_fastdds | first_scan_call_cyclone]...
-
-Run by tests/interop/run.sh inside a private network namespace (selector `first_scan`),
-with target/ros/DISTRO/env.sh sourced. Environment: FIRST_SCAN_TRIES (50),
+Run by tests/interop/run.sh with pytest (conftest.py) inside a private network namespace
+(names `first_scan`, or the tests' above), with target/ros/DISTRO/env.sh sourced; this
+file is also the peers' program (`--peer`, `--client`, `--stock-node`). Environment: FIRST_SCAN_TRIES (50),
 FIRST_SCAN_LIMIT_MS (100), FIRST_SCAN_NODE=rclpy (for reference: a stock rclpy node on
 Fast DDS in the node's place, answering each scan with an uncorrected Contour). Prints
 the latency distribution of each test.
@@ -40,6 +38,9 @@ import subprocess
 import sys
 import time
 
+import pytest
+
+PEER_NAME = "first_scan_observer"  # conftest.py's peer
 TRIES = int(os.environ.get("FIRST_SCAN_TRIES", "50"))
 CALL_TRIES = int(os.environ.get("FIRST_SCAN_CALL_TRIES", "20"))
 LIMIT = float(os.environ.get("FIRST_SCAN_LIMIT_MS", "100")) / 1000.0
@@ -141,7 +142,7 @@ def stock_node_main():
 def first_scans(peer, env, label, scan_base):
     """TRIES fresh peers, one scan each: the latencies (seconds; None: never arrived)."""
     import harness as h
-    import runner
+    import processes
     from tracer_calib_msgs.msg import Contour, RawScan
 
     arrivals = {}
@@ -197,7 +198,7 @@ def first_scans(peer, env, label, scan_base):
                     proc.stdin.close()
                     proc.wait(timeout=5)
                 except subprocess.TimeoutExpired:
-                    runner.kill(proc)
+                    processes.kill(proc)
         return latencies
     finally:
         peer.node.destroy_subscription(sub)
@@ -244,7 +245,22 @@ def summarize(label, latencies):
     return in_time, text
 
 
-def test_first_scan(peer, envs, rmw, scan_base):
+@pytest.fixture(scope="module")
+def envs():
+    """This environment on each middleware (harness.peer_envs)."""
+    import harness as h
+
+    return h.peer_envs()
+
+
+BY_RMW = [pytest.param("fastdds", id="fastdds", marks=pytest.mark.fastdds),
+          pytest.param("cyclone", id="cyclone", marks=pytest.mark.cyclone)]
+
+
+@pytest.mark.parametrize("rmw", BY_RMW)
+def test_first_scan(peer, envs, rmw):
+    """first_scan_fastdds, first_scan_cyclone (their scans' ids from 10000 and 20000)."""
+    scan_base = {"fastdds": 10000, "cyclone": 20000}[rmw]
     import harness as h
 
     env = envs[rmw]
@@ -264,7 +280,9 @@ def test_first_scan(peer, envs, rmw, scan_base):
     return text
 
 
-def test_first_call(envs, rmw):
+@pytest.mark.parametrize("rmw", BY_RMW)
+def test_call(envs, rmw):
+    """first_scan_call_fastdds, first_scan_call_cyclone."""
     import harness as h
 
     env = envs[rmw]
@@ -291,34 +309,8 @@ def main():
     if sys.argv[1:2] == ["--stock-node"]:
         stock_node_main()
         os._exit(0)
-    import rclpy
-
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    import harness as h
-
-    rclpy.init()
-    peer = h.Peer("first_scan_observer")
-    envs = h.peer_envs()
-    tests = [
-        ("fastdds", lambda: test_first_scan(peer, envs, "fastdds", 10000)),
-        ("cyclone", lambda: test_first_scan(peer, envs, "cyclone", 20000)),
-        ("call_fastdds", lambda: test_first_call(envs, "fastdds")),
-        ("call_cyclone", lambda: test_first_call(envs, "cyclone")),
-    ]
-    only = [a.removeprefix("first_scan_") for a in sys.argv[1:] if a != "first_scan"]
-
-    def stop_nodes():
-        for n in list(h.RUNNING):
-            n.stop()
-
-    failed = h.run_tests(tests, only, "interop::first_scan_", "first_scan", after_each=stop_nodes)
-    if failed == 0:
-        import shutil
-
-        shutil.rmtree(h.WORK, ignore_errors=True)
-    sys.stdout.flush()
-    # rclpy's shutdown can hang (docs/ros2-peer.md): leave without it.
-    os._exit(0 if failed == 0 else 1)
+    print("test_first_scan.py: run the tests with pytest (tests/interop/run.sh first_scan)", file=sys.stderr)
+    os._exit(2)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """tracer_calib_node in the ROS graph, seen by a stock rclpy node (Kilted, Fast DDS):
 
 - clean_leave: stopped with SIGINT or SIGTERM, the node leaves the peer's node and
@@ -13,7 +12,7 @@
   every cell, every call and scan is answered (tests/interop/cell_graph.py).
 
 Run by tests/interop/run.sh inside a private network namespace, with the helpers of
-harness.py. Prints one line per test.
+harness.py, with pytest (conftest.py).
 """
 
 import os
@@ -206,26 +205,3 @@ def test_cells_started_at_once():
     assert out["calls_answered_ok"] == 10, out
     assert out["scans_answered"] == out["scans_sent"] == 30 and out["all_corrected"], out
     return f"discovery {out['discovery_s']} s"
-
-
-def main():
-    rclpy.init()
-    peer = h.Peer("graph_peer")
-    tests = [
-        ("clean_leave", lambda: test_clean_leave(peer)),
-        ("polygon_at_once", lambda: test_polygon_at_once(peer)),
-        ("qos_best_effort_driver", lambda: test_qos_best_effort_driver(peer)),
-        ("cells_started_at_once", test_cells_started_at_once),
-    ]
-    only = [a.removeprefix("graph_") for a in sys.argv[1:] if a != "graph"]
-
-    def stop_nodes():
-        for n in list(h.RUNNING):
-            n.stop()
-
-    failed = h.run_tests(tests, only, "interop::graph_", "graph", after_each=stop_nodes)
-    os._exit(0 if failed == 0 else 1)
-
-
-if __name__ == "__main__":
-    main()

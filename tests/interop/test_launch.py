@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """The installed ROS 2 package through the real `ros2` command line and launch runtime.
 
 With a colcon workspace's install/setup.bash sourced (tests/interop/workspace.sh builds it
@@ -49,9 +48,8 @@ logs go to the test's temporary directory (ROS_LOG_DIR), and so does ROS_HOME (w
 launch without params_file persists), not ~/.ros.
 
 Run by tests/interop/run.sh inside a private network namespace (tests/interop/netns.sh),
-with the workspace's install/setup.bash sourced. Prints one line per test and a closing
-'launch: N passed, N skipped, N failed'.
-    python test_launch.py [TEST_NAME...]
+with the workspace's install/setup.bash sourced, with pytest (conftest.py; names `launch`
+or `launch_NAME`).
 """
 
 import json
@@ -78,7 +76,7 @@ os.environ["TRACER_CALIB_NODE"] = NODE
 os.environ["TRACER_CALIB"] = os.path.join(PREFIX, "lib", "tracer_calib", "tracer_calib")
 sys.path.insert(0, HERE)
 
-import rclpy  # noqa: E402
+import pytest  # noqa: E402
 
 import harness as h  # noqa: E402  (Peer, scans, ellipse geometry, read-back; reads TRACER_CALIB* set above)
 from tracer_calib_msgs.msg import Contour, RawScan  # noqa: E402
@@ -445,19 +443,23 @@ def stop_daemons():
     return len(found)
 
 
-def no_daemon_left(fn):
-    """The test, then: no ros2 daemon in this network namespace (one left is stopped, and
-    fails the test)."""
-    def wrapped():
-        try:
-            detail = fn()
-        finally:
-            for launch in list(h.RUNNING):
-                launch.kill()
-        if stop_daemons():
-            raise AssertionError("a `ros2 daemon` was left running (stopped now)")
-        return detail
-    return wrapped
+@pytest.fixture(autouse=True)
+def no_daemon_left():
+    """After each test: every launch it left running killed, and no ros2 daemon in this
+    network namespace (one left is stopped, and fails the test)."""
+    yield
+    for launch in list(h.RUNNING):
+        launch.kill()
+    if stop_daemons():
+        raise AssertionError("a `ros2 daemon` was left running (stopped now)")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def cli_misses_said():
+    """At the end: the tests that ran a stock CLI verb again after its "Node not found"."""
+    yield
+    if CLI_MISSES:
+        print(f"launch: run again after the stock CLI's \"Node not found\" ({len(CLI_MISSES)}): {', '.join(CLI_MISSES)}")
 
 
 # ---------------------------------------------------------------------------------------
@@ -993,36 +995,3 @@ def test_daemon():
         wait_for(lambda: not own_daemons(), 5, "the daemon process to exit")
     finally:
         stop_daemons()
-
-
-def main():
-    rclpy.init()
-    peer = h.Peer("launch_peer")
-    tests = [
-        ("installed", test_installed),
-        ("default_launch", test_default_launch),
-        ("managed_launch", test_managed_launch),
-        ("graph", test_graph),
-        ("calibrate", test_calibrate),
-        ("parameters", test_parameters),
-        ("ros2_run", test_ros2_run),
-        ("edging_cell", lambda: test_edging_cell(peer)),
-        ("missing_params_file", test_missing_params_file),
-        ("yaml_include", test_yaml_include),
-        ("lifecycle_node_launch", test_lifecycle_node_launch),
-        ("daemon", test_daemon),
-        ("service_echo", test_service_echo),
-    ]
-    tests = [(name, no_daemon_left(fn)) for name, fn in tests]
-    only = [a.removeprefix("test_") for a in sys.argv[1:]]
-    failed = h.run_tests(tests, only, "launch::", "launch")
-    if CLI_MISSES:
-        print(f"launch: run again after the stock CLI's \"Node not found\" ({len(CLI_MISSES)}): {', '.join(CLI_MISSES)}")
-    if failed == 0:
-        shutil.rmtree(WORK, ignore_errors=True)
-    sys.stdout.flush()
-    os._exit(0 if failed == 0 else 1)  # rclpy's shutdown can hang (docs/ros2-peer.md)
-
-
-if __name__ == "__main__":
-    main()

@@ -54,9 +54,9 @@ link): every contour and call through, asserted. Under the kernel's default back
 in eight, for the stock node as for the node: no test asserts on that, scripts/bench_lossy.sh
 with REPEAT=N tallies it (`LOSSY_RUN="node zenoh 25"` runs one).
 
-    python test_lossy.py [lossy | lossy_fastdds_10 | ...]...
-
-Environment: LOSSY_SCANS (100), LOSSY_RUN="SERVER RMW LOSS [delay]" runs one scenario and
+Run by tests/interop/run.sh with pytest (conftest.py; names `lossy`, `lossy_fastdds_10`,
+...); this file is also the scenarios' programs (`--cells`, `--stock-server`,
+`--scenario`). Environment: LOSSY_SCANS (100), LOSSY_RUN="SERVER RMW LOSS [delay]" runs one scenario and
 prints its figures (SERVER: node or stock, or cells for the ten-cell graph; RMW: fastdds, cyclone or zenoh; delay: delayed
 and reordered too; mtu1500: lo's MTU 1500, loss per frame; keepall: keep all on both sides,
 the driver's and the server's publishers and subscriptions, so that on Zenoh nothing is
@@ -74,6 +74,8 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+
+import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCANS = int(os.environ.get("LOSSY_SCANS", "100"))
@@ -622,7 +624,30 @@ VARIANTS = {"": "", "delay": f", delayed {DELAY_MS} ± {JITTER_MS} ms", "mtu1500
             "keepall": ", keep all", "rtomax1s": f", TCP RTO at most {TCP_RTO_MAX_MS} ms"}
 
 
-def test_lossy(envs, rmw, loss, variant=""):
+@pytest.fixture(scope="module")
+def envs():
+    """This environment on each middleware, made to cross the network namespace's lossy
+    link (over_the_network)."""
+    import harness as h
+
+    return {rmw: env and over_the_network(env, h.WORK) for rmw, env in h.peer_envs().items()}
+
+
+def by_rmw(rmw, *rest):
+    return pytest.param(rmw, *rest, id="_".join(str(x) for x in (rmw, *rest) if x), marks=getattr(pytest.mark, rmw))
+
+
+# Zenoh at 25 % only with TCP's backoff capped: under the kernel's default, TCP stalls a
+# link past any wait a test can afford in about one run in eight, the stock node's as the
+# node's (docs/zenoh.md, "On a lossy link"); REPEAT=N bash scripts/bench_lossy.sh jazzy
+# 100 zenoh 25 tallies them over N runs.
+@pytest.mark.parametrize(("rmw", "loss", "variant"), [
+    by_rmw(rmw, loss, "") for rmw in ("fastdds", "cyclone", "zenoh") for loss in (10, 25) if (rmw, loss) != ("zenoh", 25)
+] + [
+    by_rmw(rmw, 10, variant) for variant in ("delay", "mtu1500") for rmw in ("fastdds", "cyclone")
+] + [by_rmw("zenoh", 25, "rtomax1s")])
+def test_lossy(envs, rmw, loss, variant):
+    """lossy_fastdds_10, ..., lossy_zenoh_25_rtomax1s."""
     env = envs[rmw]
     if env is None:
         return f"skipped: no {rmw}_env.sh (tests/interop/{rmw}.sh builds it)"
@@ -658,6 +683,7 @@ def test_lossy(envs, rmw, loss, variant=""):
     return f"node {describe(node)} | stock {stock_text}"
 
 
+@pytest.mark.parametrize(("rmw", "loss"), [by_rmw("fastdds", 10), by_rmw("fastdds", 25), by_rmw("cyclone", 25)])
 def test_ten_cells(envs, rmw, loss):
     """Ten nodes and a planner started at once under `loss` % UDP loss: the planner matches
     every cell (generously within 20 s; BENCHMARKS.md has the figures), every call is
@@ -699,27 +725,8 @@ def main():
             print(f"{server} {rmw} {loss} %{VARIANTS[variant]}: {describe(r)}", flush=True)
         print(json.dumps(r), flush=True)
         os._exit(0)
-    # Zenoh at 25 % only with TCP's backoff capped: under the kernel's default, TCP stalls
-    # a link past any wait a test can afford in about one run in eight, the stock node's as
-    # the node's (docs/zenoh.md, "On a lossy link"); REPEAT=N bash scripts/bench_lossy.sh
-    # jazzy 100 zenoh 25 tallies them over N runs.
-    tests = [
-        (f"{rmw}_{loss}", lambda rmw=rmw, loss=loss: test_lossy(envs, rmw, loss))
-        for rmw in ("fastdds", "cyclone", "zenoh")
-        for loss in (10, 25)
-        if (rmw, loss) != ("zenoh", 25)
-    ] + [
-        (f"{rmw}_10_{variant}", lambda rmw=rmw, variant=variant: test_lossy(envs, rmw, 10, variant))
-        for variant in ("delay", "mtu1500")
-        for rmw in ("fastdds", "cyclone")
-    ] + [
-        ("zenoh_25_rtomax1s", lambda: test_lossy(envs, "zenoh", 25, "rtomax1s")),
-    ] + [
-        ("ten_cells_fastdds_10", lambda: test_ten_cells(envs, "fastdds", 10)),
-        ("ten_cells_fastdds_25", lambda: test_ten_cells(envs, "fastdds", 25)),
-        ("ten_cells_cyclone_25", lambda: test_ten_cells(envs, "cyclone", 25)),
-    ]
-    h.run_tests_and_exit("test_lossy.py", tests, [a.removeprefix("lossy_") for a in sys.argv[1:]], "interop::lossy_", "lossy")
+    print("test_lossy.py: run the tests with pytest (tests/interop/run.sh lossy)", file=sys.stderr)
+    os._exit(2)
 
 
 if __name__ == "__main__":

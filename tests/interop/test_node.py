@@ -7,9 +7,9 @@ with the generated Calibrate type, receive Contour, PolygonStamped and Diagnosti
 list/get/set parameters with rclpy's parameter client, and load the YAML the node
 persisted into an rclpy node with --params-file.
 
-Run by node_suite.py (tests/interop/run.sh) inside a private network namespace, with the
-helpers of harness.py. Each test starts its own node processes and stops them with
-SIGTERM (checking they exit promptly).
+Run by tests/interop/run.sh (pytest, conftest.py; with test_records.py, one rclpy peer)
+inside a private network namespace, with the helpers of harness.py. Each test starts its
+own node processes and stops them with SIGTERM (checking they exit promptly).
 """
 
 import json
@@ -28,6 +28,7 @@ from tracer_calib_msgs.msg import Contour, RawScan
 from tracer_calib_msgs.srv import Calibrate
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from processes import peer_program  # noqa: E402
 from harness import (  # noqa: E402
     ELLIPSE,
     NODE_BIN,
@@ -45,6 +46,8 @@ from harness import (  # noqa: E402
     read_back_with_rclpy,
     simulate,
 )
+
+PEER_NAME = "interop_peer"  # conftest.py's peer: test_node.py's and test_records.py's, one
 
 
 # ---------------------------------------------------------------------------------------
@@ -209,25 +212,7 @@ def test_two_cells(peer):
             back = read_back_with_rclpy(os.path.join(WORK, f"{cell}.yaml"), "tracer", f"/{cell}")
             assert abs(back["calibration.offset"] - r.offset) < 1e-12, (cell, back)
         # The graph as ROS sees it: each node serves its own namespaced services.
-        code = """
-import json, time, rclpy
-from rclpy.node import Node
-rclpy.init()
-n = Node('graph_probe')
-deadline = time.monotonic() + 10
-got = {}
-while time.monotonic() < deadline:
-    rclpy.spin_once(n, timeout_sec=0.1)
-    try:
-        got = {ns: sorted(s for s, _ in n.get_service_names_and_types_by_node('tracer', ns)) for ns in ('/cell1', '/cell2')}
-    except Exception:
-        continue
-    if all(f'{ns}/calibrate' in v for ns, v in got.items()):
-        break
-print(json.dumps(got))
-import os; os._exit(0)
-"""
-        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+        out = subprocess.run([sys.executable, peer_program("node_graph_probe")], capture_output=True, text=True, timeout=60)
         by_node = json.loads(out.stdout.strip().splitlines()[-1])
         for ns in ("/cell1", "/cell2"):
             services = by_node[ns]
@@ -338,22 +323,7 @@ def test_concurrent_calls_and_a_vanishing_peer(peer):
         contours = peer.subscribe(Contour, "/contour")
         peer.send_scan(pub, raw_scan(1, RawScan.TARGET_CALIBRATION_PLATE, *simulate("plate_c", "plate", seed=9)), contours)
         # A client process that sends a request and dies at once.
-        code = """
-import os, rclpy, time
-from rclpy.node import Node
-from tracer_calib_msgs.srv import Calibrate
-rclpy.init()
-n = Node('doomed_client')
-c = n.create_client(Calibrate, '/calibrate')
-deadline = time.monotonic() + 15
-while not c.service_is_ready() and time.monotonic() < deadline:
-    rclpy.spin_once(n, timeout_sec=0.05)
-for _ in range(3):
-    c.call_async(Calibrate.Request())
-    rclpy.spin_once(n, timeout_sec=0.001)
-os._exit(0)
-"""
-        doomed = subprocess.run([sys.executable, "-c", code], timeout=60)
+        doomed = subprocess.run([sys.executable, peer_program("node_doomed_client")], timeout=60)
         assert doomed.returncode == 0
         clients = [peer.node.create_client(Calibrate, "/calibrate") for _ in range(16)]
         for c in clients:
@@ -391,27 +361,7 @@ def test_kill_during_writes():
     path = os.path.join(WORK, "killed.yaml")
     with open(path, "w") as f:
         f.write("tracer_calibrator:\n  ros__parameters:\n    output_frame_id: frame_0\n")
-    setter = os.path.join(WORK, "setter.py")
-    with open(setter, "w") as f:
-        f.write("""
-import sys, time, rclpy
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.parameter_client import AsyncParameterClient
-rclpy.init()
-n = Node('setter')
-pc = AsyncParameterClient(n, '/tracer_calibrator')
-deadline = time.monotonic() + 20
-while not pc.services_are_ready() and time.monotonic() < deadline:
-    rclpy.spin_once(n, timeout_sec=0.05)
-i = 1
-while True:
-    fut = pc.set_parameters([Parameter('output_frame_id', value=f'frame_{i}'), Parameter('resample_points', value=i % 1000)])
-    t = time.monotonic()
-    while not fut.done() and time.monotonic() - t < 2:
-        rclpy.spin_once(n, timeout_sec=0.01)
-    i += 1
-""")
+    setter = peer_program("node_param_setter")
     setter_proc = subprocess.Popen([sys.executable, setter], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     seen = set()
     try:
@@ -911,26 +861,3 @@ def test_parameter_events(peer):
     finally:
         node.stop()
         handler.remove_parameter_event_callback(handle)
-
-
-def tests(peer):
-    """This file's tests as `(name, fn)` pairs, in order, against the rclpy `peer`
-    (node_suite.py runs them)."""
-    return [
-        ("calibrate_and_correct", lambda: test_calibrate_and_correct(peer)),
-        ("parameters", lambda: test_parameters(peer)),
-        ("two_cells", lambda: test_two_cells(peer)),
-        ("bad_scans_and_diagnostics", lambda: test_bad_scans_and_diagnostics(peer)),
-        ("replay_foreign_bags", lambda: test_replay_foreign_bags(peer)),
-        ("bad_params_file_stops_the_node", test_bad_params_file_stops_the_node),
-        ("wire_bad_input", lambda: test_wire_bad_input(peer)),
-        ("concurrent_calls_and_a_vanishing_peer", lambda: test_concurrent_calls_and_a_vanishing_peer(peer)),
-        ("kill_during_writes", test_kill_during_writes),
-        ("shared_params_file", lambda: test_shared_params_file(peer)),
-        ("read_only_and_full_disk", lambda: test_read_only_and_full_disk(peer)),
-        ("encoder_scale", lambda: test_encoder_scale(peer)),
-        ("stylus_tip", lambda: test_stylus_tip(peer)),
-        ("rosout", lambda: test_rosout(peer)),
-        ("driver_health", lambda: test_driver_health(peer)),
-        ("parameter_events", lambda: test_parameter_events(peer)),
-    ]

@@ -2,7 +2,7 @@
 `calibration` topic, max age and drift on /diagnostics, the `history` CLI, a history
 location that cannot be written.
 
-Run by node_suite.py (tests/interop/run.sh) after test_node.py's tests, with the helpers
+Run by tests/interop/run.sh (pytest, conftest.py) after test_node.py's tests, with the helpers
 of harness.py.
 """
 
@@ -21,6 +21,8 @@ from tracer_calib_msgs.msg import Calibration, Contour, RawScan
 from tracer_calib_msgs.srv import Calibrate
 
 from harness import TOOL_BIN, TRUTH, WORK, NodeProcess, calibrate_then_lens, node_in_mount_namespace, raw_scan, simulate
+
+PEER_NAME = "interop_peer"  # conftest.py's peer: test_node.py's and test_records.py's, one
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -338,14 +340,3 @@ cp {mnt}/h.jsonl {after}
     assert not os.path.exists(persisted), "parameters persisted without their record"
     out = history_cli("--input", after, "--json")
     assert out.returncode == 0 and len(json.loads(out.stdout)) == 1 and not out.stderr, out
-
-
-def tests(peer):
-    """This file's tests as `(name, fn)` pairs, in order, against the rclpy `peer`
-    (node_suite.py runs them)."""
-    return [
-        ("history_and_latched_calibration", lambda: test_history_and_latched_calibration(peer)),
-        ("max_age_and_drift_on_diagnostics", lambda: test_max_age_and_drift_on_diagnostics(peer)),
-        ("read_only_history", lambda: test_read_only_history(peer)),
-        ("full_disk_history", lambda: test_full_disk_history(peer)),
-    ]

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """tracer_calib_node and the offline tool against the real `ros2 bag` (rosbag2 0.26.5,
 Jazzy): what a cell's engineer records, inspects and plays back with the stock tool.
 
@@ -6,7 +5,7 @@ Run by tests/interop/run.sh inside a private network namespace, with the Jazzy p
 environment (target/ros/jazzy/env.sh) and target/ros/jazzy/rosbag2_env.sh (the stock rosbag2
 that tests/interop/rosbag2.sh builds from source); peers on Fast DDS. Every `ros2 bag` is a
 real process of the stock tool; bags are read back with `ros2 bag info` and with the `rosbags`
-package (raw CDR, decoded by rclpy's generated types). Prints one line per test.
+package (raw CDR, decoded by rclpy's generated types). Run with pytest (conftest.py).
 
 - record_mcap, record_sqlite3: `ros2 bag record -s mcap|sqlite3` of a running node while an
   rclpy driver sends lens scans, a plate scan, calls /calibrate and sends more lens scans:
@@ -41,7 +40,6 @@ import sys
 import time
 import types
 
-import rclpy
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
 
@@ -55,6 +53,10 @@ from tracer_calib_msgs.srv import Calibrate
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness as h  # noqa: E402
+import pytest  # noqa: E402
+
+pytestmark = [pytest.mark.distro("jazzy"), pytest.mark.fastdds]
+BY_STORAGE = pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 
 TYPES = {
     "tracer_calib_msgs/msg/RawScan": RawScan,
@@ -75,6 +77,14 @@ def ros2_bag_missing():
     if importlib.util.find_spec("rosbag2_py") is None or importlib.util.find_spec("ros2bag") is None:
         return "skipped: no rosbag2 (tests/interop/rosbag2.sh jazzy, then source target/ros/jazzy/rosbag2_env.sh)"
     return None
+
+
+@pytest.fixture(autouse=True)
+def needs_bag():
+    """Every test here runs `ros2 bag`: skipped, saying why, without it."""
+    why = ros2_bag_missing()
+    if why:
+        pytest.skip(why.removeprefix("skipped:").strip())
 
 
 def seconds(stamp):
@@ -218,6 +228,7 @@ def says_calibrated(array, name):
                for s in array.status)
 
 
+@BY_STORAGE
 def test_record(peer, storage):
     """`ros2 bag record -s STORAGE` of the node's topics while a driver works with it."""
     name = f"bag_{storage}"
@@ -369,6 +380,7 @@ def driver_scans(label, n_lens=3):
     return scans
 
 
+@BY_STORAGE
 def test_calibrate_recorded(peer, storage):
     """`tracer_calib calibrate` and `correct` on a bag `ros2 bag record` wrote."""
     bag = record_driver(peer, f"driver_{storage}", storage, driver_scans(f"driver_{storage}"))
@@ -451,6 +463,10 @@ def test_play_clock(peer):
             f"wall clock {t_play - bag_end:.1f} s past the bag")
 
 
+@pytest.mark.parametrize(("storage", "select"), [
+    pytest.param("mcap", ["--services", "/calibrate"], id="mcap"),
+    pytest.param("sqlite3", ["--all-services"], id="sqlite3"),
+])
 def test_record_service_events(peer, storage, select):
     """`ros2 bag record -s STORAGE SELECT` (`--services /calibrate`, `--all-services`) with the
     node's service introspection on."""
@@ -504,30 +520,3 @@ def test_record_service_events(peer, storage, select):
     assert set(msgs) == {"/calibrate/_service_event"}, f"{' '.join(select)} recorded {sorted(msgs)}"
     return (f"{storage}, {' '.join(select)}: {len(events)} events ({len(received)} requests, "
             f"{len(sent)} responses) of /calibrate; ros2 bag info: Service /calibrate, {services['/calibrate'][1]} events")
-
-
-def main():
-    rclpy.init()
-    peer = h.Peer("rosbag2_peer")
-    why = ros2_bag_missing()
-
-    def needs_bag(fn):
-        return lambda: why or fn()
-
-    tests = [
-        ("record_mcap", needs_bag(lambda: test_record(peer, "mcap"))),
-        ("record_sqlite3", needs_bag(lambda: test_record(peer, "sqlite3"))),
-        ("info_own_bags", needs_bag(test_info_own_bags)),
-        ("calibrate_recorded_mcap", needs_bag(lambda: test_calibrate_recorded(peer, "mcap"))),
-        ("calibrate_recorded_sqlite3", needs_bag(lambda: test_calibrate_recorded(peer, "sqlite3"))),
-        ("play_clock", needs_bag(lambda: test_play_clock(peer))),
-        ("record_service_events_mcap",
-         needs_bag(lambda: test_record_service_events(peer, "mcap", ["--services", "/calibrate"]))),
-        ("record_service_events_sqlite3",
-         needs_bag(lambda: test_record_service_events(peer, "sqlite3", ["--all-services"]))),
-    ]
-    h.run_tests_and_exit("test_rosbag2.py", tests, sys.argv[1:], "interop::rosbag2_", "rosbag2")
-
-
-if __name__ == "__main__":
-    main()

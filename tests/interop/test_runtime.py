@@ -1,9 +1,8 @@
-#!/usr/bin/env python3
 """tracer_calib_node's runtime contract with stock rclpy peers: simulated time,
 parameter descriptors, and the `-p` rules as rcl reads them.
 
 Run by tests/interop/run.sh inside a private network namespace, with the distribution's
-peer environment (target/ros/DISTRO/env.sh). Prints one line per test.
+peer environment (target/ros/DISTRO/env.sh). Run with pytest (conftest.py).
 
 - sim_time: an rclpy /clock (rosgraph_msgs/msg/Clock) from 5000 s; the node, started with
   `-p use_sim_time:=true`, stamps /diagnostics, rosout and the `calibration` message with
@@ -504,7 +503,7 @@ def test_bond(peer):
             "(heartbeat timeout 4 s)")
 
 
-def test_rcl_param_rules(_peer):
+def test_rcl_param_rules():
     with open(os.path.join(ROOT, "tests/data/rcl_param_rules.json")) as f:
         cases = json.load(f)
     types = {getattr(Parameter.Type, t.upper()): t for t in
@@ -553,24 +552,3 @@ def check_rules(cases, types):
             assert list(v) == case["value"], (case, v)
         else:
             assert v == case["value"], (case, v)
-
-
-def main():
-    rclpy.init()
-    peer = h.Peer("runtime_peer")
-    tests = [
-        ("sim_time", lambda: test_sim_time(peer)),
-        ("sim_time_no_clock", lambda: test_sim_time_no_clock(peer)),
-        ("replay_clock", lambda: test_replay_clock(peer)),
-        ("describe", lambda: test_describe(peer)),
-        ("lifecycle", lambda: test_lifecycle(peer)),
-        ("bond", lambda: test_bond(peer)),
-        ("rcl_param_rules", lambda: test_rcl_param_rules(peer)),
-    ]
-    only = [a for a in sys.argv[1:] if a != "runtime"]
-    failed = h.run_tests(tests, only, "interop::runtime_", "runtime")
-    os._exit(1 if failed else 0)
-
-
-if __name__ == "__main__":
-    main()

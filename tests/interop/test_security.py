@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """SROS2: tracer_calib_node (built with the cargo feature `security`) with a stock secure
 ROS 2 peer, rclpy on rmw_cyclonedds_cpp with Debian's Cyclone DDS security plugins.
 
@@ -54,7 +53,7 @@ then joins as `/planner`, Enforce.
   the older permissions (enclave /old_tracer: no bond grant): under Enforce it does not
   start, and says in one line that its bond is not permitted.
 
-Prints one line per test and a closing 'N passed, N skipped, N failed'.
+Each test runs in a process of its own (OWN_PROCESS_ATTEMPTS, conftest.py).
 """
 
 import json
@@ -62,7 +61,6 @@ import math
 import os
 import re
 import shutil
-import signal
 import subprocess
 import sys
 import time
@@ -99,6 +97,7 @@ def make_keystore(work):
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness as tn  # noqa: E402
+from processes import peer_program  # noqa: E402
 
 KEYSTORE = make_keystore(tn.WORK)
 SECURE_ENV = dict(ROS_SECURITY_ENABLE="true", ROS_SECURITY_STRATEGY="Enforce", ROS_SECURITY_KEYSTORE=KEYSTORE)
@@ -107,9 +106,15 @@ os.environ.update(SECURE_ENV)
 PLUGINS = "/usr/lib/x86_64-linux-gnu/libddsc0debian"
 os.environ["LD_LIBRARY_PATH"] = PLUGINS + ":" + os.environ.get("LD_LIBRARY_PATH", "")
 
-import rclpy  # noqa: E402
+import pytest  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.utilities import get_rmw_implementation_identifier  # noqa: E402
+
+if get_rmw_implementation_identifier() != "rmw_cyclonedds_cpp":
+    pytest.exit(f"test_security.py: this rclpy is on {get_rmw_implementation_identifier()}, not "
+                "rmw_cyclonedds_cpp: source cyclone_env.sh", returncode=2)
+pytestmark = [pytest.mark.security, pytest.mark.cyclone]
+PEER_NAME = "planner"  # conftest.py's peer
 
 from tracer_calib_msgs.msg import Contour, RawScan  # noqa: E402
 from tracer_calib_msgs.srv import Calibrate  # noqa: E402
@@ -194,32 +199,11 @@ def test_permissions_without_introspection(peer):
     return "ran, warned once, answered /calibrate"
 
 
-# A peer that watches for SECONDS (argv[1]) as node NAME (argv[2]), in ENCLAVE (argv[3], if
-# given): the contours it got and the nodes it saw, as one JSON line. The insecure peer and
-# the peer of a foreign keystore.
-WATCHER = r"""
-import json, sys, time, rclpy
-from tracer_calib_msgs.msg import Contour
-seconds, name, enclave = float(sys.argv[1]), sys.argv[2], sys.argv[3:]
-rclpy.init(args=['--ros-args', '--enclave', enclave[0]] if enclave else None)
-n = rclpy.create_node(name)
-got = []
-n.create_subscription(Contour, '/contour', got.append, 10)
-seen = set()
-t0 = time.time()
-while time.time() - t0 < seconds:
-    rclpy.spin_once(n, timeout_sec=0.1)
-    seen.update(name for name, _ in n.get_node_names_and_namespaces())
-print(json.dumps(dict(contours=len(got), nodes=sorted(seen))), flush=True)
-import os; os._exit(0)
-"""
-
-
 def test_insecure_peer_sees_nothing(peer):
     node = SecureNode("insecure_peer", ["--enclave", "/tracer_calibrator"])
     env = {k: v for k, v in CYCLONE_ENV.items() if not k.startswith("ROS_SECURITY_")}
     spy = subprocess.Popen(
-        [sys.executable, "-c", WATCHER, "10", "insecure_peer"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+        [sys.executable, peer_program("security_watcher"), "10", "insecure_peer"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
     )
     try:
         pub = peer.publisher("/raw_scan")
@@ -243,56 +227,6 @@ def test_insecure_peer_sees_nothing(peer):
     assert seen["contours"] == 0, f"the insecure peer got {seen['contours']} contours"
     assert "tracer_calibrator" not in seen["nodes"], f"the insecure peer saw {seen['nodes']}"
     return f"{sent} secure scans and contours; the insecure peer saw nodes {seen['nodes']} and 0 contours"
-
-
-HMI = r"""
-import json, sys, time, rclpy
-from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from diagnostic_msgs.msg import DiagnosticArray
-from tracer_calib_msgs.msg import Calibration, Contour
-from tracer_calib_msgs.srv import Calibrate
-rclpy.init(args=['--ros-args', '--enclave', '/hmi'])
-n = rclpy.create_node('hmi')
-got = dict(contours=0, calibration=[], diagnostics=0)
-n.create_subscription(Contour, '/contour', lambda m: got.update(contours=got['contours'] + 1), 10)
-latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-n.create_subscription(Calibration, '/calibration', lambda m: got['calibration'].append(m.scan_id), latched)
-n.create_subscription(DiagnosticArray, '/diagnostics', lambda m: got.update(diagnostics=got['diagnostics'] + 1), 10)
-
-def spin(seconds, until=lambda: False):
-    t0 = time.time()
-    while time.time() - t0 < seconds and not until():
-        rclpy.spin_once(n, timeout_sec=0.1)
-
-def attempt(make, call, wait):
-    # What became of a call: 'refused: ...' (the HMI's own middleware would not make the
-    # endpoint), 'not available', 'no answer', or 'ANSWERED ...'.
-    try:
-        client = make()
-    except Exception as e:
-        return 'refused: ' + str(e).splitlines()[0][:160]
-    if not client.wait_for_service(timeout_sec=wait):
-        fut = call(client)
-        spin(2.0, fut.done)
-        return 'ANSWERED ' + str(fut.result()) if fut.done() else 'not available'
-    fut = call(client)
-    spin(wait, fut.done)
-    return 'ANSWERED ' + str(fut.result()) if fut.done() else 'no answer'
-
-spin(float(sys.argv[1]), lambda: got['contours'] > 0 and got['calibration'] and got['diagnostics'] > 0)
-calibrate = attempt(lambda: n.create_client(Calibrate, '/calibrate'),
-                    lambda c: c.call_async(Calibrate.Request()), float(sys.argv[2]))
-from rcl_interfaces.srv import SetParameters
-def set_req():
-    r = SetParameters.Request()
-    r.parameters = [Parameter('resample_points', value=123).to_parameter_msg()]
-    return r
-set_param = attempt(lambda: n.create_client(SetParameters, '/tracer_calibrator/set_parameters'),
-                    lambda c: c.call_async(set_req()), float(sys.argv[2]))
-print(json.dumps(dict(got, calibrate=calibrate, set_param=set_param)), flush=True)
-import os; os._exit(0)
-"""
 
 
 def file_state(path):
@@ -324,7 +258,7 @@ def test_hmi_read_only(peer):
         crashes = []
         for _ in range(3):
             hmi = subprocess.Popen(
-                [sys.executable, "-c", HMI, "30", "8"],
+                [sys.executable, peer_program("security_hmi"), "30", "8"],
                 stdout=subprocess.PIPE,
                 stderr=subprocess.PIPE,
                 text=True,
@@ -363,35 +297,6 @@ def test_hmi_read_only(peer):
         "params and history files untouched"
         + (f" (the stock peer died of signal(s) {crashes} first, run again)" if crashes else "")
     )
-
-
-CLEAR_PEER = r"""
-import json, sys, time, rclpy
-from rclpy.qos import QoSProfile
-from tracer_calib_msgs.msg import Contour, RawScan
-rclpy.init()
-n = rclpy.create_node('clear_peer')
-got = []
-n.create_subscription(Contour, '/contour', got.append, QoSProfile(depth=50))
-pub = n.create_publisher(RawScan, '/raw_scan', QoSProfile(depth=50))
-scan = json.loads(sys.stdin.read())
-m = RawScan()
-m.header.frame_id = scan['frame_id']
-m.scan_id = scan['scan_id']
-m.target = RawScan.TARGET_LENS
-m.steps_per_revolution = 400
-m.step = scan['step']
-m.counts = scan['counts']
-t0 = time.time()
-while time.time() - t0 < 30 and not got:
-    if pub.get_subscription_count() > 0:
-        pub.publish(m)
-    t1 = time.time()
-    while time.time() - t1 < 0.5 and not got:
-        rclpy.spin_once(n, timeout_sec=0.05)
-print(json.dumps(dict(contours=len(got))), flush=True)
-import os; os._exit(0)
-"""
 
 
 class Capture:
@@ -462,7 +367,7 @@ def test_capture_secure_vs_clear(peer):
     try:
         peer_env = {k: v for k, v in CYCLONE_ENV.items() if not k.startswith("ROS_SECURITY_")}
         out = subprocess.run(
-            [sys.executable, "-c", CLEAR_PEER],
+            [sys.executable, peer_program("security_clear_peer")],
             input=json.dumps(dict(frame_id=frame_id, scan_id=500, step=steps, counts=counts)),
             capture_output=True,
             text=True,
@@ -527,7 +432,7 @@ def test_foreign_ca_peer_refused(peer):
         env = dict(CYCLONE_ENV, ROS_SECURITY_KEYSTORE=foreign)
         t0 = time.monotonic()
         intruder = subprocess.Popen(
-            [sys.executable, "-c", WATCHER, "15", "planner", "/planner"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+            [sys.executable, peer_program("security_watcher"), "15", "planner", "/planner"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
         )
         # A refusal is counted when the handshake fails, or when ours went unanswered
         # for its 10 resends (a Cyclone peer refusing our certificate is silent).
@@ -591,7 +496,6 @@ def expired_cert(ks, enclave_dir):
 def test_enforce_bad_credentials(peer):
     """Credentials made by `ros2 security` (and one by its `cryptography`), spoiled one way
     each: the node, Enforce, exits non-zero at once with one line naming the file and why."""
-    import shutil
 
     foreign = os.path.join(foreign_keystore(), "enclaves", "planner")
     cases = []
@@ -688,56 +592,6 @@ def test_permissive_missing_enclave(peer):
     return "ran unsecured with one warning"
 
 
-# nav2's lifecycle manager's end of a secure cell, as a process of its own (enclave
-# /lifecycle_manager, node lifecycle_manager): configure and activate /tracer_calibrator
-# through change_state with a stock bondpy Bond started (heartbeat 0.1 s, timeout 4 s),
-# wait up to argv[1] s for it to form, hold 5 s, deactivate; one JSON line of what it saw.
-MANAGER = r"""
-import json, os, sys, time, rclpy
-from bondpy.bondpy import Bond
-from lifecycle_msgs.msg import Transition
-from lifecycle_msgs.srv import ChangeState
-rclpy.init(args=['--ros-args', '--enclave', '/lifecycle_manager'])
-n = rclpy.create_node('lifecycle_manager')
-out, times = {}, {}
-
-def spin(seconds, until=lambda: False):
-    t0 = time.time()
-    while time.time() - t0 < seconds and not until():
-        rclpy.spin_once(n, timeout_sec=0.05)
-
-change = n.create_client(ChangeState, '/tracer_calibrator/change_state')
-spin(30, change.service_is_ready)
-
-def transition(tid):
-    fut = change.call_async(ChangeState.Request(transition=Transition(id=tid)))
-    spin(15, fut.done)
-    return fut.done() and fut.result().success
-
-out['configured'] = transition(Transition.TRANSITION_CONFIGURE)
-bond = Bond(n, '/bond', 'tracer_calibrator',
-            on_formed=lambda: times.setdefault('formed', time.time()),
-            on_broken=lambda: times.setdefault('broken', time.time()))
-bond.heartbeat_period = 0.1
-bond.heartbeat_timeout = 4.0
-bond.start()
-t_active = time.time()
-out['activated'] = transition(Transition.TRANSITION_ACTIVATE)
-spin(float(sys.argv[1]), lambda: 'formed' in times)
-if 'formed' in times:
-    out['formed_after'] = times['formed'] - t_active
-    spin(5.0, lambda: 'broken' in times)
-    out['broken_while_active'] = 'broken' in times
-    t_off = time.time()
-    out['deactivated'] = transition(Transition.TRANSITION_DEACTIVATE)
-    spin(3.0, lambda: 'broken' in times)
-    if 'broken' in times:
-        out['broken_after_deactivation'] = times['broken'] - t_off
-print(json.dumps(out), flush=True)
-os._exit(0)
-"""
-
-
 def test_secure_bond(peer):
     try:
         import bondpy.bondpy  # noqa: F401
@@ -749,7 +603,7 @@ def test_secure_bond(peer):
         # The stock secure Cyclone peer now and then dies of a signal (see hmi_read_only):
         # such a run is tried again, with the node back to unconfigured.
         for _ in range(3):
-            mgr = subprocess.run([sys.executable, "-c", MANAGER, "10"], capture_output=True, text=True,
+            mgr = subprocess.run([sys.executable, peer_program("security_bond_manager"), "10"], capture_output=True, text=True,
                                  env=dict(CYCLONE_ENV), timeout=120)
             if mgr.returncode >= 0:
                 break
@@ -787,75 +641,24 @@ def test_secure_bond(peer):
     )
 
 
-# The tests, in order: name -> test of the rclpy `peer`.
-TESTS = {
-    "secure_calibrate": lambda peer: test_secure_calibrate(peer),
-    # The node restarted (a new participant, the same enclave): the peer meets it again.
-    "secure_restart": lambda peer: test_secure_calibrate(peer, "secure_restart"),
-    "insecure_peer_sees_nothing": lambda peer: test_insecure_peer_sees_nothing(peer),
-    "hmi_read_only": lambda peer: test_hmi_read_only(peer),
-    "capture_secure_vs_clear": lambda peer: test_capture_secure_vs_clear(peer),
-    "foreign_ca_peer_refused": lambda peer: test_foreign_ca_peer_refused(peer),
-    "enforce_missing_enclave": lambda peer: test_enforce_missing_enclave(peer),
-    "enforce_bad_credentials": lambda peer: test_enforce_bad_credentials(peer),
-    "permissive_missing_enclave": lambda peer: test_permissive_missing_enclave(peer),
-    "permissions_without_introspection": lambda peer: test_permissions_without_introspection(peer),
-    "secure_bond": lambda peer: test_secure_bond(peer),
-}
+def test_secure_restart(peer):
+    """The node restarted (a new participant, the same enclave): the peer meets it again."""
+    return test_secure_calibrate(peer, "secure_restart")
 
 
-# How often a test whose Cyclone DDS peer crashed (SIGSEGV) is run in all.
-ATTEMPTS = 4
+# Every test in a process of its own (conftest.py), run again if it crashed, up to this
+# many times in all: the peer is rclpy on Cyclone DDS 0.10.2 with Debian's security
+# plugins, which now and then crash the process they run in (SIGSEGV in the timer of a
+# handshake, as participants with their handshakes come and go:
+# eclipse-cyclonedds/cyclonedds#1548, more often on a loaded machine; two crashes of the
+# same test in a row were seen, 2026-11-26). The node runs in its own process in every
+# test, and is not what crashed. What a test's process started and left behind (a crash
+# runs no `finally`: its node, a foreign peer still announcing itself) is killed with its
+# process group before the next test starts.
+OWN_PROCESS_ATTEMPTS = 4
 
 
-def each_in_its_own_process(names):
-    """Every test in a process of its own, this script with the test's name: the peer is
-    rclpy on Cyclone DDS 0.10.2 with Debian's security plugins, which now and then crash
-    the process they run in (SIGSEGV in the timer of a handshake, as participants with
-    their handshakes come and go: eclipse-cyclonedds/cyclonedds#1548, more often on a
-    loaded machine). A test whose process crashed so is said, and run again, up to
-    ATTEMPTS times in all (two crashes of the same test in a row were seen, 2026-11-26);
-    the node runs in its own process in every test, and is not what crashed. Each test
-    process leads a process group of its own, and what it started and left behind (a crash
-    runs no `finally`: its node, a foreign peer still announcing itself) is killed with the
-    group before the next test starts. Returns how many failed."""
-    failed = 0
-    for name in names:
-        for attempt in range(1, ATTEMPTS + 1):
-            proc = subprocess.Popen([sys.executable, os.path.abspath(__file__), name], start_new_session=True)
-            try:
-                rc = proc.wait()
-            finally:
-                try:
-                    os.killpg(proc.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-            if rc != -signal.SIGSEGV:
-                break
-            again = ": run again" if attempt < ATTEMPTS else ""
-            print(f"test_security.py: {name}: the rclpy peer on Cyclone DDS crashed (SIGSEGV; "
-                  f"eclipse-cyclonedds/cyclonedds#1548){again}", flush=True)
-        failed += rc != 0
-    return failed
-
-
-def main():
-    rmw = get_rmw_implementation_identifier()
-    if rmw != "rmw_cyclonedds_cpp":
-        print(f"test_security.py: this rclpy is on {rmw}, not rmw_cyclonedds_cpp: source cyclone_env.sh", flush=True)
-        os._exit(2)
-    # An unknown name is refused by run_tests_and_exit, in the process it is given to.
-    names = [a.removeprefix("test_") for a in sys.argv[1:] if a != "security"]
-    if len(names) != 1:
-        failed = each_in_its_own_process(names or list(TESTS))
-        print(f"security: {failed} failed", flush=True)
-        if not failed:
-            shutil.rmtree(tn.WORK, ignore_errors=True)
-        os._exit(1 if failed else 0)
-    rclpy.init(args=["--ros-args", "--enclave", "/planner"])
-    peer = tn.Peer("planner")
-    tests = [(name, lambda fn=fn: fn(peer)) for name, fn in TESTS.items()]
-    tn.run_tests_and_exit("test_security.py", tests, names, "interop::", "security")
-
-if __name__ == "__main__":
-    main()
+@pytest.fixture(scope="session")
+def rclpy_args():
+    """This process joins as the planner, enclave /planner."""
+    return ["--ros-args", "--enclave", "/planner"]

@@ -9,8 +9,8 @@ is read when rclpy starts its participant), which runs `--peer MODE` of this fil
 - full: plate scan, /calibrate, a lens scan corrected, its polygon, a parameter read;
 - isolated: for 8 s, neither the node, its topics nor /calibrate show up.
 
-Run by tests/interop/run.sh (`two_hosts` or a scenario name selects it), as
-`two_hosts.sh python test_two_hosts.py [SCENARIO...]`. Prints one line per scenario.
+Run by tests/interop/run.sh (`two_hosts` or a scenario's name selects it) with pytest
+(conftest.py; no rclpy in this process) under `two_hosts.sh`.
 """
 
 import os
@@ -21,7 +21,10 @@ import traceback
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-import runner  # noqa: E402
+import pytest  # noqa: E402
+import processes  # noqa: E402
+
+pytestmark = pytest.mark.fastdds
 
 DOMAIN = "42"
 PEER_TIMEOUT = 120
@@ -122,7 +125,7 @@ class Host:
             return f.read()
 
     def stop(self):
-        runner.terminate(self.proc)
+        processes.terminate(self.proc)
 
 
 def scenario(work, name, node_range, node_peers, peer_range, peer_peers, mode, expect_warnings=()):
@@ -159,7 +162,50 @@ def scenario(work, name, node_range, node_peers, peer_range, peer_peers, mode, e
     return last[-1] if last else ""
 
 
+@pytest.fixture(scope="module")
+def work():
+    """The scenarios' scratch folder (node logs), also the peers' TMPDIR."""
+    import tempfile
+
+    os.environ["TMPDIR"] = path = tempfile.mkdtemp(prefix="tracer_calib_two_hosts_")
+    return path
+
+
+# Each scenario: (name, node's range, node's static peers, peer's range, peer's static
+# peers, mode, warnings the node must give once each); ADDR_A and ADDR_B stand for the
+# hosts' addresses (TRACER_ADDR_A, TRACER_ADDR_B).
+SCENARIOS = [
+    # Static peers on the node only: the node announces itself to B by unicast. Bad
+    # entries beside the good one: one warning each, the node still starts.
+    pytest.param("node", "SUBNET", "no-such-host.invalid;10.0.0.300;ADDR_B", "SUBNET", None, "full",
+                 ("'no-such-host.invalid'", "'10.0.0.300'"), id="peers_on_node"),
+    pytest.param("peer", "SUBNET", None, "SUBNET", "ADDR_A", "full", (), id="peers_on_peer"),
+    pytest.param("both", "SUBNET", "ADDR_B", "SUBNET", "ADDR_A", "full", (), id="peers_on_both"),
+    # LOCALHOST with a static peer: no multicast, but the peer host is reached.
+    pytest.param("localhost", "LOCALHOST", "ADDR_B", "SUBNET", None, "full", (), id="localhost_with_peer"),
+    # Discovery OFF: not seen, not even by a peer that lists the node.
+    pytest.param("off", "OFF", None, "SUBNET", "ADDR_A", "isolated", (), id="off"),
+    # No static peers on either side and no multicast on the link: not seen.
+    pytest.param("none", "SUBNET", None, "SUBNET", None, "isolated", (), id="no_peers"),
+]
+
+
+@pytest.mark.parametrize(("name", "node_range", "node_peers", "peer_range", "peer_peers", "mode", "warnings"),
+                         SCENARIOS)
+def test_two_hosts(work, name, node_range, node_peers, peer_range, peer_peers, mode, warnings):
+    """two_hosts_peers_on_node, ..., two_hosts_no_peers (SCENARIOS)."""
+
+    def addresses(peers):
+        if peers is None:
+            return None
+        return peers.replace("ADDR_A", os.environ["TRACER_ADDR_A"]).replace("ADDR_B", os.environ["TRACER_ADDR_B"])
+
+    return scenario(work, name, node_range, addresses(node_peers), peer_range, addresses(peer_peers), mode,
+                    expect_warnings=warnings)
+
+
 def main():
+    """A scenario's peer, in host B: `--peer MODE`."""
     if len(sys.argv) >= 3 and sys.argv[1] == "--peer":
         try:
             peer_main(sys.argv[2])
@@ -167,31 +213,9 @@ def main():
             traceback.print_exc()
             sys.stdout.flush()
             os._exit(1)
-    import tempfile
-
-    work = tempfile.mkdtemp(prefix="tracer_calib_two_hosts_")
-    os.environ["TMPDIR"] = work
-    A, B = os.environ["TRACER_ADDR_A"], os.environ["TRACER_ADDR_B"]
-    scenarios = [
-        # Static peers on the node only: the node announces itself to B by unicast.
-        # Bad entries beside the good one: one warning each, the node still starts.
-        ("two_hosts_peers_on_node", lambda: scenario(
-            work, "node", "SUBNET", f"no-such-host.invalid;10.0.0.300;{B}", "SUBNET", None, "full",
-            expect_warnings=("'no-such-host.invalid'", "'10.0.0.300'"))),
-        ("two_hosts_peers_on_peer", lambda: scenario(work, "peer", "SUBNET", None, "SUBNET", A, "full")),
-        ("two_hosts_peers_on_both", lambda: scenario(work, "both", "SUBNET", B, "SUBNET", A, "full")),
-        # LOCALHOST with a static peer: no multicast, but the peer host is reached.
-        ("two_hosts_localhost_with_peer", lambda: scenario(work, "localhost", "LOCALHOST", B, "SUBNET", None, "full")),
-        # Discovery OFF: not seen, not even by a peer that lists the node.
-        ("two_hosts_off", lambda: scenario(work, "off", "OFF", None, "SUBNET", A, "isolated")),
-        # No static peers on either side and no multicast on the link: not seen.
-        ("two_hosts_no_peers", lambda: scenario(work, "none", "SUBNET", None, "SUBNET", None, "isolated")),
-    ]
-    only = sys.argv[1:]
-    if only == ["two_hosts"]:
-        only = []
-    failed = runner.run_tests(scenarios, only, "interop::", "two hosts")
-    os._exit(0 if failed == 0 else 1)
+    else:
+        print("test_two_hosts.py: run the scenarios with pytest (tests/interop/run.sh two_hosts)", file=sys.stderr)
+        os._exit(2)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Type hashes and type descriptions (REP-2016) of tracer_calib_node, seen by a stock rclpy
 node:
 
@@ -16,13 +15,12 @@ node:
   same requests.
 
 Run by tests/interop/run.sh (names `type_hash`, `type_hash_<test>`) inside a private
-network namespace, with the helpers of harness.py. Prints one line per test.
+network namespace, with the helpers of harness.py, with pytest (conftest.py).
 """
 
 import os
 import sys
 
-import rclpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import harness as t  # noqa: E402
@@ -208,24 +206,3 @@ def test_get_type_description(peer):
         return f"{compared} answers equal rclpy's own"
     finally:
         node.stop()
-
-
-def main():
-    rclpy.init()
-    peer = t.Peer("type_hash_peer")
-    tests = [
-        ("endpoint_hashes", lambda: test_endpoint_hashes(peer)),
-        ("get_type_description", lambda: test_get_type_description(peer)),
-    ]
-    only = [a.removeprefix("type_hash_") for a in sys.argv[1:] if a != "type_hash"]
-
-    def stop_nodes():
-        for n in list(t.RUNNING):
-            n.stop()
-
-    failed = t.run_tests(tests, only, "interop::type_hash_", "type_hash", after_each=stop_nodes)
-    os._exit(0 if failed == 0 else 1)
-
-
-if __name__ == "__main__":
-    main()

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """tracer_calib_node in a Zenoh cell (RMW_IMPLEMENTATION=rmw_zenoh_cpp) with stock ROS 2
 peers: rclpy on rmw_zenoh_cpp 0.2.10 (built from source by tests/interop/zenoh.sh) through
 the router rmw_zenohd.
@@ -26,7 +25,7 @@ shutdown on rmw_zenoh can hang for 10 s: docs/ros2-peer.md).
   lifecycle get/set` configure and activate it; a scan while inactive is held (no contour),
   one after activation comes back; each transition on ~/transition_event; once active,
   nav2's bond forms with the stock bondpy on rmw_zenoh_cpp as the manager's end (a process of
-  its own, BOND_MANAGER); when the node leaves, it says the bond broken a few times (every
+  its own, peers/zenoh_bond_manager.py); when the node leaves, it says the bond broken a few times (every
   50 ms, 300 ms at most), and the stock manager takes every status without an error.
 - zenoh_node_sim_time, zenoh_node_sim_time_no_clock: test_runtime.py's sim-time tests,
   run as they are against the node on Zenoh (an rclpy /clock at 5000 s: diagnostics, the
@@ -34,7 +33,7 @@ shutdown on rmw_zenoh can hang for 10 s: docs/ros2-peer.md).
   followed; no /clock: time 0, a warning on /diagnostics, the node serving).
 - zenoh_node_describe: test_runtime.py's descriptor test on Zenoh (`ros2 param describe`,
   ranges and read-only enforced with rclcpp's reasons).
-- zenoh_suite_NAME: test_node.py's and test_records.py's tests (node_suite.py's on DDS),
+- zenoh_suite_NAME: test_node.py's and test_records.py's tests (run.sh's node_suite on DDS),
   run as they are with the node on Zenoh and this process's rclpy on rmw_zenoh_cpp: all
   but replay_foreign_bags (`tracer_calib replay` publishes on DDS only).
 - zenoh_node_namespaces: ten nodes (namespaces /cell0../cell9, one remapped topic) on one
@@ -50,9 +49,11 @@ shutdown on rmw_zenoh can hang for 10 s: docs/ros2-peer.md).
   stock rclpy relay node (RawScan in, a Contour of the same size out, nothing computed),
   side by side (median and 90th percentile, after 3 s of warm-up rounds; BENCHMARKS.md).
 
-Prints one line per test and a closing 'N passed, N skipped, N failed'.
+Run with pytest (conftest.py; this process's rclpy initialised by the first test that
+needs it, after the stock pair's).
 """
 
+import inspect
 import json
 import os
 import shutil
@@ -67,9 +68,16 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.utilities import get_rmw_implementation_identifier
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import runner  # noqa: E402
+import processes  # noqa: E402
+from processes import peer_program  # noqa: E402
 import harness as tn  # noqa: E402
+import pytest  # noqa: E402
 import test_runtime  # noqa: E402
+
+if get_rmw_implementation_identifier() != "rmw_zenoh_cpp":
+    pytest.exit(f"test_zenoh.py: this rclpy is on {get_rmw_implementation_identifier()}, not rmw_zenoh_cpp: "
+                "source zenoh_env.sh", returncode=2)
+pytestmark = pytest.mark.zenoh
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import PolygonStamped  # noqa: E402
@@ -89,116 +97,10 @@ os.environ.pop("LD_PRELOAD", None)
 WORK = tn.WORK
 MESSAGES = 10
 
-# A stock talker: publishes "hello N" every 50 ms and serves /zenoh_trigger, until stdin
-# closes or says anything.
-TALKER = r"""
-import sys, threading
-import rclpy
-from rclpy.node import Node
-from std_msgs.msg import String
-from std_srvs.srv import Trigger
-rclpy.init()
-n = Node("zenoh_talker")
-pub = n.create_publisher(String, "/zenoh_chatter", 10)
-count = [0]
-def tick():
-    count[0] += 1
-    pub.publish(String(data=f"hello {count[0]}"))
-n.create_timer(0.05, tick)
-def trigger(req, resp):
-    resp.success, resp.message = True, f"talker at {count[0]}"
-    return resp
-n.create_service(Trigger, "/zenoh_trigger", trigger)
-stop = threading.Event()
-threading.Thread(target=lambda: (sys.stdin.readline(), stop.set()), daemon=True).start()
-print("ready", flush=True)
-while not stop.is_set():
-    rclpy.spin_once(n, timeout_sec=0.05)
-# rclpy's shutdown on rmw_zenoh sometimes fails after 10 s ("Failed to close the session",
-# docs/ros2-peer.md): said, not fatal.
-try:
-    n.destroy_node()
-    rclpy.shutdown()
-except Exception as e:
-    print(f"shutdown: {e}", flush=True)
-print("bye", flush=True)
-"""
-
-# A stock listener: takes MESSAGES messages, calls /zenoh_trigger once, prints one JSON
-# line, then waits for a line on stdin before leaving (so the CLI can see it).
-LISTENER = r"""
-import json, sys, time
-import rclpy
-from rclpy.node import Node
-from std_msgs.msg import String
-from std_srvs.srv import Trigger
-from rclpy.utilities import get_rmw_implementation_identifier
-want = int(sys.argv[1])
-rclpy.init()
-n = Node("zenoh_listener")
-got = []
-t0 = time.monotonic()
-first = [None]
-def on_msg(m):
-    if first[0] is None:
-        first[0] = time.monotonic() - t0
-    got.append(m.data)
-n.create_subscription(String, "/zenoh_chatter", on_msg, 10)
-client = n.create_client(Trigger, "/zenoh_trigger")
-def wait(cond, timeout):
-    deadline = time.monotonic() + timeout
-    while not cond() and time.monotonic() < deadline:
-        rclpy.spin_once(n, timeout_sec=0.05)
-    return cond()
-wait(lambda: len(got) >= want, 30)
-answer = None
-if wait(client.service_is_ready, 10):
-    f = client.call_async(Trigger.Request())
-    if wait(f.done, 10):
-        answer = [f.result().success, f.result().message]
-print(json.dumps({"rmw": get_rmw_implementation_identifier(), "got": got[:want], "first": first[0],
-                  "answer": answer}), flush=True)
-sys.stdin.readline()
-# rclpy's shutdown on rmw_zenoh sometimes fails after 10 s ("Failed to close the session",
-# docs/ros2-peer.md): said, not fatal.
-try:
-    n.destroy_node()
-    rclpy.shutdown()
-except Exception as e:
-    print(f"shutdown: {e}", flush=True)
-print("bye", flush=True)
-"""
-
-# nav2's lifecycle manager's end of the bond (stock bondpy), in a process of its own as
-# nav2's is: prints "started INSTANCE_ID", then "formed" when the bond forms, and any error
-# its executor raises ("error: ..."), until killed.
-BOND_MANAGER = r"""
-import time
-import rclpy
-from bondpy.bondpy import Bond
-rclpy.init()
-n = rclpy.create_node("zenoh_lifecycle_manager")
-bond = Bond(n, "/bond", "tracer_calibrator", on_formed=lambda: print("formed", flush=True))
-bond.heartbeat_period = 0.1
-bond.heartbeat_timeout = 4.0
-bond.connect_timeout = 60.0
-bond.start()
-print("started", bond.instance_id, flush=True)
-said = set()
-while True:
-    try:
-        rclpy.spin_once(n, timeout_sec=0.1)
-    except Exception as e:
-        if str(e) not in said:
-            said.add(str(e))
-            print(f"error: {e}", flush=True)
-        time.sleep(0.1)
-"""
-
 
 def peer(name, script, *args):
     return subprocess.Popen(
-        ["timeout", "-s", "KILL", "120", sys.executable, "-c", script, *args], env=ZENOH_ENV,
+        ["timeout", "-s", "KILL", "120", sys.executable, script, *args], env=ZENOH_ENV,
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=open(os.path.join(WORK, name + ".log"), "w"),
         text=True,
     )
@@ -261,9 +163,9 @@ def test_zenoh_stock_pair():
     procs = {}
     try:
         t0 = time.monotonic()
-        procs["talker"] = peer("talker", TALKER)
+        procs["talker"] = peer("talker", peer_program("zenoh_talker"))
         stdout_line(procs["talker"], lambda line: line == "ready", "talker")
-        procs["listener"] = peer("listener", LISTENER, str(MESSAGES))
+        procs["listener"] = peer("listener", peer_program("zenoh_listener"), str(MESSAGES))
         r = json.loads(stdout_line(procs["listener"], lambda line: line.startswith("{"), "listener"))
         took = time.monotonic() - t0
         assert r["rmw"] == "rmw_zenoh_cpp", r["rmw"]
@@ -288,7 +190,7 @@ def test_zenoh_stock_pair():
         return f"{detail} ({took:.2f} s to the last message and the answer)"
     finally:
         for p in procs.values():
-            runner.kill(p)
+            processes.kill(p)
         router.stop()
 
 
@@ -517,7 +419,7 @@ def test_zenoh_node_lifecycle():
             if "inactive" in str(e):
                 raise
         # nav2's bond on Zenoh, with the stock bondpy (tests/interop/bond.sh) as the manager,
-        # in a process of its own (BOND_MANAGER), as nav2's lifecycle manager is. The node's
+        # in a process of its own (peers/zenoh_bond_manager.py), as nav2's lifecycle manager is. The node's
         # end waits for its sister the connect timeout (10 s, bond_msgs'), then breaks, as
         # bondcpp's does; nav2's manager starts its end as soon as the activation is
         # answered, but `ros2 lifecycle set` on Zenoh can take 10 s more to exit (its
@@ -530,7 +432,7 @@ def test_zenoh_node_lifecycle():
             have_bond = False
         manager_said = []
         if have_bond:
-            manager = peer_process("zenoh_lifecycle_manager", BOND_MANAGER)
+            manager = peer_process("zenoh_lifecycle_manager", peer_program("zenoh_bond_manager"))
             threading.Thread(target=lambda: manager_said.extend(iter(manager.stdout.readline, "")),
                              daemon=True).start()
             peer.spin_until(lambda: any(line.startswith("started") for line in manager_said), 30,
@@ -573,7 +475,7 @@ def test_zenoh_node_lifecycle():
     finally:
         node.stop()
         if manager:
-            runner.kill(manager)
+            processes.kill(manager)
 
 
 def test_zenoh_node_namespaces():
@@ -665,35 +567,6 @@ def test_zenoh_node_router_restart():
         node.stop()
 
 
-# A stock rclpy node on rmw_zenoh_cpp: each RawScan on /relay_in out again on /relay_out
-# as a Contour of the size the node sends (its scan id, as many points as samples, no
-# correction computed), until stdin closes.
-RELAY = r"""
-import sys, threading
-import rclpy
-from rclpy.node import Node
-from rclpy.qos import QoSProfile
-from geometry_msgs.msg import Point
-from tracer_calib_msgs.msg import Contour, RawScan
-rclpy.init()
-n = Node("stock_relay")
-pub = n.create_publisher(Contour, "/relay_out", QoSProfile(depth=10))
-c = Contour()
-c.points = [Point(x=0.001 * i, y=0.0, z=0.0) for i in range(400)]
-c.radii = [0.02] * 400
-def on_scan(m):
-    c.header = m.header
-    c.scan_id = m.scan_id
-    c.target = m.target
-    pub.publish(c)
-n.create_subscription(RawScan, "/relay_in", on_scan, QoSProfile(depth=100))
-stop = threading.Event()
-threading.Thread(target=lambda: (sys.stdin.readline(), stop.set()), daemon=True).start()
-print("ready", flush=True)
-while not stop.is_set():
-    rclpy.spin_once(n, timeout_sec=0.05)
-"""
-
 LATENCY_ROUNDS = 300
 
 
@@ -726,7 +599,7 @@ class RoundTrips:
 def test_zenoh_latency():
     router()
     node = zenoh_node("zenoh_latency")
-    relay = peer("relay", RELAY)
+    relay = peer("relay", peer_program("zenoh_relay"))
     # A peer of its own: the shared one holds every earlier test's /contour subscriptions,
     # and each would take (deserialize) every contour, timed against the node.
     ctx = rclpy.Context()
@@ -754,45 +627,40 @@ def test_zenoh_latency():
                 f"tracer_calib_node {fig(node_t)}; stock rclpy relay {fig(relay_t)}")
     finally:
         relay.stdin.close()
-        runner.kill(relay)
+        processes.kill(relay)
         node.stop()
         peer_.close()
 
 
-def main():
-    rmw = get_rmw_implementation_identifier()
-    if rmw != "rmw_zenoh_cpp":
-        print(f"test_zenoh.py: this rclpy is on {rmw}, not rmw_zenoh_cpp: source zenoh_env.sh", flush=True)
-        os._exit(2)
-    # test_node.py's and test_records.py's tests (node_suite.py's on DDS), as they are, with
-    # the node on Zenoh.
-    import test_node  # noqa: E402
-    import test_records  # noqa: E402
-    # Not replay_foreign_bags: `tracer_calib replay` publishes on DDS only (it says so, one
-    # line, under RMW_IMPLEMENTATION=rmw_zenoh_cpp).
-    suite = [(f"zenoh_suite_{name}", on_zenoh(lambda _peer, fn=fn: fn()))
-             for name, fn in test_node.tests(peer_node()) + test_records.tests(peer_node())
-             if name != "replay_foreign_bags"]
-    tests = [
-        ("zenoh_stock_pair", test_zenoh_stock_pair),
-        ("zenoh_node_calibrate", test_zenoh_node_calibrate),
-        ("zenoh_node_cli", test_zenoh_node_cli),
-        ("zenoh_node_lifecycle", test_zenoh_node_lifecycle),
-        ("zenoh_node_sim_time", on_zenoh(test_runtime.test_sim_time)),
-        ("zenoh_node_sim_time_no_clock", on_zenoh(test_runtime.test_sim_time_no_clock)),
-        ("zenoh_node_describe", on_zenoh(test_runtime.test_describe)),
-        ("zenoh_node_namespaces", test_zenoh_node_namespaces),
-        ("zenoh_node_leave", test_zenoh_node_leave),
-        ("zenoh_node_bad_environment", test_zenoh_node_bad_environment),
-        ("zenoh_node_router_restart", test_zenoh_node_router_restart),
-        ("zenoh_latency", test_zenoh_latency),
-    ] + suite
-    def stop_router():
-        if ROUTER[0] is not None:
-            ROUTER[0].stop()
+@pytest.fixture(scope="module", autouse=True)
+def router_stopped():
+    """The router the tests share (router()), stopped after the last."""
+    yield
+    if ROUTER[0] is not None:
+        ROUTER[0].stop()
 
-    runner.run_tests_and_exit("test_zenoh.py", tests, sys.argv[1:], "interop::", "zenoh", WORK, log_dir=WORK,
-                              at_end=stop_router)
 
-if __name__ == "__main__":
-    main()
+test_zenoh_node_sim_time = on_zenoh(test_runtime.test_sim_time)
+test_zenoh_node_sim_time_no_clock = on_zenoh(test_runtime.test_sim_time_no_clock)
+test_zenoh_node_describe = on_zenoh(test_runtime.test_describe)
+
+
+def dds_suite():
+    """test_node.py's and test_records.py's tests (on DDS, run.sh's node_suite), in order:
+    all but replay_foreign_bags (`tracer_calib replay` publishes on DDS only, and says so
+    in one line under RMW_IMPLEMENTATION=rmw_zenoh_cpp)."""
+    import test_node
+    import test_records
+
+    return [pytest.param(fn, id=name.removeprefix("test_"))
+            for module in (test_node, test_records)
+            for name, fn in vars(module).items()
+            if name.startswith("test_") and inspect.isfunction(fn) and fn.__module__ == module.__name__
+            and name != "test_replay_foreign_bags"]
+
+
+@pytest.mark.parametrize("fn", dds_suite())
+def test_zenoh_suite(fn):
+    """zenoh_suite_NAME: a test of node_suite's, as it is, with the node on Zenoh."""
+    takes_peer = "peer" in inspect.signature(fn).parameters
+    return on_zenoh(lambda peer: fn(peer) if takes_peer else fn())()
