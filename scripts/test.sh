@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The test command (README, .ci/run). One release build, reused by every step:
-#   0. formatting (cargo fmt --check);
+#   0. formatting (cargo fmt --check), and the Python linted (scripts/lint_python.sh);
 #   1. the Rust tests (unit, engine, node over DDS), inside a private network namespace;
 #      the vendored rustdds' own unit tests, with our patches' (scripts/test_vendored.sh),
 #      then clippy and rustdoc, warnings as errors (beside 2, at a lower priority);
@@ -36,6 +36,7 @@ part() {
 part "build dependencies" apt_install_missing test.sh target/build_deps.log libssl-dev pkg-config
 part "format" cargo fmt --check
 part "ROS 2 sources by hash" python3 tests/ros2_sources_test.py
+part "python lint" bash scripts/lint_python.sh
 part "cargo build" cargo build --release --locked --features security --bins
 part "cargo test build" cargo test --release --locked --features security --no-run
 # The Python peer (rclpy, rosbags) from PyPI: before the Rust tests, which use rosbags
