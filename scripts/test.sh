@@ -3,7 +3,7 @@
 #   0. formatting (cargo fmt --check), and the Python linted (scripts/lint_python.sh);
 #   1. the Rust tests (unit, engine, node over DDS), inside a private network namespace;
 #      the vendored rustdds' own unit tests, with our patches' (scripts/test_vendored.sh),
-#      then clippy and rustdoc, warnings as errors (beside 2, at the lowest priority);
+#      then clippy and rustdoc, warnings as errors (beside 2, at a lower priority);
 #   2. the real ROS 2 peer, once per distribution (Kilted, and Jazzy, the LTS): rclpy with
 #      Fast DDS from PyPI wheels and the message package built by rosidl
 #      (tests/interop/setup.sh installs both), against the node; then this repository
@@ -71,9 +71,9 @@ part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline
 # checks: the vendored rustdds' own tests, clippy and rustdoc, warnings as errors. They
 # need no peer, and their builds are cargo's debug profile and a target directory of their
 # own (cargo locks each apart): beside the interop suites, which mostly wait (discovery,
-# loss, timeouts) and whose set-ups build the release profile, they run at the lowest
-# priority of all (nice 19: the suites' processes first, then the set-ups' builds at nice
-# 10, rmw_zenoh_cpp's among them, which the suites wait for), their output printed whole when the suites have ended. On a fresh machine that is 4-5 minutes of compiling moved
+# loss, timeouts) and whose set-ups build the release profile, they run at a lower
+# priority (nice 10: the suites' processes and set-ups first), their output printed whole
+# when the suites have ended. On a fresh machine that is 4-5 minutes of compiling moved
 # into the suites' waiting (BENCHMARKS.md).
 checks() {
     part "rustdds unit tests" bash scripts/test_vendored.sh &&
@@ -83,7 +83,7 @@ checks() {
 if [ "$peers" -eq 1 ]; then
     checks_log=$(mktemp)
     trap 'rm -f "$checks_log"' EXIT
-    (renice -n 19 -p "$BASHPID" >/dev/null && checks) >"$checks_log" 2>&1 &
+    (renice -n 10 -p "$BASHPID" >/dev/null && checks) >"$checks_log" 2>&1 &
     checks_pid=$!
     echo "test.sh: rustdds unit tests, clippy, docs: started beside the interop suites (their output when they end)"
     interop_rc=0 checks_rc=0

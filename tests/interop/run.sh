@@ -162,12 +162,11 @@ built() {
 }
 
 # rmw_zenoh_cpp (zenoh.sh: on a fresh machine 8 minutes of compiling zenoh-c; quick when
-# cached) builds beside the rest, at the set-ups' lower priority (zenoh.sh compiles at nice
-# 10: the suites' processes first; test.sh's clippy and rustdoc after it, at nice 19);
-# zenoh_wait, in the lane that needs it, waits for it.
+# cached) builds beside the rest, at a lower priority (nice 10: the other set-ups and the
+# suites' processes first); zenoh_wait, in the lane that needs it, waits for it.
 zenoh_pid=
 zenoh_start() {
-    (rc=0
+    (renice -n 10 -p "$BASHPID" >/dev/null; rc=0
      built rmw_zenoh_cpp "$1" "$HERE/zenoh.sh" "$1" >"$LANES/zenoh.log" 2>&1 || rc=$?
      echo "$rc" >"$LANES/zenoh.rc") &
     zenoh_pid=$!
