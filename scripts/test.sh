@@ -2,8 +2,8 @@
 # The test command (README, .ci/run). One release build, reused by every step:
 #   0. formatting (cargo fmt --check), and the Python linted (scripts/lint_python.sh);
 #   1. the Rust tests (unit, engine, node over DDS), inside a private network namespace;
-#      the vendored rustdds' own unit tests, with our patches' (scripts/test_vendored.sh),
-#      then clippy and rustdoc, warnings as errors (beside 2, at a lower priority);
+#      then the vendored rustdds' own unit tests, with our patches' (scripts/test_vendored.sh);
+#      then clippy and rustdoc, warnings as errors;
 #   2. the real ROS 2 peer, once per distribution (Kilted, and Jazzy, the LTS): rclpy with
 #      Fast DDS from PyPI wheels and the message package built by rosidl
 #      (tests/interop/setup.sh installs both), against the node; then this repository
@@ -68,33 +68,12 @@ fi
 # (without the set-up they stay ignored, and cargo counts them so).
 if [ "$peers" -eq 1 ]; then ignored=(-- --include-ignored); else ignored=(); fi
 part "cargo test" tests/interop/netns.sh cargo test --release --locked --offline --features security ${ignored[@]+"${ignored[@]}"}
-# checks: the vendored rustdds' own tests, clippy and rustdoc, warnings as errors. They
-# need no peer, and their builds are cargo's debug profile and a target directory of their
-# own (cargo locks each apart): beside the interop suites, which mostly wait (discovery,
-# loss, timeouts) and whose set-ups build the release profile, they run at a lower
-# priority (nice 10: the suites' processes and set-ups first), their output printed whole
-# when the suites have ended. On a fresh machine that is 4-5 minutes of compiling moved
-# into the suites' waiting (BENCHMARKS.md).
-checks() {
-    part "rustdds unit tests" bash scripts/test_vendored.sh &&
-        part "clippy" cargo clippy --locked --offline --all-targets --features security -- -D warnings &&
-        part "docs" env RUSTDOCFLAGS="-D warnings" cargo doc --locked --offline --no-deps --document-private-items --features security
-}
+part "rustdds unit tests" bash scripts/test_vendored.sh
+part "clippy" cargo clippy --locked --offline --all-targets --features security -- -D warnings
+part "docs" env RUSTDOCFLAGS="-D warnings" cargo doc --locked --offline --no-deps --document-private-items --features security
 if [ "$peers" -eq 1 ]; then
-    checks_log=$(mktemp)
-    trap 'rm -f "$checks_log"' EXIT
-    (renice -n 10 -p "$BASHPID" >/dev/null && checks) >"$checks_log" 2>&1 &
-    checks_pid=$!
-    echo "test.sh: rustdds unit tests, clippy, docs: started beside the interop suites (their output when they end)"
-    interop_rc=0 checks_rc=0
-    part "interop (kilted, jazzy)" bash tests/interop/run.sh || interop_rc=$?
-    wait "$checks_pid" || checks_rc=$?
-    cat "$checks_log"
-    [ "$checks_rc" -eq 0 ] || echo "test.sh: rustdds unit tests, clippy or docs FAILED (above)" >&2
-    [ "$interop_rc" -eq 0 ] || echo "test.sh: interop (kilted, jazzy) FAILED (its output above)" >&2
-    [ "$checks_rc" -eq 0 ] && [ "$interop_rc" -eq 0 ]
+    part "interop (kilted, jazzy)" bash tests/interop/run.sh
 else
-    checks
     echo "test.sh: interop (kilted, jazzy): SKIPPED, every peer suite (0 run): the stock peers could not be set up (above)"
     echo "test.sh: done WITHOUT the stock-peer suites: the Rust tests, clippy and rustdoc passed; the interop suites were skipped, not passed"
 fi

@@ -32,10 +32,9 @@
 #      Whatever is still running in that namespace after it (a launch, a node, a daemon)
 #      is listed, killed, and fails the step.
 # Nothing leaves the machine. Prints each part's time. The set-ups (1, 3 and the stock
-# peers below) run first, one distribution after the other (rmw_zenoh_cpp's build beside
-# them and the suites, at a lower priority, until the Zenoh peers are needed); then the
-# suites (2, 4) in two lanes side by side, each lane's output printed whole when it ends
-# (TRACER_INTEROP_LANES=1: one lane after the other, as they come).
+# peers below) run first, one distribution after the other; then the suites (2, 4) in two
+# lanes side by side, each lane's output printed whole when it ends (TRACER_INTEROP_LANES=1:
+# one lane after the other, as they come).
 #   tests/interop/run.sh [TEST_NAME...]
 # Names starting with graph select test_graph.py's tests (graph: all), type_hash
 # test_type_hash.py's (type_hash: all), runtime or sim_time, replay_clock, describe,
@@ -161,29 +160,6 @@ built() {
     echo "run.sh: $d: $what $(took "$t0")"
 }
 
-# rmw_zenoh_cpp (zenoh.sh: on a fresh machine 8 minutes of compiling zenoh-c; quick when
-# cached) builds beside the rest, at a lower priority (nice 10: the other set-ups and the
-# suites' processes first); zenoh_wait, in the lane that needs it, waits for it.
-zenoh_pid=
-zenoh_start() {
-    (renice -n 10 -p "$BASHPID" >/dev/null; rc=0
-     built rmw_zenoh_cpp "$1" "$HERE/zenoh.sh" "$1" >"$LANES/zenoh.log" 2>&1 || rc=$?
-     echo "$rc" >"$LANES/zenoh.rc") &
-    zenoh_pid=$!
-    echo "run.sh: $1: rmw_zenoh_cpp: being built beside the rest (its output when a suite needs it)"
-}
-# zenoh_wait DISTRO: after zenoh_start, the build's output and zenoh_ok=1 if it succeeded
-# (once; from a lane's subshell too, by the status file).
-zenoh_wait() {
-    [ -n "$zenoh_pid" ] && [ "$zenoh_ok" -eq 0 ] || return 0
-    local t0
-    t0=$(now_ms)
-    until [ -s "$LANES/zenoh.rc" ]; do sleep 1; done
-    cat "$LANES/zenoh.log"
-    echo "run.sh: $1: waited $(took "$t0") for rmw_zenoh_cpp"
-    if [ "$(cat "$LANES/zenoh.rc")" = 0 ]; then zenoh_ok=1; else fail "$1:zenoh_setup"; zenoh_pid=; fi
-}
-
 # pytest_in_venv DISTRO: the suites' runner (requirements-pytest.txt) in the distribution's
 # venv, on top of setup.sh's (quick when installed: keyed on the file and the venv's stamp,
 # so a venv made afresh gets it again).
@@ -201,7 +177,7 @@ pytest_in_venv() {
 }
 
 # 1. Everything the suites need, one distribution after the other (builds and installs,
-# quick when cached; rmw_zenoh_cpp beside them): the suites below only run.
+# quick when cached): the suites below only run.
 cyclone_ok=0 zenoh_ok=0 sros2_ok=0
 declare -A workspace_ok=()
 for d in $DISTROS; do
@@ -227,7 +203,7 @@ for d in $DISTROS; do
             if "$HERE/sros2.sh" "$d"; then sros2_ok=1; else fail "$d:security_setup"; fi
         fi
         if wanted $(( ${#lossy[@]} + ${#zenoh[@]} )); then
-            zenoh_start "$d"
+            if built rmw_zenoh_cpp "$d" "$HERE/zenoh.sh" "$d"; then zenoh_ok=1; else fail "$d:zenoh_setup"; fi
         fi
     fi
     # 3. The README's `colcon build` (test_launch.py's workspace). One at a time: the
@@ -290,23 +266,19 @@ lane_dds() {
         launch_suite "$d"
     done
 }
-# lossy_suite DISTRO: test_lossy.py: the node and a stock rclpy node in its place under 10
-# and 25 % UDP loss (nftables, in a network namespace of each scenario's own), and under
-# 10 % loss with datagrams delayed and reordered, with Fast DDS peers and, on Jazzy, Cyclone
-# DDS and Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's lossy_cyclone_* and
-# lossy_zenoh_* say they are skipped; Zenoh under 25 % loss also with TCP's retransmission
-# timeout capped at 1 s); ten cells started at once under 10 % (Fast DDS planner) and 25 %
-# loss (Cyclone DDS planner). 14 scenarios of 30-60 s, each bounded at 300 s by
-# test_lossy.py itself.
-lossy_suite() {
-    SUITE_LIMIT=1200 suite test_lossy.py "$1" "ROS 2 $1 rclpy under packet loss, release binaries" test_lossy \
-        ${lossy[@]+"${lossy[@]}"}
-}
 lane_loss() {
     local d
     for d in $DISTROS; do
-        # Jazzy's lossy suite after rmw_zenoh_cpp is built (its Zenoh peers): last.
-        [ "$d" = jazzy ] || lossy_suite "$d"
+        # test_lossy.py: the node and a stock rclpy node in its place under 10 and 25 % UDP
+        # loss (nftables, in a network namespace of each scenario's own), and under 10 % loss
+        # with datagrams delayed and reordered, with Fast DDS peers and, on Jazzy, Cyclone DDS
+        # and Zenoh peers (cyclone_env.sh, zenoh_env.sh; Kilted's lossy_cyclone_* and
+        # lossy_zenoh_* say they are skipped; Zenoh under 25 % loss also with TCP's
+        # retransmission timeout capped at 1 s); ten cells started at once under 10 % (Fast
+        # DDS planner) and 25 % loss (Cyclone DDS planner). 14 scenarios of 30-60 s, each
+        # bounded at 300 s by test_lossy.py itself.
+        SUITE_LIMIT=1200 suite test_lossy.py "$d" "ROS 2 $d rclpy under packet loss, release binaries" test_lossy \
+            ${lossy[@]+"${lossy[@]}"}
         # 2c. SROS2 (test_security.py): the release node (built with `security`), `ros2
         # security`, and a secure Cyclone DDS peer (Debian's Cyclone security plugins). Jazzy
         # only, as 2b.
@@ -317,6 +289,14 @@ lane_loss() {
             # rclpy peer segfaulted (Cyclone DDS 0.10.2; eclipse-cyclonedds/cyclonedds#1548).
             TRACER_CALIB_NODE_SECURE="$TRACER_CALIB_NODE" suite_in netns.sh cyclone_env.sh test_security.py "$d" \
                 "secure node, ROS 2 $d rclpy on Cyclone DDS with security" test_security ${security[@]+"${security[@]}"}
+        fi
+        # 2d. The node in a Zenoh cell with stock rmw_zenoh peers (test_zenoh.py). Jazzy
+        # only: the rmw_zenoh tarball is Jazzy's release (0.2.10).
+        if [ "${#zenoh[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
+            echo "run.sh: $d: test_zenoh.py skipped (rmw_zenoh_cpp is built for jazzy only)"
+        elif [ "$d" = jazzy ] && [ "$zenoh_ok" -eq 1 ]; then
+            suite_in netns.sh zenoh_env.sh test_zenoh.py "$d" "ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd" \
+                test_zenoh ${zenoh[@]+"${zenoh[@]}"}
         fi
         # 2e. The stock `ros2 bag` (test_rosbag2.py) against the node, peers on Fast DDS,
         # with target/ros/jazzy/rosbag2_env.sh. Jazzy only: rosbag2.sh builds Jazzy's rosbag2.
@@ -329,18 +309,6 @@ lane_loss() {
             else
                 fail "$d:rosbag2_setup"
             fi
-        fi
-        if [ "$d" = jazzy ]; then
-            if wanted $(( ${#lossy[@]} + ${#zenoh[@]} )); then zenoh_wait "$d"; fi
-            lossy_suite "$d"
-        fi
-        # 2d. The node in a Zenoh cell with stock rmw_zenoh peers (test_zenoh.py). Jazzy
-        # only: the rmw_zenoh tarball is Jazzy's release (0.2.10).
-        if [ "${#zenoh[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
-            echo "run.sh: $d: test_zenoh.py skipped (rmw_zenoh_cpp is built for jazzy only)"
-        elif [ "$d" = jazzy ] && [ "$zenoh_ok" -eq 1 ]; then
-            suite_in netns.sh zenoh_env.sh test_zenoh.py "$d" "ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd" \
-                test_zenoh ${zenoh[@]+"${zenoh[@]}"}
         fi
     done
 }
@@ -399,7 +367,6 @@ else
         unset "lane_of[$ended]"
     done
 fi
-[ -z "$zenoh_pid" ] || wait "$zenoh_pid" || true  # not needed by the names given: still ends here
 if [ -s "$FAILS" ]; then
     echo "run.sh: failed: $(tr '\n' ' ' <"$FAILS")" >&2
     exit 1
