@@ -148,6 +148,9 @@ pub fn install(args: &RosArgs) {
         return;
     }
     let mut builder = env_logger::Builder::new();
+    // Microseconds, as a stock node's console lines have (rcutils: nanoseconds): a record
+    // is set beside a peer's, or a network capture, by them.
+    builder.format_timestamp_micros();
     builder.filter_level(LevelFilter::Warn);
     builder.filter_module("rustdds", LevelFilter::Error);
     // Its only error: leaving the discovery multicast group as the participant closes,

@@ -103,9 +103,11 @@ RUNNING = []
 class NodeProcess:
     """tracer_calib_node in a subprocess, stopped with SIGTERM. `argv`, if given, is the
     command that runs the node instead of `NODE_BIN --ros-args ROS_ARGS`; `peer=True`
-    runs it with the peer's environment whole (a stock rclpy node in the node's place)."""
+    runs it with the peer's environment whole (a stock rclpy node in the node's place);
+    `log_filters` (env_logger's, e.g. "ros2_client::service::server=debug") are added to
+    the node's RUST_LOG."""
 
-    def __init__(self, label, ros_args=(), argv=None, peer=False):
+    def __init__(self, label, ros_args=(), argv=None, peer=False, log_filters=None):
         self.label = label
         self.log_path = os.path.join(WORK, label + ".log")
         self.log = open(self.log_path, "w")
@@ -113,6 +115,8 @@ class NodeProcess:
         # The node never takes a peer's preload (the SONAME shims that put rclpy on Cyclone
         # DDS or rmw_zenoh_cpp): it speaks its middleware itself.
         env = {k: v for k, v in os.environ.items() if peer or k != "LD_PRELOAD"}
+        if log_filters:
+            env["RUST_LOG"] = ",".join(f for f in (env.get("RUST_LOG"), log_filters) if f)
         self.proc = subprocess.Popen(argv, stdout=self.log, stderr=subprocess.STDOUT, env=env)
         RUNNING.append(self)
 

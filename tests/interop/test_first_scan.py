@@ -8,8 +8,8 @@ must have matched that publisher by then, or match it at once and have the scan 
 publishes a plate scan and calls /calibrate right away must find it there.
 
 One node runs throughout; an observer (this process's rclpy) subscribes to /contour and
-checks the path once. Then TRIES times (default 50): a fresh peer process (rclpy, a DDS
-participant of its own) creates a RawScan publisher (reliable, volatile: the node's
+checks the path once. Then TRIES times (default 50): a fresh peer process
+(peers/first_scan_driver.py: rclpy, a DDS participant of its own) creates a RawScan publisher (reliable, volatile: the node's
 subscription's QoS), waits until its subscription count is 1, publishes one plate scan at
 once and stays up; the time from that publish to the scan's corrected Contour at the
 observer is the try's latency. Every try must be within LIMIT (100 ms). Late ones are
@@ -19,15 +19,17 @@ waited for up to 6 s so that the figures show how late they were.
 - first_scan_cyclone: the peers on rmw_cyclonedds_cpp (target/ros/DISTRO/cyclone_env.sh,
   made by tests/interop/cyclone.sh; skipped with a message when it is missing);
 - first_scan_call_fastdds, first_scan_call_cyclone: the same for a service client, CALL_TRIES
-  (default 20) times: a fresh rclpy process calls /calibrate as soon as the service is
-  ready; the answer must come within LIMIT (a client whose request comes before the node
-  has matched its response reader must not wait for good, nor for a repair).
+  (default 20) times: a fresh rclpy process (peers/first_call_client.py) calls /calibrate
+  as soon as the service is ready; the answer must come within LIMIT (a client whose
+  request comes before the node has matched its response reader must not wait for good,
+  nor for a repair). The node logs how long each response waited for its client's
+  response reader; a late answer's report shows those lines and the client's steps.
 
 Run by tests/interop/run.sh with pytest (conftest.py) inside a private network namespace
-(names `first_scan`, or the tests' above), with target/ros/DISTRO/env.sh sourced; this
-file is also the peers' program (`--peer`, `--client`, `--stock-node`). Environment: FIRST_SCAN_TRIES (50),
-FIRST_SCAN_LIMIT_MS (100), FIRST_SCAN_NODE=rclpy (for reference: a stock rclpy node on
-Fast DDS in the node's place, answering each scan with an uncorrected Contour). Prints
+(names `first_scan`, or the tests' above), with target/ros/DISTRO/env.sh sourced. Environment: FIRST_SCAN_TRIES (50),
+FIRST_SCAN_CALL_TRIES (20), FIRST_SCAN_LIMIT_MS (100), FIRST_SCAN_NODE=rclpy (for
+reference: a stock rclpy node on Fast DDS in the node's place,
+peers/first_scan_stock_node.py, answering each scan with an uncorrected Contour). Prints
 the latency distribution of each test.
 """
 
@@ -37,8 +39,14 @@ import select
 import subprocess
 import sys
 import time
+from datetime import datetime, timezone
 
 import pytest
+from rclpy.qos import QoSProfile
+
+import harness as h
+import processes
+from tracer_calib_msgs.msg import Contour, RawScan
 
 PEER_NAME = "first_scan_observer"  # conftest.py's peer
 TRIES = int(os.environ.get("FIRST_SCAN_TRIES", "50"))
@@ -47,110 +55,12 @@ LIMIT = float(os.environ.get("FIRST_SCAN_LIMIT_MS", "100")) / 1000.0
 WAIT_LATE = 6.0
 
 
-def peer_main(plate_csv, scan_id):
-    """The driver: a fresh participant, one publisher, one scan as soon as it is matched.
-    Prints {"published": monotonic seconds} and stays up until stdin closes."""
-    import rclpy
-    from rclpy.node import Node
-    from rclpy.qos import QoSProfile
-
-    from tracer_calib_msgs.msg import RawScan
-
-    steps, counts = [], []
-    with open(plate_csv) as f:
-        next(f)
-        for line in f:
-            s, c = line.strip().split(",")
-            steps.append(int(s))
-            counts.append(int(c))
-    msg = RawScan()
-    msg.header.frame_id = "tracer"
-    msg.header.stamp.sec = 1700000000 + scan_id
-    msg.scan_id = scan_id
-    msg.target = RawScan.TARGET_CALIBRATION_PLATE
-    msg.steps_per_revolution = 400
-    msg.step = steps
-    msg.counts = counts
-
-    rclpy.init()
-    node = Node(f"first_scan_driver_{scan_id}")
-    pub = node.create_publisher(RawScan, "/raw_scan", QoSProfile(depth=10))
-    t0 = time.monotonic()
-    while pub.get_subscription_count() < 1:
-        if time.monotonic() - t0 > 20:
-            print(json.dumps({"error": "no subscription within 20 s"}), flush=True)
-            return
-        time.sleep(0.0005)
-    published = time.monotonic()
-    pub.publish(msg)
-    print(json.dumps({"published": published, "matched_after": published - t0}), flush=True)
-    # Stay up (the writer must be there to repair) until told to go.
-    sys.stdin.read()
-    node.destroy_node()
-    rclpy.shutdown()
-
-
-def client_main():
-    """The client: a fresh participant, one /calibrate call as soon as the service is
-    ready. Prints {"answer": seconds from the call to its answer, or null}."""
-    import rclpy
-    from rclpy.node import Node
-
-    from tracer_calib_msgs.srv import Calibrate
-
-    rclpy.init()
-    node = Node("first_call_client")
-    client = node.create_client(Calibrate, "/calibrate")
-    t0 = time.monotonic()
-    while not client.service_is_ready():
-        if time.monotonic() - t0 > 20:
-            print(json.dumps({"error": "no service within 20 s"}), flush=True)
-            return
-        rclpy.spin_once(node, timeout_sec=0.001)
-    called = time.monotonic()
-    future = client.call_async(Calibrate.Request(dry_run=True))
-    while not future.done() and time.monotonic() - called < WAIT_LATE:
-        rclpy.spin_once(node, timeout_sec=0.001)
-    answered = time.monotonic() - called if future.done() else None
-    print(json.dumps({"answer": answered, "ready_after": called - t0}), flush=True)
-
-
-def stock_node_main():
-    """FIRST_SCAN_NODE=rclpy: a stock rclpy node in the node's place, for reference. It
-    subscribes to /raw_scan with the node's QoS (reliable, keep last 100) and answers
-    each scan with a Contour carrying its scan_id (no correction)."""
-    import rclpy
-    from rclpy.node import Node
-    from rclpy.qos import QoSProfile
-
-    from tracer_calib_msgs.msg import Contour, RawScan
-
-    rclpy.init()
-    node = Node("tracer_calibrator")
-    pub = node.create_publisher(Contour, "/contour", QoSProfile(depth=10))
-
-    def on_scan(scan):
-        c = Contour()
-        c.header = scan.header
-        c.scan_id = scan.scan_id
-        pub.publish(c)
-
-    node.create_subscription(RawScan, "/raw_scan", on_scan, QoSProfile(depth=100))
-    rclpy.spin(node)
-
-
 def first_scans(peer, env, label, scan_base):
     """TRIES fresh peers, one scan each: the latencies (seconds; None: never arrived)."""
-    import harness as h
-    import processes
-    from tracer_calib_msgs.msg import Contour, RawScan
-
     arrivals = {}
 
     def on_contour(c):
         arrivals.setdefault(c.scan_id, time.monotonic())
-
-    from rclpy.qos import QoSProfile
 
     sub = peer.node.create_subscription(Contour, "/contour", on_contour, QoSProfile(depth=100))
     try:
@@ -165,7 +75,7 @@ def first_scans(peer, env, label, scan_base):
         for k in range(TRIES):
             scan_id = scan_base + 1 + k
             proc = subprocess.Popen(
-                ["timeout", "-s", "KILL", "60", sys.executable, os.path.abspath(__file__), "--peer", csv, str(scan_id)],
+                ["timeout", "-s", "KILL", "60", sys.executable, processes.peer_program("first_scan_driver"), csv, str(scan_id)],
                 env=env,
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
@@ -204,12 +114,13 @@ def first_scans(peer, env, label, scan_base):
         peer.node.destroy_subscription(sub)
 
 
-def first_calls(env, label):
-    """CALL_TRIES fresh clients, one call each: the latencies (seconds; None: no answer)."""
+def first_calls(env, label, node):
+    """CALL_TRIES fresh clients, one call each: the latencies (seconds; None: no answer).
+    A late answer's report: the client's steps and the node's log lines about responses."""
     latencies = []
     for k in range(CALL_TRIES):
         out = subprocess.run(
-            ["timeout", "-s", "KILL", "60", sys.executable, os.path.abspath(__file__), "--client"],
+            ["timeout", "-s", "KILL", "60", sys.executable, processes.peer_program("first_call_client"), str(WAIT_LATE)],
             env=env,
             capture_output=True,
             text=True,
@@ -221,19 +132,40 @@ def first_calls(env, label):
         latencies.append(info["answer"])
         shown = "no answer" if info["answer"] is None else f"{info['answer'] * 1e3:.1f} ms"
         print(f"  {label} call {k + 1}: service ready after {info['ready_after'] * 1e3:.0f} ms, answer {shown}", flush=True)
+        if info["answer"] is None or info["answer"] > LIMIT:
+            print(f"  {label} call {k + 1} was late: started {info['started']:.4f}, client made"
+                  f" {info['created']:.4f}, called {info['called']:.4f} (monotonic s), called at"
+                  f" {time.strftime('%H:%M:%S', time.gmtime(info['called_wall']))}"
+                  f".{int(info['called_wall'] % 1 * 1e6):06d} UTC; the node's log on requests and responses:", flush=True)
+            for line in node_lines_near(node, info["called_wall"], info["answer"] or WAIT_LATE):
+                print(f"    {line}", flush=True)
     return latencies
 
 
-def summarize(label, latencies):
-    from harness import percentile
+def node_lines_near(node, wall, seconds):
+    """The node's log lines on requests and responses stamped from 0.1 s before `wall`
+    (time.time()) to 0.1 s after `wall + seconds` (env_logger's "[2026-12-08T02:13:05.871688Z")."""
+    near = []
+    for line in node.output().splitlines():
+        if "request" not in line and "response" not in line:
+            continue
+        try:
+            stamp = datetime.strptime(line[1:28], "%Y-%m-%dT%H:%M:%S.%fZ").replace(tzinfo=timezone.utc).timestamp()
+        except ValueError:
+            continue
+        if wall - 0.1 <= stamp <= wall + seconds + 0.1:
+            near.append(line)
+    return near
 
+
+def summarize(label, latencies):
     got = [x for x in latencies if x is not None]
     in_time = sum(1 for x in got if x <= LIMIT)
     ms = [x * 1e3 for x in got]
     text = f"{in_time} of {len(latencies)} within {LIMIT * 1e3:.0f} ms"
     if ms:
         text += (
-            f"; latency min {min(ms):.1f}, median {percentile(ms, 50):.1f}, p90 {percentile(ms, 90):.1f},"
+            f"; latency min {min(ms):.1f}, median {h.percentile(ms, 50):.1f}, p90 {h.percentile(ms, 90):.1f},"
             f" max {max(ms):.1f} ms"
         )
     late = sorted(x for x in ms if x > LIMIT * 1e3)
@@ -248,8 +180,6 @@ def summarize(label, latencies):
 @pytest.fixture(scope="module")
 def envs():
     """This environment on each middleware (harness.peer_envs)."""
-    import harness as h
-
     return h.peer_envs()
 
 
@@ -261,14 +191,12 @@ BY_RMW = [pytest.param("fastdds", id="fastdds", marks=pytest.mark.fastdds),
 def test_first_scan(peer, envs, rmw):
     """first_scan_fastdds, first_scan_cyclone (their scans' ids from 10000 and 20000)."""
     scan_base = {"fastdds": 10000, "cyclone": 20000}[rmw]
-    import harness as h
-
     env = envs[rmw]
     if env is None:
         return "skipped: no cyclone_env.sh (tests/interop/cyclone.sh builds it)"
     if os.environ.get("FIRST_SCAN_NODE") == "rclpy":
         # Reference: a stock rclpy node (this environment's RMW) in the node's place.
-        node = h.NodeProcess(f"first_scan_{rmw}", argv=[sys.executable, os.path.abspath(__file__), "--stock-node"])
+        node = h.NodeProcess(f"first_scan_{rmw}", argv=[sys.executable, processes.peer_program("first_scan_stock_node")])
     else:
         node = h.NodeProcess(f"first_scan_{rmw}", [])
     try:
@@ -282,16 +210,15 @@ def test_first_scan(peer, envs, rmw):
 
 @pytest.mark.parametrize("rmw", BY_RMW)
 def test_call(envs, rmw):
-    """first_scan_call_fastdds, first_scan_call_cyclone."""
-    import harness as h
-
+    """first_scan_call_fastdds, first_scan_call_cyclone (the node logs each response's wait
+    for its client's response reader)."""
     env = envs[rmw]
     if env is None:
         return "skipped: no cyclone_env.sh (tests/interop/cyclone.sh builds it)"
-    node = h.NodeProcess(f"first_call_{rmw}", [])
+    node = h.NodeProcess(f"first_call_{rmw}", [], log_filters="ros2_client::service::server=debug")
     try:
         time.sleep(1.0)  # the node up; each client then finds it as a new peer does
-        latencies = first_calls(env, f"call {rmw}")
+        latencies = first_calls(env, f"call {rmw}", node)
     finally:
         node.stop()
     in_time, text = summarize(f"call {rmw}", latencies)
@@ -299,19 +226,3 @@ def test_call(envs, rmw):
     return text
 
 
-def main():
-    if sys.argv[1:2] == ["--peer"]:
-        peer_main(sys.argv[2], int(sys.argv[3]))
-        os._exit(0)
-    if sys.argv[1:2] == ["--client"]:
-        client_main()
-        os._exit(0)
-    if sys.argv[1:2] == ["--stock-node"]:
-        stock_node_main()
-        os._exit(0)
-    print("test_first_scan.py: run the tests with pytest (tests/interop/run.sh first_scan)", file=sys.stderr)
-    os._exit(2)
-
-
-if __name__ == "__main__":
-    main()

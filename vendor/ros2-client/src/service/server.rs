@@ -253,6 +253,7 @@ where
     mapping: ServiceMapping,
     request_writer: GUID,
   ) -> Vec<GUID> {
+    let start = std::time::Instant::now();
     let matched = match mapping {
       ServiceMapping::Enhanced => {
         let reader = GUID::from(rmw_req_id.writer_gid);
@@ -271,11 +272,14 @@ where
       }
       _ => return Vec::new(),
     };
+    let waited = start.elapsed();
     if matched.is_empty() {
       debug!(
         "response to {rmw_req_id:?}: the client's response reader is not matched after {:?}",
         Self::CLIENT_READER_WAIT
       );
+    } else if waited >= std::time::Duration::from_millis(1) {
+      debug!("response to {rmw_req_id:?}: the client's response reader matched after {waited:?}");
     }
     matched
   }
