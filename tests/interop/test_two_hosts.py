@@ -4,7 +4,7 @@ multicast: two network namespaces joined by a veth pair with multicast off
 (tests/interop/two_hosts.sh makes them; nothing routes off the machine). The node runs in
 host A, the rclpy peer in host B, each with its own ROS_AUTOMATIC_DISCOVERY_RANGE and
 ROS_STATIC_PEERS. Each scenario starts a node and a fresh peer process (the environment
-is read when rclpy starts its participant), which runs `--peer MODE` of this file:
+is read when rclpy starts its participant), peers/two_hosts_peer.py MODE:
 
 - full: plate scan, /calibrate, a lens scan corrected, its polygon, a parameter read;
 - isolated: for 8 s, neither the node, its topics nor /calibrate show up.
@@ -17,7 +17,6 @@ import os
 import subprocess
 import sys
 import time
-import traceback
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
@@ -40,73 +39,6 @@ def peer_env(range_, peers):
     if peers:
         env["ROS_STATIC_PEERS"] = peers
     return env
-
-
-# ---------------------------------------------------------------------------------------
-# Host B: the rclpy peer
-
-
-def peer_main(mode):
-    import rclpy
-
-    import harness as h
-    from geometry_msgs.msg import PolygonStamped
-    from tracer_calib_msgs.msg import Contour, RawScan
-    from tracer_calib_msgs.srv import Calibrate
-
-    rclpy.init()
-    peer = h.Peer("host_b_peer")
-    if mode == "isolated":
-        deadline = time.monotonic() + 8
-        while time.monotonic() < deadline:
-            peer.executor.spin_once(timeout_sec=0.1)
-            names = peer.node.get_node_names()
-            services = [n for n, _ in peer.node.get_service_names_and_types()]
-            assert "tracer_calibrator" not in names, f"the node is seen: {names}"
-            assert "/calibrate" not in services, f"/calibrate is seen: {services}"
-            assert peer.node.count_subscribers("/raw_scan") == 0, "a /raw_scan subscriber is seen"
-        print("peer: isolated for 8 s", flush=True)
-        os._exit(0)
-
-    t0 = time.monotonic()
-    pub = peer.publisher("/raw_scan")
-    contours = peer.subscribe(Contour, "/contour")
-    polygons = peer.subscribe(PolygonStamped, "/contour_polygon")
-    peer.wait_matched(pub, timeout=60)
-    found = time.monotonic() - t0
-    plate = h.simulate("plate_b", "plate", seed=2)
-    peer.send_scan(pub, h.raw_scan(10, RawScan.TARGET_CALIBRATION_PLATE, *plate), contours, timeout=40)
-    r = peer.call("/calibrate", Calibrate.Request(), timeout=40)
-    assert r.success, r.message
-    lens = h.simulate("lens_b", "ellipse", seed=3)
-    c = peer.send_scan(pub, h.raw_scan(11, RawScan.TARGET_LENS, *lens), contours, timeout=40)
-    assert c.calibrated and len(c.points) == 400, c
-    worst = max(h.ellipse_distance(p.x, p.y) for p in c.points)
-    assert worst < 40e-6, f"corrected points up to {worst * 1e3:.4f} mm off the ellipse"
-    deadline = time.monotonic() + 20
-    while not any(p.header.stamp.sec == 1700000011 for p in polygons):
-        assert time.monotonic() < deadline, "no PolygonStamped for the lens scan"
-        pub.publish(h.raw_scan(11, RawScan.TARGET_LENS, *lens))
-        try:
-            peer.spin_until(lambda: any(p.header.stamp.sec == 1700000011 for p in polygons), 1.0, "a polygon")
-        except AssertionError:
-            pass
-    client = peer.param_client("/tracer_calibrator", timeout=40)
-    got = peer.param(lambda: client.get_parameters(["plate.side", "calibration.valid"]))
-    assert abs(got.values[0].double_value - 0.045) < 1e-15 and got.values[1].bool_value is True, got
-    # The node's name comes with its ros_discovery_info, which may come after its
-    # endpoints (the exchange above can be over within a second).
-    peer.spin_until(lambda: "tracer_calibrator" in peer.node.get_node_names(), 10, "the node's name")
-    named = time.monotonic() - t0
-    print(
-        f"peer: node found in {found:.1f} s, named in {named:.1f} s; calibrate, contour, polygon, parameters ok",
-        flush=True,
-    )
-    os._exit(0)
-
-
-# ---------------------------------------------------------------------------------------
-# The driver
 
 
 class Host:
@@ -140,7 +72,7 @@ def scenario(work, name, node_range, node_peers, peer_range, peer_peers, mode, e
     try:
         time.sleep(0.3)
         peer = subprocess.run(
-            ["timeout", "-s", "KILL", str(PEER_TIMEOUT), "ip", "netns", "exec", b, sys.executable, __file__, "--peer", mode],
+            ["timeout", "-s", "KILL", str(PEER_TIMEOUT), "ip", "netns", "exec", b, sys.executable, processes.peer_program("two_hosts_peer"), mode],
             env=peer_env(peer_range, peer_peers),
             capture_output=True,
             text=True,
@@ -202,21 +134,3 @@ def test_two_hosts(work, name, node_range, node_peers, peer_range, peer_peers, m
 
     return scenario(work, name, node_range, addresses(node_peers), peer_range, addresses(peer_peers), mode,
                     expect_warnings=warnings)
-
-
-def main():
-    """A scenario's peer, in host B: `--peer MODE`."""
-    if len(sys.argv) >= 3 and sys.argv[1] == "--peer":
-        try:
-            peer_main(sys.argv[2])
-        except Exception:
-            traceback.print_exc()
-            sys.stdout.flush()
-            os._exit(1)
-    else:
-        print("test_two_hosts.py: run the scenarios with pytest (tests/interop/run.sh two_hosts)", file=sys.stderr)
-        os._exit(2)
-
-
-if __name__ == "__main__":
-    main()
