@@ -43,9 +43,6 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
-CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
-JOBS=${ROS_SETUP_JOBS:-2}
 
 parse_peer_args 40 "$@"
 T_START=$(now_ms)
@@ -58,6 +55,46 @@ clean_ros_env
 TAR_SHA=$(sha256sum "$TARBALL" | cut -c1-64)
 # Bump when the way it is built changes (the cache key says which recipe built it).
 RECIPE=1
+
+# build_bond WORK: bond_core's bond messages (rosidl, cmake, against VENV), smclib and bondpy
+# (plain copies, as ament_python would) from TARBALL into WORK/install, configured for
+# their place in the cache, CACHE/install (cached_build's BUILD). Not while setup.sh
+# remakes the venv (the lock it takes).
+build_bond() (
+    work=$1
+    P=$CACHE/install
+    exec 9>"$ROOT/target/ros/.setup.lock"
+    flock 9
+    mkdir -p "$work/src" && tar -xzf "$TARBALL" -C "$work/src" || exit
+    S=$work/src/bond_core
+    # Configured for the final prefix, installed under DESTDIR: the files ament writes
+    # with the prefix in them name the place they end up in.
+    D=$work/destdir
+    # As setup.sh builds msg/. Fix: AMENT_PREFIX_PATH must name the venv while
+    # configuring, or rosidl finds no type support ("No 'rosidl_typesupport_c' found").
+    export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" _ROS_WHEELS_BOOTSTRAP_COMPLETE=
+    set -x
+    nice -n 10 cmake -S "$S/bond" -B "$work/build" \
+        -DCMAKE_PREFIX_PATH="$VENV" \
+        -DPython3_EXECUTABLE="$VENV/bin/python" \
+        -DBUILD_TESTING=OFF \
+        -DCMAKE_INSTALL_PREFIX="$P" || exit
+    nice -n 10 cmake --build "$work/build" -j "$JOBS" || exit
+    DESTDIR=$D cmake --install "$work/build" || exit
+    I=$D$P
+    SP=$I/lib/python3.11/site-packages
+    [ -d "$SP/bond/msg" ] || { echo "bond.sh: no $SP/bond/msg after the install"; exit 1; }
+    mkdir -p "$SP/smclib" "$SP/bondpy" "$I/share/ament_index/resource_index/packages" \
+        "$I/share/smclib" "$I/share/bondpy" || exit
+    cp "$S"/smclib/smclib/*.py "$SP/smclib/" || exit
+    cp "$S"/bondpy/bondpy/*.py "$SP/bondpy/" || exit
+    cp "$S/smclib/package.xml" "$I/share/smclib/" || exit
+    cp "$S/bondpy/package.xml" "$I/share/bondpy/" || exit
+    : >"$I/share/ament_index/resource_index/packages/smclib"
+    : >"$I/share/ament_index/resource_index/packages/bondpy"
+    "$VENV/bin/python" -m compileall -q -s "$D" "$SP/smclib" "$SP/bondpy" || exit
+    mv "$I" "$work/install" && rm -rf "$D"
+)
 
 failed=()
 first=1
@@ -78,67 +115,12 @@ for d in "${DISTROS[@]}"; do
     KEY_TEXT="tarball=$TAR_SHA distro=$d lock=$(sha256sum "$LOCK" | cut -c1-64) recipe=$RECIPE"
     KEY=$(printf '%s' "$KEY_TEXT" | sha256sum | cut -c1-16)
     CACHE=$CACHE_TOP/bond-$KEY-$d
-    P=$CACHE/install
-    mkdir -p "$CACHE_TOP"
-    exec 8>"$CACHE.lock"
-    flock 8
-    if [ "$FORCE" = 0 ] && [ -f "$CACHE/key" ] && [ "$(cat "$CACHE/key")" = "$KEY_TEXT" ] \
-        && [ -f "$P/share/bond/msg/Status.json" ] && [ -f "$P/lib/python3.11/site-packages/bondpy/bondpy.py" ]; then
-        status="up to date"
-    else
-        # Not while setup.sh remakes the venv (the lock it takes).
-        exec 9>"$ROOT/target/ros/.setup.lock"
-        flock 9
-        rm -rf "$CACHE" "$CACHE.tmp"
-        work=$CACHE.tmp
-        mkdir -p "$work/src"
-        log=$CACHE_TOP/bond-$d.log
-        tar -xzf "$TARBALL" -C "$work/src"
-        S=$work/src/bond_core
-        # Configured for the final prefix, installed under DESTDIR: the files ament writes
-        # with the prefix in them name the place they end up in.
-        D=$work/destdir
-        # As setup.sh builds msg/. Fix: AMENT_PREFIX_PATH must name the venv while
-        # configuring, or rosidl finds no type support ("No 'rosidl_typesupport_c' found").
-        if ! ( export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" _ROS_WHEELS_BOOTSTRAP_COMPLETE=
-               set -x
-               nice -n 10 cmake -S "$S/bond" -B "$work/build" \
-                   -DCMAKE_PREFIX_PATH="$VENV" \
-                   -DPython3_EXECUTABLE="$VENV/bin/python" \
-                   -DBUILD_TESTING=OFF \
-                   -DCMAKE_INSTALL_PREFIX="$P" || exit
-               # (set -e does not apply inside `if`: each step says `|| exit`)
-               nice -n 10 cmake --build "$work/build" -j "$JOBS" || exit
-               DESTDIR=$D cmake --install "$work/build" || exit
-               # smclib (its Python part) and bondpy: plain copies, as ament_python would.
-               I=$D$P
-               SP=$I/lib/python3.11/site-packages
-               [ -d "$SP/bond/msg" ] || { echo "bond.sh: no $SP/bond/msg after the install"; exit 1; }
-               mkdir -p "$SP/smclib" "$SP/bondpy" "$I/share/ament_index/resource_index/packages" \
-                   "$I/share/smclib" "$I/share/bondpy"
-               cp "$S"/smclib/smclib/*.py "$SP/smclib/" || exit
-               cp "$S"/bondpy/bondpy/*.py "$SP/bondpy/" || exit
-               cp "$S/smclib/package.xml" "$I/share/smclib/" || exit
-               cp "$S/bondpy/package.xml" "$I/share/bondpy/" || exit
-               : >"$I/share/ament_index/resource_index/packages/smclib"
-               : >"$I/share/ament_index/resource_index/packages/bondpy"
-               "$VENV/bin/python" -m compileall -q -s "$D" "$SP/smclib" "$SP/bondpy" || exit
-             ) >"$log" 2>&1; then
-            echo "bond.sh: $d: building bond_core failed; last lines of $log:" >&2
-            tail -n 25 "$log" >&2
-            rm -rf "$work"
-            exec 9>&- 8>&-
-            failed+=("$d")
-            continue
-        fi
-        exec 9>&-
-        mv "$D$P" "$work/install"
-        rm -rf "$work/src" "$work/build" "$D"
-        echo "$KEY_TEXT" >"$work/key"
-        mv "$work" "$CACHE"
-        status=built
+    if ! cached_build "bond.sh: $d" bond_core "$CACHE" "$KEY_TEXT" "$CACHE_TOP/bond-$d.log" build_bond \
+        install/share/bond/msg/Status.json install/lib/python3.11/site-packages/bondpy/bondpy.py; then
+        failed+=("$d")
+        continue
     fi
-    exec 8>&-
+    if [ "$BUILT" = 1 ]; then status=built; else status="up to date"; fi
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/bond_env.sh

@@ -39,9 +39,6 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
-CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
-JOBS=${ROS_SETUP_JOBS:-2}
 # Bump when the way it is built changes.
 RECIPE=1
 
@@ -58,6 +55,34 @@ apt_install_missing cyclone.sh "$CACHE_TOP/apt.log" cyclonedds-dev libiceoryx-bi
 CYCLONE_DEB=$(dpkg-query -W -f='${Version}' cyclonedds-dev)
 TAR_SHA=$(sha256sum "$TARBALL" | cut -c1-64)
 
+# build_rmw_cyclonedds WORK: rmw_cyclonedds_cpp from TARBALL, built with cmake against VENV
+# and Debian's Cyclone DDS, into WORK/install, and its shim (cached_build's BUILD).
+build_rmw_cyclonedds() {
+    local work=$1 v libdirs
+    mkdir -p "$work/src" && tar -xzf "$TARBALL" -C "$work/src" || return
+    # ament_cmake_ros' cmake extras find_package() gmock, gtest and pytest: Jazzy's
+    # requirements have them (for msg/), Kilted's venv not; the wheels of the venv's
+    # own ament_cmake version.
+    if [ ! -d "$VENV/share/ament_cmake_gmock" ]; then
+        v=$("$VENV/bin/python" -S -c 'import sys; sys.path.append(sys.argv[1]); import importlib.metadata as m; print(m.version("ros-ament-cmake"))' \
+            "$VENV/lib/python3.11/site-packages") || return
+        "$VENV/bin/python" -m pip install --disable-pip-version-check --no-input -q \
+            "ros-ament-cmake-gmock==$v" "ros-ament-cmake-gtest==$v" "ros-ament-cmake-pytest==$v" || return
+    fi
+    libdirs=$(venv_libdirs "$VENV")
+    ( export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" LD_LIBRARY_PATH="$libdirs" \
+             _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
+      nice -n 10 cmake -S "$work/src/rmw_cyclonedds/rmw_cyclonedds_cpp" -B "$work/build" \
+          -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
+          -DCMAKE_PREFIX_PATH="$VENV;/usr" \
+          -DPython3_EXECUTABLE="$VENV/bin/python" \
+          -DCMAKE_INSTALL_PREFIX="$work/install" || exit
+      nice -n 10 cmake --build "$work/build" -j "$JOBS" || exit
+      cmake --install "$work/build" || exit
+    ) || return
+    soname_shim "$work" librmw_cyclonedds_cpp.so
+}
+
 failed=()
 for d in "${DISTROS[@]}"; do
     t0=$(now_ms)
@@ -70,58 +95,12 @@ for d in "${DISTROS[@]}"; do
     esac
     CACHE=$CACHE_TOP/cyclone-$TAR_SHA-$d
     KEY="tarball=$TAR_SHA distro=$d lock=$(sha256sum "$LOCK" | cut -c1-64) cyclonedds=$CYCLONE_DEB recipe=$RECIPE"
-    mkdir -p "$CACHE_TOP"
-    exec 8>"$CACHE.lock"
-    flock 8
-    if [ "$FORCE" = 0 ] && [ -f "$CACHE/key" ] && [ "$(cat "$CACHE/key")" = "$KEY" ] \
-        && [ -f "$CACHE/shim/librmw_fastrtps_cpp.so" ]; then
-        status=cached
-    else
-        rm -rf "$CACHE" "$CACHE.tmp"
-        work=$CACHE.tmp
-        mkdir -p "$work/src"
-        log=$CACHE_TOP/cyclone-$d.log
-        tar -xzf "$TARBALL" -C "$work/src"
-        # ament_cmake_ros' cmake extras find_package() gmock, gtest and pytest: Jazzy's
-        # requirements have them (for msg/), Kilted's venv not; the wheels of the venv's
-        # own ament_cmake version.
-        if [ ! -d "$VENV/share/ament_cmake_gmock" ]; then
-            v=$("$VENV/bin/python" -S -c 'import sys; sys.path.append(sys.argv[1]); import importlib.metadata as m; print(m.version("ros-ament-cmake"))' \
-                "$VENV/lib/python3.11/site-packages")
-            "$VENV/bin/python" -m pip install --disable-pip-version-check --no-input -q \
-                "ros-ament-cmake-gmock==$v" "ros-ament-cmake-gtest==$v" "ros-ament-cmake-pytest==$v" \
-                >"$CACHE_TOP/cyclone-$d-pip.log" 2>&1 \
-                || { echo "cyclone.sh: $d: pip install ros-ament-cmake-{gmock,gtest,pytest}==$v failed (see $CACHE_TOP/cyclone-$d-pip.log)" >&2; rm -rf "$work"; exec 8>&-; failed+=("$d"); continue; }
-        fi
-        # The venv's shared libraries (ros_*.libs: the wheels' vendored dependencies).
-        libdirs=$VENV/lib$(cd "$VENV/lib/python3.11/site-packages" && for x in ros_*.libs; do [ -d "$x" ] && printf ':%s' "$PWD/$x"; done; true)
-        if ! ( export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" LD_LIBRARY_PATH="$libdirs" \
-                      _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
-               nice -n 10 cmake -S "$work/src/rmw_cyclonedds/rmw_cyclonedds_cpp" -B "$work/build" \
-                   -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
-                   -DCMAKE_PREFIX_PATH="$VENV;/usr" \
-                   -DPython3_EXECUTABLE="$VENV/bin/python" \
-                   -DCMAKE_INSTALL_PREFIX="$work/install" || exit
-               # (set -e does not apply inside `if`: each step says `|| exit`)
-               nice -n 10 cmake --build "$work/build" -j "$JOBS" || exit
-               cmake --install "$work/build" || exit
-             ) >"$log" 2>&1; then
-            echo "cyclone.sh: $d: building rmw_cyclonedds_cpp failed; last lines of $log:" >&2
-            tail -n 25 "$log" >&2
-            rm -rf "$work"
-            exec 8>&-
-            failed+=("$d")
-            continue
-        fi
-        rm -rf "$work/src" "$work/build"
-        mkdir -p "$work/shim"
-        cp "$work/install/lib/librmw_cyclonedds_cpp.so" "$work/shim/librmw_fastrtps_cpp.so"
-        patchelf --set-soname librmw_fastrtps_cpp.so "$work/shim/librmw_fastrtps_cpp.so"
-        echo "$KEY" >"$work/key"
-        mv "$work" "$CACHE"
-        status=built
+    if ! cached_build "cyclone.sh: $d" rmw_cyclonedds_cpp "$CACHE" "$KEY" "$CACHE_TOP/cyclone-$d.log" \
+        build_rmw_cyclonedds shim/librmw_fastrtps_cpp.so; then
+        failed+=("$d")
+        continue
     fi
-    exec 8>&-
+    if [ "$BUILT" = 1 ]; then status=built; else status=cached; fi
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/cyclone_env.sh

@@ -1,6 +1,12 @@
 # Sourced by the interop scripts (run.sh, setup.sh, workspace.sh, ros2cli.sh, cyclone.sh,
 # sros2.sh, zenoh.sh, bond.sh, rosbag2.sh): what each of them does the same way.
 
+# The clone's root; the cache of stock peers built from source, outside the clone
+# (TRACER_CACHE, else ~/.cache/tracer_calib); how many jobs a build runs (ROS_SETUP_JOBS).
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
+JOBS=${ROS_SETUP_JOBS:-2}
+
 # Milliseconds since the epoch; `took T0`: the time since T0 as "12.3s".
 now_ms() { echo $(( $(date +%s%N) / 1000000 )); }
 took() { local ms=$(( $(now_ms) - $1 )); printf '%d.%01ds' $(( ms / 1000 )) $(( (ms % 1000) / 100 )); }
@@ -83,4 +89,57 @@ write_if_changed() {
         mv -f "$tmp" "$file"
         if [ -n "${2:-}" ]; then printf -v "$2" 1; fi
     fi
+}
+
+# cached_build WHO WHAT CACHE KEY LOG BUILD [ARTIFACT...]: a stock peer built once and kept
+# in CACHE, a folder of the cache outside the clone. CACHE is locked while this runs
+# (CACHE.lock: two runs never build it at once). It is used as it is when CACHE/key holds
+# KEY, every ARTIFACT (a path below CACHE) is there and FORCE is not 1: BUILT=0. Otherwise
+# the old build is removed and BUILD (a function) runs with WORK (CACHE.tmp, new and empty)
+# as its argument, its output in LOG; BUILD leaves what it made in WORK and returns non-zero
+# when a step fails (set -e does not apply inside it: each step says `|| return`). Then
+# WORK's src/ and build/ are removed, KEY is written to WORK/key and WORK becomes CACHE:
+# BUILT=1. A failed build says so with LOG's last lines, removes WORK and returns 1.
+cached_build() {
+    local who=$1 what=$2 cache=$3 key=$4 log=$5 build=$6 a ok
+    shift 6
+    BUILT=0
+    mkdir -p "$(dirname "$cache")" "$(dirname "$log")"
+    exec 8>"$cache.lock"
+    flock 8
+    if [ "${FORCE:-0}" != 1 ] && [ -f "$cache/key" ] && [ "$(cat "$cache/key")" = "$key" ]; then
+        ok=1
+        for a in "$@"; do [ -e "$cache/$a" ] || ok=0; done
+        if [ "$ok" = 1 ]; then exec 8>&-; return 0; fi
+    fi
+    rm -rf "$cache" "$cache.tmp"
+    mkdir -p "$cache.tmp"
+    if ! "$build" "$cache.tmp" >"$log" 2>&1; then
+        echo "$who: building $what failed; last lines of $log:" >&2
+        tail -n 25 "$log" >&2
+        rm -rf "$cache.tmp"
+        exec 8>&-
+        return 1
+    fi
+    rm -rf "$cache.tmp/src" "$cache.tmp/build"
+    echo "$key" >"$cache.tmp/key"
+    mv "$cache.tmp" "$cache"
+    BUILT=1
+    exec 8>&-
+}
+
+# venv_libdirs VENV: the venv's shared library folders, ':'-separated (VENV/lib and the
+# wheels' vendored dependencies, site-packages/ros_*.libs), for LD_LIBRARY_PATH in a build.
+venv_libdirs() {
+    printf '%s' "$1/lib"
+    (cd "$1/lib/python3.11/site-packages" && for x in ros_*.libs; do [ -d "$x" ] && printf ':%s' "$PWD/$x"; done; true)
+}
+
+# soname_shim WORK LIB: WORK/shim/librmw_fastrtps_cpp.so, a copy of WORK/install/lib/LIB (an
+# RMW) given rmw_fastrtps_cpp's SONAME: the wheels' librcl*.so and rclpy link that library
+# directly, so an LD_PRELOADed copy is how an rclpy process runs on another RMW.
+soname_shim() {
+    mkdir -p "$1/shim" \
+        && cp "$1/install/lib/$2" "$1/shim/librmw_fastrtps_cpp.so" \
+        && patchelf --set-soname librmw_fastrtps_cpp.so "$1/shim/librmw_fastrtps_cpp.so"
 }

@@ -29,8 +29,6 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
-JOBS=${ROS_SETUP_JOBS:-2}
 REQ=$HERE/requirements-cli.txt
 SOURCES=(ros2cli launch launch_ros rosidl_runtime_py rcl_interfaces)
 # The Python packages, in dependency order: folder in the unpacked sources.

@@ -50,9 +50,6 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
-CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
-JOBS=${ROS_SETUP_JOBS:-2}
 REQ=$HERE/requirements-rosbag2.txt
 # Bump when the way it is built changes (the cache key says which recipe built it).
 RECIPE=1
@@ -129,6 +126,38 @@ rosbag2_build() {
     done
 }
 
+# build_rosbag2 WORK: PACKAGES from TARBALLS (in a network namespace of their own: the build
+# downloads nothing) against VENV into WORK/install; each package's build time in
+# WORK/build-times.txt (cached_build's BUILD).
+build_rosbag2() {
+    local work=$1 t overlay libdirs
+    mkdir -p "$work/src" "$work/build" || return
+    for t in "${TARBALLS[@]}"; do tar -xzf "$t" -C "$work/src" || return; done
+    # The Fast DDS wheel's cmake files, corrected: its targets name the wheel builder's
+    # /usr/lib64/libtinyxml2.so ("No rule to make target" on every link of rcl/rclcpp).
+    # The copy computes its prefix as the venv, as the original does from its place.
+    overlay=$work/build/fastrtps-cmake
+    cp -r "$VENV/share/fastrtps/cmake" "$overlay" || return
+    # shellcheck disable=SC2016
+    sed -i 's#get_filename_component(PACKAGE_PREFIX_DIR "${CMAKE_CURRENT_LIST_DIR}/../../../" ABSOLUTE)#set(PACKAGE_PREFIX_DIR "'"$VENV"'")#' \
+        "$overlay/fastrtps-config.cmake" || return
+    # shellcheck disable=SC2016
+    sed -i -e 's#get_filename_component(_IMPORT_PREFIX "${CMAKE_CURRENT_LIST_FILE}" PATH)#set(_IMPORT_PREFIX "'"$VENV"'/share/fastrtps/cmake")#' \
+        -e 's#/usr/lib64/libtinyxml2.so;##' "$overlay"/*-targets.cmake || return
+    # shared_queues_vendor downloads readerwriterqueue's zip (URL + MD5): the tarball instead.
+    sed -i -e 's#URL https://github.com/cameron314/readerwriterqueue/archive/.*#URL '"${TARBALL[readerwriterqueue]}"'#' \
+        -e '/URL_MD5/d' "$work/src/rosbag2/shared_queues_vendor/CMakeLists.txt" || return
+    libdirs=$work/install/lib:$(venv_libdirs "$VENV")
+    export -f rosbag2_build
+    : >"$work/build-times.txt"
+    # shellcheck disable=SC2016
+    ( export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$work/install:$VENV" LD_LIBRARY_PATH="$libdirs" \
+             _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
+      "$HERE/netns.sh" bash -c 'set -uo pipefail; rosbag2_build "$@"' rosbag2_build \
+          "$work/src" "$work/install" "$VENV" "$overlay" "$JOBS" "$work/build-times.txt" "${PACKAGES[@]}"
+    )
+}
+
 failed=()
 for d in "${DISTROS[@]}"; do
     if [ "$d" != jazzy ]; then
@@ -187,56 +216,13 @@ for d in "${DISTROS[@]}"; do
     exec 9>&-
 
     # 2. The cmake build into the cache.
-    exec 8>"$CACHE.lock"
-    flock 8
-    P=$CACHE/install
-    if [ "$FORCE" = 0 ] && [ -f "$CACHE/key" ] && [ "$(cat "$CACHE/key")" = "$KEY_TEXT" ] \
-        && [ -f "$P/lib/python3.11/site-packages/rosbag2_py/__init__.py" ] \
-        && [ -f "$P/share/rosbag2_storage_mcap/plugin_description.xml" ]; then
-        status="up to date"
-    else
-        rm -rf "$CACHE" "$CACHE.tmp"
-        work=$CACHE.tmp
-        mkdir -p "$work/src" "$work/build"
-        log=$CACHE_TOP/rosbag2-$d.log
-        for t in "${TARBALLS[@]}"; do tar -xzf "$t" -C "$work/src"; done
-        # The Fast DDS wheel's cmake files, corrected: its targets name the wheel builder's
-        # /usr/lib64/libtinyxml2.so ("No rule to make target" on every link of rcl/rclcpp).
-        # The copy computes its prefix as the venv, as the original does from its place.
-        overlay=$work/fastrtps-cmake
-        cp -r "$VENV/share/fastrtps/cmake" "$overlay"
-        # shellcheck disable=SC2016
-        sed -i 's#get_filename_component(PACKAGE_PREFIX_DIR "${CMAKE_CURRENT_LIST_DIR}/../../../" ABSOLUTE)#set(PACKAGE_PREFIX_DIR "'"$VENV"'")#' \
-            "$overlay/fastrtps-config.cmake"
-        # shellcheck disable=SC2016
-        sed -i -e 's#get_filename_component(_IMPORT_PREFIX "${CMAKE_CURRENT_LIST_FILE}" PATH)#set(_IMPORT_PREFIX "'"$VENV"'/share/fastrtps/cmake")#' \
-            -e 's#/usr/lib64/libtinyxml2.so;##' "$overlay"/*-targets.cmake
-        # shared_queues_vendor downloads readerwriterqueue's zip (URL + MD5): the tarball instead.
-        sed -i -e 's#URL https://github.com/cameron314/readerwriterqueue/archive/.*#URL '"${TARBALL[readerwriterqueue]}"'#' \
-            -e '/URL_MD5/d' "$work/src/rosbag2/shared_queues_vendor/CMakeLists.txt"
-        # The venv's shared libraries (ros_*.libs: the wheels' vendored dependencies).
-        libdirs=$work/install/lib:$VENV/lib$(cd "$VENV/lib/python3.11/site-packages" && for x in ros_*.libs; do [ -d "$x" ] && printf ':%s' "$PWD/$x"; done; true)
-        export -f rosbag2_build
-        : >"$work/build-times.txt"
-        # shellcheck disable=SC2016
-        if ! ( export PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$work/install:$VENV" LD_LIBRARY_PATH="$libdirs" \
-                      _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
-               "$HERE/netns.sh" bash -c 'set -uo pipefail; rosbag2_build "$@"' rosbag2_build \
-                   "$work/src" "$work/install" "$VENV" "$overlay" "$JOBS" "$work/build-times.txt" "${PACKAGES[@]}"
-             ) >"$log" 2>&1; then
-            echo "rosbag2.sh: $d: building rosbag2 failed; last lines of $log:" >&2
-            tail -n 25 "$log" >&2
-            rm -rf "$work"
-            exec 8>&-
-            failed+=("$d")
-            continue
-        fi
-        rm -rf "$work/src" "$work/build" "$overlay"
-        echo "$KEY_TEXT" >"$work/key"
-        mv "$work" "$CACHE"
-        status=built
+    if ! cached_build "rosbag2.sh: $d" rosbag2 "$CACHE" "$KEY_TEXT" "$CACHE_TOP/rosbag2-$d.log" build_rosbag2 \
+        install/lib/python3.11/site-packages/rosbag2_py/__init__.py \
+        install/share/rosbag2_storage_mcap/plugin_description.xml; then
+        failed+=("$d")
+        continue
     fi
-    exec 8>&-
+    if [ "$BUILT" = 1 ]; then status=built; else status="up to date"; fi
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/rosbag2_env.sh

@@ -69,7 +69,6 @@
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
 DISTROS=${TRACER_ROS_DISTROS:-kilted jazzy}
 trap '"$HERE/shm_clean.sh" >/dev/null 2>&1 || true' EXIT
 . "$ROOT/scripts/target_dir.sh"

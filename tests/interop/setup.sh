@@ -28,9 +28,7 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
 ROS_TOP=$ROOT/target/ros
-JOBS=${ROS_SETUP_JOBS:-2}
 # Bump when the way the venv is made changes (the requirement files are hashed anyway).
 VENV_RECIPE=1
 

@@ -16,7 +16,6 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
 REQ=$HERE/requirements-sros2.txt
 
 parse_peer_args 14 "$@"

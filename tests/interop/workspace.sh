@@ -32,7 +32,6 @@
 set -euo pipefail
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
 DISTRO=${1:?usage: $0 kilted|jazzy}
 case "$DISTRO" in kilted|jazzy) ;; *) echo "usage: $0 kilted|jazzy" >&2; exit 2 ;; esac
 TOOLS=$ROOT/target/tools

@@ -29,8 +29,8 @@
 #
 # A fresh machine builds it (BENCHMARKS.md; 3.5 GB of build tree removed afterwards),
 # a rerun reuses it; it is rebuilt when a tarball, the venv's pinned wheels (the lock file)
-# or this recipe change (`--force`: always). The key also records the cargo that built it,
-# but a rerun does not compare it (that would start rustup: not "well under a second").
+# or this recipe change (`--force`: always). The cargo that built it is recorded beside the
+# key (cargo-version), not compared (that would start rustup: not "well under a second").
 # Then it writes
 #
 #   target/ros/jazzy/zenoh_env.sh   source it AFTER target/ros/jazzy/env.sh: the process (and
@@ -58,9 +58,6 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$HERE/lib.sh"
-ROOT=$(cd "$HERE/../.." && pwd)
-CACHE_TOP=${TRACER_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/tracer_calib}
-JOBS=${ROS_SETUP_JOBS:-2}
 # Bump when the way it is built changes.
 RECIPE=1
 
@@ -91,6 +88,50 @@ sums=""
 for t in "${TARBALLS[@]}"; do sums+="$(basename "$t")=$(sha256sum "$t" | cut -c1-64) "; done
 TAR_SHA=$(printf '%s' "$sums" | sha256sum | cut -c1-64)
 
+# build_rmw_zenoh WORK: zenoh-c, zenoh-cpp and rmw_zenoh_cpp from TARBALLS, built against
+# VENV into WORK/install, and rmw_zenoh_cpp's shim (cached_build's BUILD). The cargo that
+# built it goes to WORK/cargo-version.
+build_rmw_zenoh() {
+    local work=$1 t libdirs P=$1/install
+    RUSTUP_TOOLCHAIN=stable cargo --version >"$work/cargo-version" || return
+    mkdir -p "$work/src" || return
+    for t in "${TARBALLS[@]}"; do tar -xzf "$t" -C "$work/src" || return; done
+    libdirs=$(venv_libdirs "$VENV")
+    ( export PATH="$VENV/bin:$PATH" _ROS_WHEELS_BOOTSTRAP_COMPLETE=1 LD_LIBRARY_PATH="$libdirs"
+      export RUSTUP_TOOLCHAIN=stable CARGO_PROFILE_RELEASE_LTO=off CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 CARGO_BUILD_JOBS="$JOBS"
+      cd "$work/src/zenoh-c" || exit
+      # zenoh from the registry (1.8.0), not git main ("1.8.0 plus fixes").
+      files=(Cargo.toml Cargo.toml.in build-resources/opaque-types/Cargo.toml)
+      sed -i 's#version = "1.8.0", git = "https://github.com/eclipse-zenoh/zenoh.git", branch = "main"#version = "=1.8.0"#' "${files[@]}" || exit
+      if grep -n '^[^#]*git = "https://github.com/eclipse-zenoh' "${files[@]}"; then
+          echo "zenoh.sh: zenoh-c still names zenoh's git (recipe out of date)"; exit 1
+      fi
+      nice -n 10 cargo update -w || exit
+      (cd build-resources/opaque-types && cp ../../Cargo.lock . && nice -n 10 cargo update -w) || exit
+      cd "$work" || exit
+      nice -n 10 cmake -S src/zenoh-c -B build/zc -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$P" \
+          -DZENOHC_BUILD_WITH_UNSTABLE_API=TRUE \
+          "-DZENOHC_CARGO_FLAGS=--features=shared-memory zenoh/transport_serial" || exit
+      nice -n 10 cmake --build build/zc -j "$JOBS" || exit
+      cmake --install build/zc || exit
+      nice -n 10 cmake -S src/zenoh-cpp -B build/zcxx -DCMAKE_INSTALL_PREFIX="$P" \
+          -DZENOHCXX_ZENOHC=OFF -DZENOHCXX_ENABLE_TESTS=OFF -DZENOHCXX_ENABLE_EXAMPLES=OFF || exit
+      cmake --install build/zcxx || exit
+      # Stand-in for the zenoh_cpp_vendor package (which would download and build both).
+      mkdir -p "$P/share/zenoh_cpp_vendor/cmake" || exit
+      printf '%s\n' 'include(CMakeFindDependencyMacro)' 'find_dependency(zenohc)' \
+          'find_dependency(zenohcxx)' 'set(zenoh_cpp_vendor_FOUND TRUE)' \
+          >"$P/share/zenoh_cpp_vendor/cmake/zenoh_cpp_vendorConfig.cmake" || exit
+      AMENT_PREFIX_PATH="$VENV" nice -n 10 cmake -S src/rmw_zenoh/rmw_zenoh_cpp -B build/rmw \
+          -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
+          -DCMAKE_PREFIX_PATH="$P;$VENV" -DCMAKE_INSTALL_PREFIX="$P" \
+          -DPython3_EXECUTABLE="$VENV/bin/python" || exit
+      nice -n 10 cmake --build build/rmw -j "$JOBS" || exit
+      cmake --install build/rmw || exit
+    ) || return
+    soname_shim "$work" librmw_zenoh_cpp.so
+}
+
 failed=()
 for d in "${DISTROS[@]}"; do
     t0=$T_START  # (one distribution: its time includes hashing the tarballs)
@@ -99,79 +140,21 @@ for d in "${DISTROS[@]}"; do
     [ -x "$VENV/bin/python" ] || { echo "zenoh.sh: $d: no $VENV: run tests/interop/setup.sh $d first" >&2; failed+=("$d"); continue; }
     LOCK=$HERE/requirements-$d.lock
     CACHE=$CACHE_TOP/zenoh-$TAR_SHA-$d
-    # The cargo that built it is recorded in the key file, not compared (see above).
-    KEY_BASE="tarballs=$sums distro=$d lock=$(sha256sum "$LOCK" | cut -c1-64) recipe=$RECIPE"
-    mkdir -p "$CACHE_TOP"
-    exec 8>"$CACHE.lock"
-    flock 8
-    if [ "$FORCE" = 0 ] && [ -f "$CACHE/key" ] && [ "$(sed 's/ cargo=.*//' "$CACHE/key")" = "$KEY_BASE" ] \
-        && [ -f "$CACHE/shim/librmw_fastrtps_cpp.so" ] && [ -x "$CACHE/install/lib/rmw_zenoh_cpp/rmw_zenohd" ]; then
-        status=cached
-    else
-        # Debian build dependencies, apt-get only for what is missing.
+    KEY="tarballs=$sums distro=$d lock=$(sha256sum "$LOCK" | cut -c1-64) recipe=$RECIPE"
+    log=$CACHE_TOP/zenoh-$d.log
+    if [ "$FORCE" = 1 ] || [ ! -f "$CACHE/key" ] || [ "$(cat "$CACHE/key")" != "$KEY" ]; then
+        # Debian build dependencies, apt-get only for what is missing; and a cargo.
         apt_install_missing zenoh.sh "$CACHE_TOP/apt.log" g++ make patchelf liblttng-ust-dev
-        export RUSTUP_TOOLCHAIN=stable
-        CARGO_V=$(cargo --version 2>/dev/null) || { echo "zenoh.sh: no cargo (rustup's stable, >= 1.88, builds zenoh-c)" >&2; exit 1; }
-        KEY="$KEY_BASE cargo=$CARGO_V"
-        rm -rf "$CACHE" "$CACHE.tmp"
-        work=$CACHE.tmp
-        mkdir -p "$work/src"
-        log=$CACHE_TOP/zenoh-$d.log
-        for t in "${TARBALLS[@]}"; do tar -xzf "$t" -C "$work/src"; done
-        # The venv's shared libraries (ros_*.libs: the wheels' vendored dependencies).
-        libdirs=$VENV/lib$(cd "$VENV/lib/python3.11/site-packages" && for x in ros_*.libs; do [ -d "$x" ] && printf ':%s' "$PWD/$x"; done; true)
-        P=$work/install
+        RUSTUP_TOOLCHAIN=stable cargo --version >/dev/null 2>&1 \
+            || { echo "zenoh.sh: no cargo (rustup's stable, >= 1.88, builds zenoh-c)" >&2; exit 1; }
         echo "zenoh.sh: $d: building zenoh-c, zenoh-cpp, rmw_zenoh_cpp (several minutes; log: $log)"
-        if ! ( set -e
-               export PATH="$VENV/bin:$PATH" _ROS_WHEELS_BOOTSTRAP_COMPLETE=1 LD_LIBRARY_PATH="$libdirs"
-               export CARGO_PROFILE_RELEASE_LTO=off CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 CARGO_BUILD_JOBS="$JOBS"
-               cd "$work/src/zenoh-c"
-               # zenoh from the registry (1.8.0), not git main ("1.8.0 plus fixes").
-               files=(Cargo.toml Cargo.toml.in build-resources/opaque-types/Cargo.toml)
-               sed -i 's#version = "1.8.0", git = "https://github.com/eclipse-zenoh/zenoh.git", branch = "main"#version = "=1.8.0"#' "${files[@]}"
-               if grep -n '^[^#]*git = "https://github.com/eclipse-zenoh' "${files[@]}"; then
-                   echo "zenoh.sh: zenoh-c still names zenoh's git (recipe out of date)"; exit 1
-               fi
-               nice -n 10 cargo update -w || exit
-               (cd build-resources/opaque-types && cp ../../Cargo.lock . && nice -n 10 cargo update -w) || exit
-               cd "$work"
-               # (set -e does not apply inside `if`: each step says `|| exit`)
-               nice -n 10 cmake -S src/zenoh-c -B build/zc -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$P" \
-                   -DZENOHC_BUILD_WITH_UNSTABLE_API=TRUE \
-                   "-DZENOHC_CARGO_FLAGS=--features=shared-memory zenoh/transport_serial" || exit
-               nice -n 10 cmake --build build/zc -j "$JOBS" || exit
-               cmake --install build/zc || exit
-               nice -n 10 cmake -S src/zenoh-cpp -B build/zcxx -DCMAKE_INSTALL_PREFIX="$P" \
-                   -DZENOHCXX_ZENOHC=OFF -DZENOHCXX_ENABLE_TESTS=OFF -DZENOHCXX_ENABLE_EXAMPLES=OFF || exit
-               cmake --install build/zcxx || exit
-               # Stand-in for the zenoh_cpp_vendor package (which would download and build both).
-               mkdir -p "$P/share/zenoh_cpp_vendor/cmake"
-               printf '%s\n' 'include(CMakeFindDependencyMacro)' 'find_dependency(zenohc)' \
-                   'find_dependency(zenohcxx)' 'set(zenoh_cpp_vendor_FOUND TRUE)' \
-                   >"$P/share/zenoh_cpp_vendor/cmake/zenoh_cpp_vendorConfig.cmake"
-               AMENT_PREFIX_PATH="$VENV" nice -n 10 cmake -S src/rmw_zenoh/rmw_zenoh_cpp -B build/rmw \
-                   -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
-                   -DCMAKE_PREFIX_PATH="$P;$VENV" -DCMAKE_INSTALL_PREFIX="$P" \
-                   -DPython3_EXECUTABLE="$VENV/bin/python" || exit
-               nice -n 10 cmake --build build/rmw -j "$JOBS" || exit
-               cmake --install build/rmw || exit
-             ) >"$log" 2>&1; then
-            echo "zenoh.sh: $d: building zenoh-c/zenoh-cpp/rmw_zenoh_cpp failed; last lines of $log:" >&2
-            tail -n 25 "$log" >&2
-            rm -rf "$work"
-            exec 8>&-
-            failed+=("$d")
-            continue
-        fi
-        rm -rf "$work/src" "$work/build"
-        mkdir -p "$work/shim"
-        cp "$work/install/lib/librmw_zenoh_cpp.so" "$work/shim/librmw_fastrtps_cpp.so"
-        patchelf --set-soname librmw_fastrtps_cpp.so "$work/shim/librmw_fastrtps_cpp.so"
-        echo "$KEY" >"$work/key"
-        mv "$work" "$CACHE"
-        status="built in $(took "$t0")"
     fi
-    exec 8>&-
+    if ! cached_build "zenoh.sh: $d" "zenoh-c/zenoh-cpp/rmw_zenoh_cpp" "$CACHE" "$KEY" "$log" build_rmw_zenoh \
+        shim/librmw_fastrtps_cpp.so install/lib/rmw_zenoh_cpp/rmw_zenohd; then
+        failed+=("$d")
+        continue
+    fi
+    if [ "$BUILT" = 1 ]; then status="built in $(took "$t0")"; else status=cached; fi
 
     # The environment file (rewritten only when its text changes).
     env_sh=$ROS_DIR/zenoh_env.sh
