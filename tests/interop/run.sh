@@ -291,7 +291,7 @@ lane_loss() {
         fi
         # 2d. The node in a Zenoh cell with stock rmw_zenoh peers (test_zenoh.py). Jazzy
         # only: the rmw_zenoh tarball is Jazzy's release (0.2.10).
-        if [ "${#zenoh[@]}" -gt 0 ] && [ "$d" != jazzy ]; then
+        if [ "$d" != jazzy ] && wanted "${#zenoh[@]}"; then
             echo "run.sh: $d: test_zenoh.py skipped (rmw_zenoh_cpp is built for jazzy only)"
         elif [ "$d" = jazzy ] && [ "$zenoh_ok" -eq 1 ]; then
             suite_in netns.sh zenoh_env.sh test_zenoh.py "$d" "ROS 2 $d rclpy on rmw_zenoh_cpp through rmw_zenohd" \
